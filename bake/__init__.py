@@ -1,0 +1,1 @@
+"""The bake: glTF scene -> light maps (irradiance) and cube maps in a bake directory."""

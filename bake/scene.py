@@ -1,0 +1,189 @@
+"""The scene data model: what the bake reads, independent of the file format.
+
+Everything is in world space, metres, Y up, linear RGB. A loader
+(`bake/gltf_loader.py`) fills these classes; the bake stages only read them.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+ROLES = ("diffuse", "curved", "planar", "transmissive")
+
+
+@dataclass
+class Lobe:
+    """One specular lobe of the section 3.3 BSDF (Eq. 3.3-3.5).
+
+    kind: "reflect" (Eq. 3.4) or "transmit" (Eq. 3.5, thin surface).
+    ks:   RGB lobe weight (k_s of Eq. 3.2, or k_t of Eq. 3.6 for transmission).
+    mx, my: Beckmann roughness along tangent / bitangent (Eq. 3.3).
+    r0:   Schlick reflectance at normal incidence.
+    alpha: Kurt et al.'s shadowing/masking exponent in [0, 1] (Eq. 3.4).
+    """
+
+    kind: str = "reflect"
+    ks: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    mx: float = 0.1
+    my: float = 0.1
+    r0: float = 0.04
+    alpha: float = 0.0
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, "ks": list(map(float, self.ks)), "mx": float(self.mx),
+                "my": float(self.my), "r0": float(self.r0), "alpha": float(self.alpha)}
+
+
+@dataclass
+class Material:
+    """Eq. 3.6: kd/pi + sum of reflection lobes + sum of transmission lobes, plus emission.
+
+    kd_texture, when present, is an (H, W, 3) float32 array of linear RGB that
+    multiplies kd, looked up with the object's `uvs` (glTF TEXCOORD_0).
+    emission is emitted radiance (W / (m^2 sr)); non-zero makes the object an area light.
+    """
+
+    name: str
+    kd: np.ndarray = field(default_factory=lambda: np.full(3, 0.8, np.float32))
+    kd_texture: np.ndarray | None = None
+    lobes: list[Lobe] = field(default_factory=list)
+    emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    double_sided: bool = False
+
+    @property
+    def is_emissive(self) -> bool:
+        return bool(np.any(np.asarray(self.emission) > 0))
+
+    @property
+    def reflect_lobes(self) -> list[Lobe]:
+        return [lobe for lobe in self.lobes if lobe.kind == "reflect"]
+
+    @property
+    def transmit_lobes(self) -> list[Lobe]:
+        return [lobe for lobe in self.lobes if lobe.kind == "transmit"]
+
+
+@dataclass
+class Object:
+    """One mesh instance with its node transform applied (world space).
+
+    positions (N, 3) float64, normals (N, 3) float32 unit length, uvs (N, 2)
+    float32 or None (texture coordinates, not light-map coordinates),
+    indices (M, 3) int64 with counter-clockwise front faces.
+    """
+
+    name: str
+    positions: np.ndarray
+    normals: np.ndarray
+    indices: np.ndarray
+    material: int
+    uvs: np.ndarray | None = None
+    role: str = "diffuse"
+    role_overridden: bool = False
+
+    @property
+    def triangle_areas(self) -> np.ndarray:
+        p = self.positions[self.indices]
+        return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+
+    @property
+    def area(self) -> float:
+        return float(self.triangle_areas.sum())
+
+    @property
+    def bounds(self) -> np.ndarray:
+        return np.stack([self.positions.min(axis=0), self.positions.max(axis=0)])
+
+
+@dataclass
+class PointLight:
+    position: np.ndarray
+    intensity: np.ndarray  # radiant intensity, W/sr (RGB)
+    name: str = ""
+
+
+@dataclass
+class SpotLight:
+    position: np.ndarray
+    direction: np.ndarray  # unit vector the cone points along
+    intensity: np.ndarray  # W/sr on the axis (RGB)
+    inner_cone: float = 0.0  # radians
+    outer_cone: float = np.pi / 4
+    name: str = ""
+
+
+@dataclass
+class DirectionalLight:
+    direction: np.ndarray  # unit vector the light travels along
+    irradiance: np.ndarray  # W/m^2 on a surface facing the light (RGB)
+    name: str = ""
+
+
+@dataclass
+class Sky:
+    """Radiance arriving from infinitely far away: a constant, or an equirectangular map.
+
+    The map is (H, W, 3) float32; row 0 is straight up (+Y), column u runs with
+    azimuth phi = 2*pi*u measured from +X towards -Z... see `bake/lights.py`
+    for the exact direction <-> pixel mapping, which is the one place it lives.
+    """
+
+    radiance: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
+    map: np.ndarray | None = None
+    source: str = ""  # file the map came from (for hashing / messages)
+
+
+@dataclass
+class Camera:
+    name: str
+    eye: np.ndarray
+    forward: np.ndarray  # unit view direction
+    up: np.ndarray  # unit, orthogonal to forward
+    yfov: float  # vertical field of view, radians
+    aspect: float | None = None
+    znear: float = 0.01
+    zfar: float = 1000.0
+
+
+@dataclass
+class CameraPath:
+    name: str
+    keys: list[dict]  # [{"time": s, "eye": [x,y,z], "target": [x,y,z]}, ...]
+
+
+@dataclass
+class Scene:
+    name: str
+    source: Path | None
+    objects: list[Object] = field(default_factory=list)
+    materials: list[Material] = field(default_factory=list)
+    point_lights: list[PointLight] = field(default_factory=list)
+    spot_lights: list[SpotLight] = field(default_factory=list)
+    directional_lights: list[DirectionalLight] = field(default_factory=list)
+    sky: Sky | None = None
+    cameras: list[Camera] = field(default_factory=list)
+    camera_paths: list[CameraPath] = field(default_factory=list)
+    bake_settings: dict = field(default_factory=dict)  # [bake] table of the sidecar
+    sidecar: Path | None = None
+    warnings: list[str] = field(default_factory=list)
+
+    def material_of(self, obj: Object) -> Material:
+        return self.materials[obj.material]
+
+    @property
+    def emitters(self) -> list[Object]:
+        return [o for o in self.objects if self.material_of(o).is_emissive]
+
+    @property
+    def has_light(self) -> bool:
+        return bool(self.emitters or self.point_lights or self.spot_lights
+                    or self.directional_lights
+                    or (self.sky is not None and (self.sky.map is not None
+                                                  or np.any(self.sky.radiance > 0))))
+
+    @property
+    def bounds(self) -> np.ndarray:
+        b = np.array([o.bounds for o in self.objects])
+        return np.stack([b[:, 0].min(axis=0), b[:, 1].max(axis=0)])

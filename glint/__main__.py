@@ -1,0 +1,3 @@
+from glint.cli import main
+
+raise SystemExit(main())

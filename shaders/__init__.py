@@ -1,0 +1,1 @@
+"""GLSL sources, found with importlib.resources."""

@@ -1,0 +1,1 @@
+"""The viewer: reads a bake directory and renders it (window or headless)."""
