@@ -1,0 +1,157 @@
+"""The bake directory: the one contract between the bake and the viewer.
+
+    manifest.json          versioned description (see `FORMAT_VERSION`): scene hash, per-stage
+                           input hashes, settings, statistics, materials, lights, cameras, objects
+    meshes.npz             per object o<i>_*: positions, normals, uvs (texture), lm_uv, lm_page,
+                           indices -- vertices already split along light-map chart seams
+    lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;
+                           half float unless a value does not fit
+    textures/material_<i>.exr   base-colour textures (linear)
+
+A bake is written into a temporary sibling directory and renamed into place, so an
+interrupted bake never leaves a half-written result (`BakeDirWriter`).
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from glint.errors import GlintError
+
+FORMAT_VERSION = 1
+MANIFEST = "manifest.json"
+
+
+def default_bake_dir(scene_path: Path, builtin: str | None = None) -> Path:
+    """Built-in scenes bake into the user cache (the package may be read-only);
+    a user's scene bakes beside its file, as NAME.bake/."""
+    if builtin:
+        root = Path(os.environ.get("GLINT_CACHE") or Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "glint")
+        return root / f"{builtin}.bake"
+    return scene_path.with_name(scene_path.stem + ".bake")
+
+
+def read_manifest(bake_dir: Path) -> dict | None:
+    """The manifest of an existing bake, or None when there is none or it is unreadable/old."""
+    path = Path(bake_dir) / MANIFEST
+    try:
+        manifest = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    if manifest.get("format") != "glint-bake" or manifest.get("version") != FORMAT_VERSION:
+        return None
+    return manifest
+
+
+def write_json(path: Path, data: dict) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=False))
+    os.replace(tmp, path)
+
+
+def save_meshes(path: Path, meshes: list[dict]) -> None:
+    arrays = {f"o{i}_{k}": v for i, mesh in enumerate(meshes) for k, v in mesh.items() if v is not None}
+    with open(path, "wb") as f:
+        np.savez_compressed(f, **arrays)
+
+
+def load_meshes(path: Path, count: int) -> list[dict]:
+    with np.load(path) as data:
+        meshes = [{} for _ in range(count)]
+        for key in data.files:
+            i, name = key[1:].split("_", 1)
+            meshes[int(i)][name] = data[key]
+    return meshes
+
+
+class BakeDirWriter:
+    """Write a bake into a temporary directory; `commit()` swaps it into place.
+
+    Leaving the `with` block without commit (an error, Ctrl-C) deletes the
+    temporary directory and leaves any previous bake untouched.
+    """
+
+    def __init__(self, target: Path):
+        self.target = Path(target)
+        self.path: Path | None = None
+
+    def __enter__(self) -> "BakeDirWriter":
+        parent = self.target.parent
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+            self.path = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.", suffix=".tmp", dir=parent))
+        except OSError as e:
+            raise GlintError(f"cannot create the bake directory in {parent}: {e.strerror}") from e
+        (self.path / "lightmaps").mkdir()
+        (self.path / "textures").mkdir()
+        return self
+
+    def reuse(self, old_dir: Path, relative: str) -> None:
+        """Carry a file of the previous bake over unchanged (hard link when possible)."""
+        src, dst = Path(old_dir) / relative, self.path / relative
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            os.link(src, dst)
+        except OSError:
+            shutil.copy2(src, dst)
+
+    def commit(self) -> None:
+        old = None
+        if self.target.exists():
+            old = self.target.with_name(f".{self.target.name}.old-{os.getpid()}")
+            os.rename(self.target, old)
+        try:
+            os.rename(self.path, self.target)
+        except OSError:
+            if old is not None:
+                os.rename(old, self.target)  # put the previous bake back
+            raise
+        self.path = None
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+
+    def __exit__(self, *exc) -> None:
+        if self.path is not None:
+            shutil.rmtree(self.path, ignore_errors=True)
+            self.path = None
+
+
+class Bake:
+    """A bake directory read back: manifest, meshes and light-map pages (for the viewer and tests)."""
+
+    def __init__(self, bake_dir: Path):
+        self.path = Path(bake_dir)
+        manifest = read_manifest(self.path)
+        if manifest is None:
+            raise GlintError(f"{self.path}: not a glint bake directory (or made by another version); run `glint bake`")
+        self.manifest = manifest
+        self.meshes = load_meshes(self.path / "meshes.npz", len(manifest["objects"]))
+        self._pages: dict[int, np.ndarray] = {}
+
+    def lightmap(self, page: int) -> np.ndarray:
+        """(H, W, 4) float32: irradiance RGB and A = 1 where path traced."""
+        if page not in self._pages:
+            from glint.image_io import read_image
+
+            self._pages[page] = read_image(self.path / self.manifest["lightmaps"][page])
+        return self._pages[page]
+
+    def irradiance(self, obj: int, triangles: np.ndarray, barycentric: np.ndarray) -> np.ndarray:
+        """Bilinear light-map look-up at points given by triangle index and barycentrics (K, 3)
+        of object `obj` -- what the viewer's texture unit does (GL_LINEAR, clamp to edge)."""
+        from bake.texels import sample_bilinear
+
+        mesh = self.meshes[obj]
+        corners = mesh["indices"][np.asarray(triangles)].astype(np.int64)  # (K, 3)
+        uv = np.einsum("kj,kjc->kc", barycentric, mesh["lm_uv"][corners])
+        pages = mesh["lm_page"][corners[:, 0]]
+        out = np.zeros((len(uv), 3), np.float32)
+        for page in np.unique(pages):
+            sel = pages == page
+            out[sel] = sample_bilinear(self.lightmap(int(page))[..., :3], uv[sel])
+        return out

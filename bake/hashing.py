@@ -1,0 +1,73 @@
+"""Content hashes of each bake stage's inputs: a re-bake redoes only what a change touches.
+
+geometry   -> unwrap + texel positions (meshes.npz)
+lightmaps  -> geometry + everything diffuse transport reads: kd (and textures),
+              emission, transmission lobes (glass lets light through), lights, sky,
+              transport settings. Reflection lobes, roles and cameras are not in it:
+              they only change the manifest, never a light map.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+
+import numpy as np
+
+from bake.scene import Scene
+
+# Bump when the integrator or the unwrap changes what they produce.
+GEOMETRY_VERSION = 1
+TRANSPORT_VERSION = 1
+
+
+class _Hasher:
+    def __init__(self, tag: str):
+        self._h = hashlib.sha256(tag.encode())
+
+    def array(self, a) -> "_Hasher":
+        a = np.ascontiguousarray(a)
+        self._h.update(f"{a.dtype.str}{a.shape}".encode())
+        self._h.update(a.tobytes())
+        return self
+
+    def value(self, v) -> "_Hasher":
+        self._h.update(json.dumps(v, sort_keys=True, default=_jsonable).encode())
+        return self
+
+    def hexdigest(self) -> str:
+        return self._h.hexdigest()[:32]
+
+
+def _jsonable(v):
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    if isinstance(v, (np.floating, np.integer)):
+        return v.item()
+    return str(v)
+
+
+def geometry_hash(scene: Scene, settings) -> str:
+    h = _Hasher(f"geometry-v{GEOMETRY_VERSION}")
+    h.value([settings.texels_per_metre, settings.padding, settings.max_page_size])
+    for obj in scene.objects:
+        h.value(obj.name).array(obj.positions).array(obj.normals).array(obj.indices)
+    return h.hexdigest()
+
+
+def transport_hash(scene: Scene, settings, geometry: str) -> str:
+    h = _Hasher(f"transport-v{TRANSPORT_VERSION}").value(geometry).value(settings.transport_dict())
+    for obj in scene.objects:
+        h.value(obj.material)
+        if obj.uvs is not None:
+            h.array(obj.uvs)
+    for m in scene.materials:
+        h.value([m.kd, m.emission, m.double_sided, [lobe.to_dict() for lobe in m.transmit_lobes]])
+        if m.kd_texture is not None:
+            h.array(m.kd_texture)
+    for light in (*scene.point_lights, *scene.spot_lights, *scene.directional_lights):
+        h.value(type(light).__name__).value({k: v for k, v in vars(light).items() if k != "name"})
+    if scene.sky is not None:
+        h.value(["sky", scene.sky.radiance])
+        if scene.sky.map is not None:
+            h.array(scene.sky.map)
+    return h.hexdigest()

@@ -1,0 +1,202 @@
+"""`glint bake`: scene file -> bake directory, redoing only the stages whose inputs changed.
+
+Stages and what invalidates them (bake/hashing.py):
+    unwrap + texels   geometry, texel density, padding
+    light maps        the above + diffuse transport (kd, emission, glass, lights, sky, samples)
+    manifest          everything else (reflection lobes, roles, cameras): rewritten, nothing re-baked
+"""
+from __future__ import annotations
+
+import hashlib
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bake import hashing
+from bake.bake_dir import (FORMAT_VERSION, BakeDirWriter, load_meshes, read_manifest,
+                           save_meshes, write_json)
+from bake.scene import Scene
+from bake.settings import BakeSettings
+from glint.image_io import write_image
+
+
+@dataclass
+class BakeReport:
+    bake_dir: Path
+    status: str  # "up-to-date" | "manifest" | "lightmaps" | "full"
+    manifest: dict
+    redone: list[str] = field(default_factory=list)
+
+    @property
+    def summary(self) -> str:
+        stats = self.manifest["statistics"]
+        if self.status == "up-to-date":
+            return f"{self.bake_dir}: up to date, nothing to do"
+        if self.status == "manifest":
+            return f"{self.bake_dir}: light maps up to date; manifest updated (materials, roles or cameras)"
+        lm = stats["lightmaps"]
+        return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels, "
+                f"{lm['rays'] / 1e6:.1f} M rays in {lm['seconds']:.1f} s "
+                f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)")
+
+
+def source_hash(scene: Scene) -> str:
+    h = hashlib.sha256()
+    for path in (scene.source, scene.sidecar):
+        if path is not None and Path(path).exists():
+            h.update(Path(path).read_bytes())
+    return h.hexdigest()[:32]
+
+
+def describe(scene: Scene) -> dict:
+    """The part of the manifest the viewer reads besides the light maps (JSON-ready)."""
+    from bake.roles import plane_of
+
+    def vec(v):
+        return [float(x) for x in np.asarray(v).ravel()]
+
+    objects = []
+    for obj in scene.objects:
+        entry = {"name": obj.name, "material": obj.material, "role": obj.role,
+                 "bounds": [vec(b) for b in obj.bounds], "triangles": int(len(obj.indices))}
+        if obj.role == "planar":
+            point, normal = plane_of(obj)
+            entry["plane"] = {"point": vec(point), "normal": vec(normal)}
+        objects.append(entry)
+    materials = [{"name": m.name, "kd": vec(m.kd), "emission": vec(m.emission),
+                  "double_sided": bool(m.double_sided), "lobes": [lobe.to_dict() for lobe in m.lobes],
+                  "kd_texture": f"textures/material_{i}.exr" if m.kd_texture is not None else None}
+                 for i, m in enumerate(scene.materials)]
+    lights = {
+        "point": [{"name": l.name, "position": vec(l.position), "intensity": vec(l.intensity)}
+                  for l in scene.point_lights],
+        "spot": [{"name": l.name, "position": vec(l.position), "direction": vec(l.direction),
+                  "intensity": vec(l.intensity), "inner_cone": float(l.inner_cone),
+                  "outer_cone": float(l.outer_cone)} for l in scene.spot_lights],
+        "directional": [{"name": l.name, "direction": vec(l.direction), "irradiance": vec(l.irradiance)}
+                        for l in scene.directional_lights],
+    }
+    sky = None
+    if scene.sky is not None:
+        sky = {"radiance": vec(scene.sky.radiance), "map": "sky.exr" if scene.sky.map is not None else None}
+    cameras = [{"name": c.name, "eye": vec(c.eye), "forward": vec(c.forward), "up": vec(c.up),
+                "yfov": float(c.yfov), "aspect": None if c.aspect is None else float(c.aspect),
+                "znear": float(c.znear), "zfar": float(c.zfar)} for c in scene.cameras]
+    paths = [{"name": p.name, "keys": p.keys} for p in scene.camera_paths]
+    return {"objects": objects, "materials": materials, "lights": lights, "sky": sky,
+            "cameras": cameras, "camera_paths": paths}
+
+
+def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
+               progress: bool = True) -> BakeReport:
+    old = None if force else read_manifest(bake_dir)
+    geometry = hashing.geometry_hash(scene, settings)
+    transport = hashing.transport_hash(scene, settings, geometry)
+    description = describe(scene)
+    manifest = {
+        "format": "glint-bake", "version": FORMAT_VERSION,
+        "scene": {"name": scene.name, "source": str(scene.source) if scene.source else None,
+                  "hash": source_hash(scene)},
+        "settings": {**settings.transport_dict(), "quality": settings.quality},
+        "stages": {"geometry": geometry, "lightmaps": transport},
+        **description,
+    }
+
+    reuse_geometry = old is not None and old["stages"].get("geometry") == geometry
+    reuse_lightmaps = reuse_geometry and old["stages"].get("lightmaps") == transport
+    if reuse_lightmaps:
+        manifest["atlas"] = old["atlas"]
+        manifest["lightmaps"] = old["lightmaps"]
+        manifest["statistics"] = old["statistics"]
+        if {k: v for k, v in old.items() if k != "statistics"} == \
+                {k: v for k, v in manifest.items() if k != "statistics"}:
+            return BakeReport(bake_dir, "up-to-date", old)
+
+    with BakeDirWriter(bake_dir) as out:
+        _write_textures(scene, out.path)
+        if reuse_lightmaps:
+            out.reuse(bake_dir, "meshes.npz")
+            for name in old["lightmaps"]:
+                out.reuse(bake_dir, name)
+            status, redone = "manifest", []
+        else:
+            manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
+                                                          bake_dir if reuse_geometry else None))
+            status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
+        write_json(out.path / "manifest.json", manifest)
+        out.commit()
+    return BakeReport(bake_dir, status, manifest, redone)
+
+
+def _write_textures(scene: Scene, path: Path) -> None:
+    for i, m in enumerate(scene.materials):
+        if m.kd_texture is not None:
+            write_image(path / "textures" / f"material_{i}.exr", m.kd_texture)
+    if scene.sky is not None and scene.sky.map is not None:
+        write_image(path / "sky.exr", scene.sky.map, half=False)
+
+
+def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Path, progress: bool,
+                                 old_dir: Path | None) -> dict:
+    from tqdm import tqdm
+
+    from bake.lightmap import bake_lightmaps
+    from bake.texels import rasterize_texels
+
+    t0 = time.perf_counter()
+    with tqdm(total=2, desc="unwrap", unit="step", disable=not progress, leave=False) as bar:
+        atlas = _atlas(scene, settings, path, old_dir)
+        bar.update()
+        pages = rasterize_texels(scene.objects, atlas)
+        bar.update()
+    t1 = time.perf_counter()
+
+    texels = int(sum((p.object >= 0).sum() for p in pages))
+    with tqdm(total=texels, desc="light maps", unit="texel", disable=not progress, leave=False,
+              smoothing=0.05) as bar:
+        result = bake_lightmaps(scene, pages, settings, progress=bar.update)
+    names = []
+    for k, (image, baked) in enumerate(zip(result.irradiance, result.baked)):
+        name = f"lightmaps/page_{k}.exr"
+        rgba = np.concatenate([image, baked[..., None].astype(np.float32)], axis=-1)
+        write_image(path / name, rgba, channels=("R", "G", "B", "A"))
+        names.append(name)
+    t2 = time.perf_counter()
+    return {
+        "atlas": {"width": atlas.width, "height": atlas.height, "pages": atlas.pages,
+                  "texels_per_metre": atlas.texels_per_metre, "padding": atlas.padding},
+        "lightmaps": names,
+        "statistics": {
+            "unwrap": {"seconds": round(t1 - t0, 3), "reused": old_dir is not None,
+                       "triangles": int(sum(len(o.indices) for o in scene.objects))},
+            "lightmaps": {"seconds": round(t2 - t1, 3), "texels": result.texels, "invalid_texels": result.invalid,
+                          "samples": settings.samples, "rays": int(result.rays),
+                          "rays_per_second": float(result.rays / max(t2 - t1, 1e-9))},
+        },
+    }
+
+
+def _atlas(scene: Scene, settings: BakeSettings, path: Path, old_dir: Path | None):
+    """Unwrap with xatlas, or, when the geometry did not change, read the charts of the last bake."""
+    from bake.unwrap import Atlas, ObjectCharts, unwrap
+
+    if old_dir is not None:
+        old = read_manifest(old_dir)["atlas"]
+        meshes = load_meshes(old_dir / "meshes.npz", len(scene.objects))
+        charts = [ObjectCharts(vmapping=m["vmapping"].astype(np.int64), indices=m["indices"].astype(np.int64),
+                               uv=m["lm_uv"], page=m["lm_page"]) for m in meshes]
+        atlas = Atlas(objects=charts, width=old["width"], height=old["height"], pages=old["pages"],
+                      texels_per_metre=old["texels_per_metre"], padding=old["padding"])
+    else:
+        atlas = unwrap(scene.objects, settings.texels_per_metre, settings.padding, settings.max_page_size)
+    meshes = []
+    for obj, charts in zip(scene.objects, atlas.objects):
+        v = charts.vmapping
+        meshes.append({"positions": obj.positions[v].astype(np.float32), "normals": obj.normals[v].astype(np.float32),
+                       "uvs": None if obj.uvs is None else obj.uvs[v].astype(np.float32),
+                       "lm_uv": charts.uv.astype(np.float32), "lm_page": charts.page.astype(np.int32),
+                       "indices": charts.indices.astype(np.uint32), "vmapping": v.astype(np.int64)})
+    save_meshes(path / "meshes.npz", meshes)
+    return atlas

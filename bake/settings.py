@@ -1,0 +1,65 @@
+"""Bake settings: quality presets, overridden by the sidecar's [bake] table, then the command line."""
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, fields, replace
+
+from glint.errors import GlintError
+
+# samples: hemisphere paths per texel; texels_per_metre: light-map resolution.
+# Measured times per preset are in docs/BAKE.md.
+PRESETS = {
+    "draft": {"samples": 32, "texels_per_metre": 8.0},
+    "preview": {"samples": 128, "texels_per_metre": 16.0},
+    "final": {"samples": 1024, "texels_per_metre": 32.0},
+}
+
+
+@dataclass(frozen=True)
+class BakeSettings:
+    quality: str = "preview"
+    samples: int = 128
+    texels_per_metre: float = 16.0
+    padding: int = 2  # texels between charts, so bilinear look-ups never mix charts
+    max_page_size: int = 2048
+    max_depth: int = 64
+    denoise: bool = True
+    backface_threshold: float = 0.2  # texels seeing more back faces than this are invalid (inside walls)
+    seed: int = 0
+    jobs: int = 0  # 0 = one per core
+
+    @property
+    def workers(self) -> int:
+        return self.jobs if self.jobs > 0 else (os.cpu_count() or 1)
+
+    def transport_dict(self) -> dict:
+        """The settings the light maps depend on (jobs does not change a result)."""
+        d = asdict(self)
+        for k in ("jobs", "quality"):
+            d.pop(k)
+        return d
+
+
+def resolve_settings(sidecar: dict | None = None, **cli) -> BakeSettings:
+    """Preset of the chosen quality, then sidecar [bake] keys, then explicit command-line values."""
+    sidecar = dict(sidecar or {})
+    quality = cli.get("quality") or sidecar.get("quality") or "preview"
+    if quality not in PRESETS:
+        raise GlintError(f"unknown quality '{quality}' (choose {', '.join(PRESETS)})")
+    values = dict(PRESETS[quality], quality=quality)
+    names = {f.name for f in fields(BakeSettings)}
+    for source in (sidecar, cli):
+        for key, value in source.items():
+            if value is None or key == "quality":
+                continue
+            if key not in names:
+                continue  # unknown sidecar keys are reported by the sidecar reader
+            values[key] = value
+    settings = replace(BakeSettings(), **values)
+    if settings.samples < 1:
+        raise GlintError(f"samples must be at least 1 (got {settings.samples})")
+    if not settings.texels_per_metre > 0:
+        raise GlintError(f"texels per metre must be positive (got {settings.texels_per_metre})")
+    if settings.jobs < 0:
+        raise GlintError(f"jobs must be 0 (all cores) or more (got {settings.jobs})")
+    return settings

@@ -1,0 +1,70 @@
+"""Reading and writing images with OpenImageIO (EXR, HDR, PNG, ...).
+
+Arrays are (H, W, C) with row 0 first in the file; float32 linear for EXR/HDR,
+uint8 for PNG. Writes go to a temporary name and are renamed into place, so a
+crash never leaves a half-written image behind.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import OpenImageIO as oiio
+
+from glint.errors import GlintError
+
+HALF_MAX = 65504.0
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """Any image OpenImageIO reads -> float32 (H, W, C) (8-bit files scaled to [0, 1])."""
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error:
+        raise GlintError(f"{path}: cannot read image: {buf.geterror().strip()}")
+    pixels = buf.get_pixels(oiio.FLOAT)
+    if pixels is None or buf.has_error:
+        raise GlintError(f"{path}: cannot read image: {buf.geterror().strip()}")
+    return np.ascontiguousarray(pixels, dtype=np.float32)
+
+
+def write_image(path: str | Path, pixels: np.ndarray, *, half: bool | None = None,
+                channels: tuple[str, ...] | None = None) -> str:
+    """Write (H, W, C) pixels; returns the pixel type written ("half", "float" or "uint8").
+
+    EXR: half float when every value fits (|v| <= 65504), else float32, so very
+    bright emitters never turn into Inf (DESIGN.md "Numerics"). half=True/False forces it.
+    """
+    path = Path(path)
+    pixels = np.asarray(pixels)
+    if pixels.ndim == 2:
+        pixels = pixels[:, :, None]
+    if not np.all(np.isfinite(pixels)):
+        raise ValueError(f"refusing to write non-finite pixels to {path}")
+    h, w, c = pixels.shape
+    ext = path.suffix.lower()
+    if ext == ".exr":
+        if half is None:
+            half = float(np.abs(pixels).max(initial=0.0)) <= HALF_MAX
+        fmt, kind = (oiio.HALF, "half") if half else (oiio.FLOAT, "float")
+        data = pixels.astype(np.float32)
+    else:
+        fmt, kind = oiio.UINT8, "uint8"
+        data = pixels if pixels.dtype == np.uint8 else np.clip(np.rint(pixels * 255.0), 0, 255).astype(np.uint8)
+    spec = oiio.ImageSpec(w, h, c, fmt)
+    if channels:
+        spec.channelnames = channels
+    if ext == ".exr":
+        spec.attribute("compression", "zip")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp{path.suffix}")
+    out = oiio.ImageOutput.create(str(tmp))
+    if out is None or not out.open(str(tmp), spec):
+        raise GlintError(f"{path}: cannot write image: {oiio.geterror().strip()}")
+    try:
+        ok = out.write_image(np.ascontiguousarray(data))
+        if not ok:
+            raise GlintError(f"{path}: cannot write image: {out.geterror().strip()}")
+    finally:
+        out.close()
+    os.replace(tmp, path)
+    return kind
