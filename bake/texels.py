@@ -1,0 +1,215 @@
+"""Light-map texels: where on which triangle each texel of each atlas page lies.
+
+Triangles are rasterised in UV space (texel units, the convention of
+`bake/unwrap.py`: texel (y, x) is the square [x, x+1] x [y, y+1], centre at
+(x + 0.5, y + 0.5)). Coverage is conservative: a texel whose centre is inside a
+triangle samples that point; a texel whose square only overlaps a triangle
+(chart borders, thin slivers) samples the point of the triangle closest to its
+centre in UV. A texel claimed by several triangles (neighbours in one chart,
+along their shared edge) takes the nearest, ties to the first in (object,
+triangle) order, so the result is deterministic. Nothing is offset along the
+normal here: the path tracer offsets its rays.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+# Candidate (triangle, texel) pairs handled at once: bounds the memory of the
+# vectorised rasteriser (about 30 float64 temporaries per pair) to ~100 MB.
+BATCH = 1 << 19
+
+
+@dataclass
+class TexelPage:
+    position: np.ndarray  # (H, W, 3) float32 world position of the texel sample (nan-free; 0 where empty)
+    normal: np.ndarray  # (H, W, 3) float32 unit interpolated shading normal (0 where empty)
+    object: np.ndarray  # (H, W) int32 object index, -1 where no triangle covers the texel
+    triangle: np.ndarray  # (H, W) int32 triangle index within the object, -1 where empty
+
+
+def rasterize_texels(objects, atlas) -> list[TexelPage]:
+    """One `TexelPage` per atlas page for `objects` (list of `bake.scene.Object`) and their `atlas`."""
+    W, H = atlas.width, atlas.height
+    # All charted triangles of the scene, in (object, triangle) order.
+    tri_obj, tri_idx, tri_uv, tri_page = [], [], [], []
+    for k, charts in enumerate(atlas.objects):
+        uv = charts.uv.astype(np.float64)[charts.indices] * (W, H)  # (M, 3, 2) texel units
+        # xatlas leaves the triangles it could not chart (zero area) at one point.
+        charted = ~np.all(uv == uv[:, :1], axis=(1, 2))
+        ids = np.nonzero(charted)[0]
+        tri_obj.append(np.full(len(ids), k, np.int64))
+        tri_idx.append(ids)
+        tri_uv.append(uv[ids])
+        tri_page.append(charts.page[charts.indices[ids, 0]].astype(np.int64))
+    tri_obj, tri_idx = np.concatenate(tri_obj), np.concatenate(tri_idx)
+    tri_uv, tri_page = np.concatenate(tri_uv), np.concatenate(tri_page)
+
+    pages = []
+    for p in range(atlas.pages):
+        sel = np.nonzero(tri_page == p)[0]  # stays in (object, triangle) order
+        best = np.full(H * W, np.inf)
+        owner = np.full(H * W, -1, np.int64)  # index into the scene's triangle list
+        bary = np.zeros((H * W, 3))
+        uv = tri_uv[sel]
+        for batch in _batches(uv, W, H):
+            texel, tri, dist, b = _rasterise_batch(uv, batch, W, H)
+            # Nearest candidate per texel; stable sort keeps (object, triangle) order on ties.
+            order = np.lexsort((dist, texel))
+            texel, tri, dist, b = texel[order], tri[order], dist[order], b[order]
+            first = np.ones(len(texel), bool)
+            first[1:] = texel[1:] != texel[:-1]
+            texel, tri, dist, b = texel[first], tri[first], dist[first], b[first]
+            better = dist < best[texel]  # strict: earlier batches win ties
+            texel = texel[better]
+            best[texel] = dist[better]
+            owner[texel] = sel[tri[better]]
+            bary[texel] = b[better]
+        pages.append(_page(objects, atlas, owner, bary, tri_obj, tri_idx, W, H))
+    return pages
+
+
+def _batches(uv: np.ndarray, W: int, H: int):
+    """Split triangles (K, 3, 2) into consecutive index ranges of at most ~BATCH candidate texels."""
+    x0, x1, y0, y1 = _texel_range(uv, W, H)
+    counts = (x1 - x0 + 1) * (y1 - y0 + 1)
+    ends = np.cumsum(counts)
+    start = 0
+    while start < len(uv):
+        base = ends[start - 1] if start else 0
+        stop = max(int(np.searchsorted(ends, base + BATCH, side="right")), start + 1)
+        yield np.arange(start, stop)
+        start = stop
+
+
+def _texel_range(uv: np.ndarray, W: int, H: int):
+    """Inclusive range of texels whose squares overlap each triangle's UV bounding box."""
+    lo, hi = uv.min(axis=1), uv.max(axis=1)
+    # Texel x overlaps [lo, hi] (with positive area) for floor(lo) <= x < hi.
+    x0 = np.clip(np.floor(lo[:, 0]), 0, W - 1).astype(np.int64)
+    y0 = np.clip(np.floor(lo[:, 1]), 0, H - 1).astype(np.int64)
+    x1 = np.clip(np.ceil(hi[:, 0]) - 1, 0, W - 1).astype(np.int64)
+    y1 = np.clip(np.ceil(hi[:, 1]) - 1, 0, H - 1).astype(np.int64)
+    return x0, np.maximum(x1, x0), y0, np.maximum(y1, y0)
+
+
+def _rasterise_batch(uv: np.ndarray, batch: np.ndarray, W: int, H: int):
+    """Candidate texels of triangles `batch`: (texel, triangle, distance, barycentrics) of the covered ones."""
+    x0, x1, y0, y1 = _texel_range(uv[batch], W, H)
+    nx = x1 - x0 + 1
+    counts = nx * (y1 - y0 + 1)
+    tri = np.repeat(batch, counts)
+    local = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
+    nx_r = np.repeat(nx, counts)
+    x = np.repeat(x0, counts) + local % nx_r
+    y = np.repeat(y0, counts) + local // nx_r
+    p = np.stack([x + 0.5, y + 0.5], axis=1)
+
+    a, b, c = uv[tri, 0], uv[tri, 1], uv[tri, 2]
+    area2 = _cross(b - a, c - a)
+    s = np.sign(area2)
+    # Edge functions: w_a is proportional to the barycentric of a (edge b->c), etc.
+    edges = ((b, c), (c, a), (a, b))
+    w = np.stack([_cross(e1 - e0, p - e0) for e0, e1 in edges], axis=1)  # (n, 3)
+    # Half the extent of the texel square along each edge function's gradient.
+    r = np.stack([0.5 * (np.abs(e1 - e0).sum(axis=1)) for e0, e1 in edges], axis=1)
+    # Separating-axis test of square vs triangle on the three edge normals (the two
+    # box axes are the candidate range); a UV-degenerate triangle must straddle its lines.
+    overlaps = np.where(s[:, None] != 0, s[:, None] * w + r > 0, r - np.abs(w) >= 0).all(axis=1)
+    inside = (s[:, None] * w >= 0).all(axis=1) & (s != 0)
+
+    keep = overlaps | inside
+    p, a, b, c, w, area2, inside, tri = p[keep], a[keep], b[keep], c[keep], w[keep], area2[keep], inside[keep], tri[keep]
+    texel = y[keep] * W + x[keep]
+
+    bary = np.zeros((len(p), 3))
+    bary[inside] = w[inside] / area2[inside, None]
+    dist = np.zeros(len(p))
+    out = ~inside
+    if out.any():
+        d, bo = _closest_on_edges(p[out], a[out], b[out], c[out])
+        dist[out], bary[out] = d, bo
+    return texel, tri, dist, bary
+
+
+def _closest_on_edges(p, a, b, c):
+    """Distance from p to the nearest point on triangle abc's boundary, and that point's barycentrics."""
+    best = np.full(len(p), np.inf)
+    bary = np.zeros((len(p), 3))
+    for i, j, e0, e1 in ((0, 1, a, b), (1, 2, b, c), (2, 0, c, a)):
+        d = e1 - e0
+        t = np.clip(((p - e0) * d).sum(axis=1) / np.maximum((d * d).sum(axis=1), 1e-300), 0.0, 1.0)
+        q = e0 + t[:, None] * d
+        dist = np.hypot(*(p - q).T)
+        better = dist < best
+        best[better] = dist[better]
+        bary[better] = 0.0
+        bary[better, i] = 1.0 - t[better]
+        bary[better, j] = t[better]
+    return best, bary
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+
+def _page(objects, atlas, owner, bary, tri_obj, tri_idx, W, H) -> TexelPage:
+    """Interpolate world positions and shading normals of the owned texels."""
+    position = np.zeros((H * W, 3), np.float32)
+    normal = np.zeros((H * W, 3), np.float32)
+    obj_map = np.full(H * W, -1, np.int32)
+    tri_map = np.full(H * W, -1, np.int32)
+    covered = np.nonzero(owner >= 0)[0]
+    k_of = tri_obj[owner[covered]]
+    for k in np.unique(k_of):
+        texels = covered[k_of == k]
+        tris = tri_idx[owner[texels]]
+        obj, charts = objects[k], atlas.objects[k]
+        corners = charts.vmapping[charts.indices[tris]]  # (n, 3) original vertex indices
+        P = np.asarray(obj.positions, np.float64)[corners]
+        N = np.asarray(obj.normals, np.float64)[corners]
+        bw = bary[texels][:, :, None]
+        pos = (bw * P).sum(axis=1)
+        nrm = (bw * N).sum(axis=1)
+        length = np.linalg.norm(nrm, axis=1)
+        # Opposite normals at a corner can cancel: use the face normal there.
+        flat = length < 1e-6
+        if flat.any():
+            g = np.cross(P[flat, 1] - P[flat, 0], P[flat, 2] - P[flat, 0])
+            nrm[flat] = g
+            length[flat] = np.linalg.norm(g, axis=1)
+        nrm /= np.maximum(length, 1e-300)[:, None]
+        position[texels] = pos
+        normal[texels] = nrm
+        obj_map[texels] = k
+        tri_map[texels] = tris
+    return TexelPage(position=position.reshape(H, W, 3), normal=normal.reshape(H, W, 3),
+                     object=obj_map.reshape(H, W), triangle=tri_map.reshape(H, W))
+
+
+def sample_bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear look-up of an (H, W, C) image at (K, 2) uv -> (K, C), as OpenGL GL_LINEAR + CLAMP_TO_EDGE.
+
+    Texel (y, x) has its centre at uv ((x + 0.5) / W, (y + 0.5) / H); texel
+    indices outside the image are clamped to the edge. A 2-D image gives (K,).
+    """
+    image = np.asarray(image)
+    flat = image.ndim == 2
+    if flat:
+        image = image[..., None]
+    H, W = image.shape[:2]
+    uv = np.asarray(uv, np.float64).reshape(-1, 2)
+    x = uv[:, 0] * W - 0.5
+    y = uv[:, 1] * H - 0.5
+    xf, yf = np.floor(x), np.floor(y)
+    fx, fy = (x - xf)[:, None], (y - yf)[:, None]
+    x0 = np.clip(xf.astype(np.int64), 0, W - 1)
+    x1 = np.clip(xf.astype(np.int64) + 1, 0, W - 1)
+    y0 = np.clip(yf.astype(np.int64), 0, H - 1)
+    y1 = np.clip(yf.astype(np.int64) + 1, 0, H - 1)
+    img = image.astype(np.float64, copy=False)
+    out = ((1 - fy) * ((1 - fx) * img[y0, x0] + fx * img[y0, x1])
+           + fy * ((1 - fx) * img[y1, x0] + fx * img[y1, x1]))
+    out = out.astype(image.dtype if np.issubdtype(image.dtype, np.floating) else np.float64)
+    return out[:, 0] if flat else out
