@@ -54,6 +54,7 @@ def write_image(path: str | Path, pixels: np.ndarray, *, half: bool | None = Non
     spec = oiio.ImageSpec(w, h, c, fmt)
     if channels:
         spec.channelnames = channels
+    spec.attribute("DateTime", "")  # no timestamp: the same pixels give a byte-identical file
     if ext == ".exr":
         spec.attribute("compression", "zip")
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp{path.suffix}")

@@ -1,0 +1,736 @@
+"""glTF 2.0 (.gltf + .bin, or .glb) + optional sidecar -> `bake.scene.Scene`.
+
+The file is read here, not with `trimesh.load`: trimesh keeps only the first
+camera (and drops the camera node's subtree), loses which glTF material and
+primitive each geometry came from, skips KHR_lights_punctual, and reports
+broken files with assertion errors. glint needs all of that exactly, and one
+clear message per broken file. trimesh's reader (trimesh/exchange/gltf) was the
+reference for the accessor decoding below.
+
+Conventions:
+- One `Object` per (node, triangle primitive), in world space: positions by the
+  node's world matrix, normals by its inverse transpose (the cofactor matrix),
+  winding reversed where the matrix mirrors (negative determinant, glTF 3.7.4).
+  Object.name is the node's name (else its mesh's, else "node<i>"), made unique
+  with ".1", ".2", ... across primitives and repeated names.
+- Missing normals are computed flat (one normal per face, vertices split), as
+  the glTF spec requires of clients; zero-length or non-finite normals are
+  replaced by the (area-weighted) face normal. Degenerate triangles are dropped.
+- Object.uvs is TEXCOORD_0 unchanged: (0, 0) is the top-left of the image, and
+  Material.kd_texture row 0 is the image's top row, so texel = (v * H, u * W).
+- Primitives without a material get "default": a grey (kd 0.8) diffuse material.
+- KHR_lights_punctual: intensity is candela (point, spot) or lux (directional);
+  with `[lights] units = "photometric"` (default) it is divided by 683 lm/W to
+  W/sr and W/m^2. Lights shine along the node's -Z; `range` is ignored (the
+  inverse-square law applies everywhere).
+- Cameras: every perspective camera on a node (eye = node origin, forward = -Z,
+  up = +Y, in world space); orthographic cameras are skipped with a warning.
+  The sidecar's [cameras] follow the glTF's.
+"""
+from __future__ import annotations
+
+import base64
+import io
+import json
+import struct
+import urllib.parse
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bake.material_mapping import MATERIAL_EXTENSIONS, apply_override, material_from_gltf
+from bake.roles import assign_roles
+from bake.scene import (Camera, DirectionalLight, Material, Object, PointLight, Scene,
+                        SpotLight)
+from bake.sidecar import read_sidecar
+from bake.validate import (add_warning, check_finite_positions, degenerate_triangles,
+                           face_cross, repair_normals, validate_scene)
+from glint.errors import GlintError
+
+LUMENS_PER_WATT = 683.0  # luminous efficacy that defines the candela
+SUPPORTED_EXTENSIONS = frozenset(("KHR_lights_punctual", "KHR_mesh_quantization")
+                                 + MATERIAL_EXTENSIONS)
+
+_CHUNK_JSON, _CHUNK_BIN = 0x4E4F534A, 0x004E4942
+_COMPONENTS = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
+_NORMALIZE = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
+_TYPES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
+_SINGULAR = {"accessors": "accessor", "bufferViews": "bufferView", "meshes": "mesh",
+             "materials": "material", "textures": "texture", "images": "image",
+             "cameras": "camera", "nodes": "node"}
+_MODES = {0: "points", 1: "lines", 2: "line loop", 3: "line strip", 4: "triangles",
+          5: "triangle strip", 6: "triangle fan"}
+
+
+@dataclass
+class GltfDocument:
+    """The JSON of a glTF file and its buffers' bytes."""
+
+    path: Path
+    json: dict
+    buffers: list[bytes] = field(default_factory=list)
+
+    @property
+    def source(self) -> str:
+        return self.path.name
+
+
+# --------------------------------------------------------------------------- public
+
+
+def load_scene(path: Path) -> Scene:
+    """Read a .glb/.gltf and its sidecar `<stem>.glint.toml` into a checked Scene."""
+    path = Path(path)
+    doc = _guarded(path, read_gltf, path)
+    side = read_sidecar(path)
+    return _guarded(path, lambda: _SceneBuilder(doc, side).build())
+
+
+def _guarded(path: Path, fn, *args):
+    """Run fn; a structure the explicit checks did not foresee still gives one line."""
+    try:
+        return fn(*args)
+    except GlintError:
+        raise
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as err:
+        raise GlintError(f"{path.name}: malformed glTF ({type(err).__name__}: {err})") from err
+
+
+def read_gltf(path: Path) -> GltfDocument:
+    """Parse the container (.glb chunks or .gltf JSON) and load every buffer."""
+    path = Path(path)
+    if not path.exists():
+        raise GlintError(f"{path}: no such file")
+    if not path.is_file():
+        raise GlintError(f"{path}: not a file")
+    data = path.read_bytes()
+    name = path.name
+    binary = None
+    if data[:4] == b"glTF":
+        text, binary = _split_glb(data, name)
+    elif path.suffix.lower() == ".glb":
+        raise GlintError(f"{name}: not a binary glTF file (it does not start with 'glTF')")
+    else:
+        text = data
+    try:
+        tree = json.loads(text.decode("utf-8-sig"))
+    except UnicodeDecodeError:
+        raise GlintError(f"{name}: malformed glTF: the JSON is not UTF-8 text") from None
+    except json.JSONDecodeError as err:
+        raise GlintError(f"{name}: malformed glTF: invalid JSON at line {err.lineno}, "
+                         f"column {err.colno}: {err.msg}") from None
+    if not isinstance(tree, dict):
+        raise GlintError(f"{name}: malformed glTF: the JSON is not an object")
+    version = str(tree.get("asset", {}).get("version", "2.0"))
+    if not version.startswith("2"):
+        raise GlintError(f"{name}: glTF version {version} is not supported (need 2.0)")
+    doc = GltfDocument(path=path, json=tree)
+    for i, buf in enumerate(_list(tree, "buffers", name)):
+        doc.buffers.append(_buffer_bytes(buf, i, path, binary))
+    return doc
+
+
+def node_world_matrices(tree: dict, source: str = "glTF") -> dict[int, list[np.ndarray]]:
+    """Node index -> world matrices (4x4, one per path from the scene's roots)."""
+    nodes = tree.get("nodes", [])
+    scenes = tree.get("scenes")
+    if scenes:
+        scene_index = tree.get("scene", 0)
+        if not 0 <= scene_index < len(scenes):
+            raise GlintError(f"{source}: malformed glTF: scene {scene_index} does not exist")
+        roots = list(scenes[scene_index].get("nodes", []))
+    else:  # no scenes: every node that is nobody's child is a root
+        children = {c for n in nodes for c in n.get("children", [])}
+        roots = [i for i in range(len(nodes)) if i not in children]
+    out: dict[int, list[np.ndarray]] = {}
+
+    def visit(index: int, parent: np.ndarray, path: tuple):
+        if not isinstance(index, int) or not 0 <= index < len(nodes):
+            raise GlintError(f"{source}: malformed glTF: node {index} does not exist")
+        if index in path:
+            raise GlintError(f"{source}: malformed glTF: node {index} is its own ancestor")
+        world = parent @ local_matrix(nodes[index], f"{source}: node {index}")
+        out.setdefault(index, []).append(world)
+        for child in nodes[index].get("children", []):
+            visit(child, world, path + (index,))
+
+    for root in roots:
+        visit(root, np.eye(4), ())
+    return out
+
+
+def local_matrix(node: dict, where: str = "node") -> np.ndarray:
+    """A node's local 4x4 matrix: `matrix` (column-major) or T * R * S."""
+    if "matrix" in node:
+        m = np.asarray(node["matrix"], np.float64)
+        if m.shape != (16,):
+            raise GlintError(f"{where}: malformed glTF: matrix must have 16 numbers")
+        return m.reshape(4, 4).T
+    t = np.asarray(node.get("translation", [0, 0, 0]), np.float64)
+    q = np.asarray(node.get("rotation", [0, 0, 0, 1]), np.float64)
+    s = np.asarray(node.get("scale", [1, 1, 1]), np.float64)
+    if t.shape != (3,) or q.shape != (4,) or s.shape != (3,):
+        raise GlintError(f"{where}: malformed glTF: translation/rotation/scale have wrong length")
+    m = np.eye(4)
+    m[:3, :3] = quaternion_matrix(q) * s  # R @ diag(s)
+    m[:3, 3] = t
+    return m
+
+
+def quaternion_matrix(q) -> np.ndarray:
+    """Rotation matrix of a glTF (x, y, z, w) quaternion (normalised first)."""
+    q = np.asarray(q, np.float64)
+    norm = np.linalg.norm(q)
+    x, y, z, w = q / norm if norm > 0 else (0.0, 0.0, 0.0, 1.0)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function, inverted (IEC 61966-2-1)."""
+    c = np.asarray(c, np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+# --------------------------------------------------------------------------- container
+
+
+def _split_glb(data: bytes, name: str) -> tuple[bytes, bytes | None]:
+    """GLB = 12-byte header + JSON chunk + optional BIN chunk (glTF 2.0 section 4.4)."""
+    if len(data) < 20:
+        raise GlintError(f"{name}: truncated .glb: only {len(data)} bytes")
+    _, version, length = struct.unpack_from("<III", data, 0)
+    if version != 2:
+        raise GlintError(f"{name}: .glb container version {version} is not supported (need 2)")
+    if length > len(data):
+        raise GlintError(f"{name}: truncated .glb: the header says {length} bytes, "
+                         f"the file has {len(data)}")
+    text, binary, offset = None, None, 12
+    while offset + 8 <= length:
+        chunk_length, chunk_type = struct.unpack_from("<II", data, offset)
+        start, end = offset + 8, offset + 8 + chunk_length
+        if end > length:
+            raise GlintError(f"{name}: truncated .glb: a chunk runs past the end of the file "
+                             f"(bytes {start}..{end} of {length})")
+        if text is None:
+            if chunk_type != _CHUNK_JSON:
+                raise GlintError(f"{name}: malformed .glb: the first chunk is not JSON")
+            text = data[start:end]
+        elif chunk_type == _CHUNK_BIN and binary is None:
+            binary = data[start:end]
+        offset = end
+    if text is None:
+        raise GlintError(f"{name}: malformed .glb: no JSON chunk")
+    return text, binary
+
+
+def _buffer_bytes(buf: dict, i: int, path: Path, binary: bytes | None) -> bytes:
+    name = path.name
+    length = buf.get("byteLength")
+    if not isinstance(length, int) or length < 0:
+        raise GlintError(f"{name}: malformed glTF: buffer {i} has no valid byteLength")
+    uri = buf.get("uri")
+    if uri is None:
+        if binary is None or i != 0:
+            raise GlintError(f"{name}: malformed glTF: buffer {i} has no uri and there is "
+                             f"no binary chunk for it")
+        data = binary
+    elif uri.startswith("data:"):
+        try:
+            data = base64.b64decode(uri.split(",", 1)[1], validate=False)
+        except (IndexError, ValueError):
+            raise GlintError(f"{name}: malformed glTF: buffer {i} has a bad data: URI") from None
+    else:
+        file = path.parent / urllib.parse.unquote(uri)
+        if not file.is_file():
+            raise GlintError(f"{name}: buffer {i} file '{uri}' is missing (looked for {file})")
+        data = file.read_bytes()
+    if len(data) < length:
+        raise GlintError(f"{name}: buffer {i} is truncated: {len(data)} bytes, "
+                         f"byteLength says {length}")
+    return data[:length]
+
+
+def _list(tree: dict, key: str, source: str) -> list:
+    value = tree.get(key, [])
+    if not isinstance(value, list):
+        raise GlintError(f"{source}: malformed glTF: '{key}' must be a list")
+    return value
+
+
+# --------------------------------------------------------------------------- scene
+
+
+class _SceneBuilder:
+    def __init__(self, doc: GltfDocument, side):
+        self.doc, self.side, self.tree = doc, side, doc.json
+        self.source = doc.source
+        self.warnings: list[str] = []
+        self._accessors: dict[int, np.ndarray] = {}
+        self._images: dict[int, np.ndarray | None] = {}
+        self._names: set[str] = set()
+
+    def build(self) -> Scene:
+        doc, side = self.doc, self.side
+        scene = Scene(name=doc.path.stem, source=doc.path, sidecar=side.path,
+                      bake_settings=dict(side.bake), sky=side.sky,
+                      camera_paths=list(side.camera_paths))
+        self._check_extensions()
+        worlds = node_world_matrices(self.tree, self.source)
+        scene.materials = self._materials()
+        aliases = self._objects(scene, worlds)
+        self._lights(scene, worlds)
+        self._cameras(scene, worlds)
+        self._check_material_names()
+        assign_roles(scene, self._role_overrides(scene, aliases))
+        scene.warnings = list(side.warnings) + self.warnings
+        validate_scene(scene)
+        return scene
+
+    def warn(self, message: str) -> None:
+        add_warning(self.warnings, message)
+
+    def bad(self, message: str) -> GlintError:
+        return GlintError(f"{self.source}: malformed glTF: {message}")
+
+    def item(self, key: str, index, what: str) -> dict:
+        items = _list(self.tree, key, self.source)
+        if not isinstance(index, int) or not 0 <= index < len(items):
+            raise self.bad(f"{what} refers to {_SINGULAR.get(key, key)} {index}, "
+                           "which does not exist")
+        return items[index]
+
+    # ---- extensions
+
+    def _check_extensions(self):
+        required = set(self.tree.get("extensionsRequired", [])) - SUPPORTED_EXTENSIONS
+        if required:
+            hint = ""
+            if required & {"KHR_draco_mesh_compression", "EXT_meshopt_compression"}:
+                hint = " (export without mesh compression)"
+            raise GlintError(f"{self.source}: requires glTF extension(s) "
+                             f"{', '.join(sorted(required))} that glint does not support; "
+                             f"export again without them{hint}")
+        used = set(self.tree.get("extensionsUsed", [])) - SUPPORTED_EXTENSIONS
+        if used:
+            self.warn(f"{self.source}: glTF extension(s) {', '.join(sorted(used))} not "
+                      f"supported, ignored")
+
+    # ---- accessors
+
+    def accessor(self, index, what: str) -> np.ndarray:
+        """(count, components) array: float64 for float/normalised data, else integers."""
+        if index in self._accessors:
+            return self._accessors[index]
+        a = self.item("accessors", index, what)
+        where = f"accessor {index} ({what})"
+        ctype, atype, count = a.get("componentType"), a.get("type"), a.get("count")
+        if ctype not in _COMPONENTS or atype not in _TYPES:
+            raise self.bad(f"{where} has componentType {ctype!r} / type {atype!r}")
+        if not isinstance(count, int) or count < 0:
+            raise self.bad(f"{where} has an invalid count {count!r}")
+        ncomp = _TYPES[atype]
+        if "bufferView" in a:
+            data = self._read_view(a["bufferView"], a.get("byteOffset", 0), count, ctype,
+                                   ncomp, where)
+        else:  # all zeros unless sparse values replace some
+            data = np.zeros((count, ncomp), _COMPONENTS[ctype])
+        if "sparse" in a:
+            sp = a["sparse"]
+            n, si, sv = sp.get("count"), sp.get("indices", {}), sp.get("values", {})
+            if not isinstance(n, int) or n < 0:
+                raise self.bad(f"{where} has an invalid sparse count")
+            idx = self._read_view(si.get("bufferView"), si.get("byteOffset", 0), n,
+                                  si.get("componentType"), 1, f"{where} sparse indices")
+            val = self._read_view(sv.get("bufferView"), sv.get("byteOffset", 0), n, ctype,
+                                  ncomp, f"{where} sparse values")
+            idx = idx.reshape(-1).astype(np.int64)
+            if idx.size and (idx.min() < 0 or idx.max() >= count):
+                raise self.bad(f"{where} has sparse indices out of range")
+            data = data.copy()
+            data[idx] = val
+        if a.get("normalized") and ctype in _NORMALIZE:
+            data = np.maximum(data / _NORMALIZE[ctype], -1.0)
+        elif ctype == 5126:
+            data = data.astype(np.float64)
+        self._accessors[index] = data
+        return data
+
+    def _read_view(self, view_index, start, count: int, ctype, ncomp: int,
+                   where: str) -> np.ndarray:
+        """`count` elements of `ncomp` components from a bufferView, honouring byteStride."""
+        if ctype not in _COMPONENTS:
+            raise self.bad(f"{where} has componentType {ctype!r}")
+        view = self.item("bufferViews", view_index, where)
+        buffer = self.doc.buffers[self._index(view.get("buffer"), len(self.doc.buffers),
+                                              f"bufferView {view_index}", "buffer")]
+        v0, vlen = view.get("byteOffset", 0), view.get("byteLength", -1)
+        if not (isinstance(v0, int) and isinstance(vlen, int) and 0 <= v0 and 0 <= vlen
+                and v0 + vlen <= len(buffer)):
+            raise self.bad(f"bufferView {view_index} (bytes {v0}+{vlen}) lies outside its "
+                           f"buffer of {len(buffer)} bytes")
+        dtype = np.dtype(_COMPONENTS[ctype])
+        elem = dtype.itemsize * ncomp
+        stride = view.get("byteStride") or elem
+        need = 0 if count == 0 else start + (count - 1) * stride + elem
+        if not isinstance(start, int) or start < 0 or stride < elem or need > vlen:
+            raise self.bad(f"{where} needs {need} bytes of bufferView {view_index}, "
+                           f"which has {vlen}")
+        if count == 0:
+            return np.zeros((0, ncomp), dtype)
+        raw = np.frombuffer(buffer, np.uint8, count=vlen, offset=v0)
+        rows = np.lib.stride_tricks.as_strided(raw[start:], (count, elem), (stride, 1))
+        return np.ascontiguousarray(rows).view(dtype).reshape(count, ncomp)
+
+    def _index(self, value, size: int, what: str, kind: str) -> int:
+        if not isinstance(value, int) or not 0 <= value < size:
+            raise self.bad(f"{what} refers to {kind} {value}, which does not exist")
+        return value
+
+    # ---- materials and textures
+
+    def _materials(self) -> list[Material]:
+        side = self.side
+        out, names = [], set()
+        for i, gm in enumerate(_list(self.tree, "materials", self.source)):
+            name = gm.get("name") or f"material{i}"
+            names.add(name)
+            out.append(material_from_gltf(
+                gm, name, kd_texture=self._base_color_texture(gm, name),
+                diffuse_roughness=side.diffuse_roughness, override=side.materials.get(name),
+                warnings=self.warnings, source=self.source))
+        self._default_material = None
+        self._material_names = names
+        return out
+
+    def _default(self, scene: Scene) -> int:
+        """Index of the material for primitives without one (added on first use)."""
+        if self._default_material is None:
+            mat = Material(name="default")
+            override = self.side.materials.get("default")
+            if override:
+                apply_override(mat, override)
+            self._material_names.add("default")
+            scene.materials.append(mat)
+            self._default_material = len(scene.materials) - 1
+        return self._default_material
+
+    def _base_color_texture(self, gm: dict, name: str) -> np.ndarray | None:
+        info = gm.get("pbrMetallicRoughness", {}).get("baseColorTexture")
+        if info is None:
+            return None
+        where = f"{self.source}: material '{name}'"
+        if info.get("texCoord", 0) != 0:
+            self.warn(f"{where}: base colour texture uses TEXCOORD_{info['texCoord']}; "
+                      "glint reads TEXCOORD_0")
+        if "KHR_texture_transform" in info.get("extensions", {}):
+            self.warn(f"{where}: KHR_texture_transform is not supported, ignored")
+        tex = self.item("textures", info.get("index"), f"material '{name}' baseColorTexture")
+        source = tex.get("source")
+        if source is None:
+            self.warn(f"{where}: base colour texture has no PNG/JPEG source; ignored")
+            return None
+        if source not in self._images:
+            self._images[source] = self._decode_image(source, where)
+        return self._images[source]
+
+    def _decode_image(self, index: int, where: str) -> np.ndarray | None:
+        from PIL import Image
+
+        image = self.item("images", index, f"{where} texture")
+        try:
+            if "bufferView" in image:
+                view = self.item("bufferViews", image["bufferView"], f"image {index}")
+                buffer = self.doc.buffers[self._index(view.get("buffer"), len(self.doc.buffers),
+                                                      f"image {index}", "buffer")]
+                start = view.get("byteOffset", 0)
+                data = buffer[start:start + view["byteLength"]]
+            else:
+                uri = image["uri"]
+                if uri.startswith("data:"):
+                    data = base64.b64decode(uri.split(",", 1)[1])
+                else:
+                    data = (self.doc.path.parent / urllib.parse.unquote(uri)).read_bytes()
+            with Image.open(io.BytesIO(data)) as img:
+                rgb = np.asarray(img.convert("RGB"), np.float32) / 255.0
+        except Exception as err:  # any unreadable image: warn and fall back to the factor
+            self.warn(f"{where}: cannot read base colour texture (image {index}: "
+                      f"{type(err).__name__}: {err}); using baseColorFactor only")
+            return None
+        return srgb_to_linear(rgb)
+
+    # ---- geometry
+
+    def _objects(self, scene: Scene, worlds) -> dict[str, tuple[str, str]]:
+        """Fill scene.objects; return object name -> (node name, mesh name) for the sidecar."""
+        nodes = _list(self.tree, "nodes", self.source)
+        aliases = {}
+        for node_index in sorted(worlds):
+            node = nodes[node_index]
+            if "mesh" not in node:
+                continue
+            mesh = self.item("meshes", node["mesh"], f"node {node_index}")
+            node_name = node.get("name") or mesh.get("name") or f"node{node_index}"
+            mesh_name = mesh.get("name") or f"mesh{node['mesh']}"
+            for world in worlds[node_index]:
+                for p, prim in enumerate(mesh.get("primitives", [])):
+                    obj = self._primitive(scene, prim, world, node_name,
+                                          f"mesh '{mesh_name}' primitive {p}")
+                    if obj is not None:
+                        scene.objects.append(obj)
+                        aliases[obj.name] = (node_name, mesh_name)
+        return aliases
+
+    def _unique(self, name: str) -> str:
+        out, k = name, 0
+        while out in self._names:
+            k += 1
+            out = f"{name}.{k}"
+        self._names.add(out)
+        return out
+
+    def _primitive(self, scene: Scene, prim: dict, world: np.ndarray, node_name: str,
+                   what: str) -> Object | None:
+        mode = prim.get("mode", 4)
+        attrs = prim.get("attributes", {})
+        if mode not in (4, 5, 6):
+            self.warn(f"{self.source}: object '{node_name}' {what} is {_MODES.get(mode, mode)}, "
+                      "not triangles; skipped")
+            return None
+        if "POSITION" not in attrs:
+            raise self.bad(f"object '{node_name}' {what} has no POSITION attribute")
+        local = self.accessor(attrs["POSITION"], f"'{node_name}' POSITION").astype(np.float64)
+        if local.shape[1] != 3:
+            raise self.bad(f"object '{node_name}' POSITION accessor is not VEC3")
+        n = len(local)
+        if "indices" in prim:
+            flat = self.accessor(prim["indices"], f"'{node_name}' indices").reshape(-1)
+            if flat.dtype.kind not in "iu":
+                raise self.bad(f"object '{node_name}' {what}: indices are not integers")
+            flat = flat.astype(np.int64)
+        else:
+            flat = np.arange(n, dtype=np.int64)
+        if flat.size and (flat.min() < 0 or flat.max() >= n):
+            raise self.bad(f"object '{node_name}' {what}: index {int(flat.max())} is out of "
+                           f"range for {n} vertices")
+        if mode == 4 and len(flat) % 3:
+            raise self.bad(f"object '{node_name}' {what}: {len(flat)} indices is not a "
+                           "multiple of 3")
+        indices = _triangles(flat, mode)
+        name = self._unique(node_name)
+
+        linear = world[:3, :3]
+        with np.errstate(over="ignore", invalid="ignore"):  # overflow is reported just below
+            positions = local @ linear.T + world[:3, 3]
+        check_finite_positions(name, positions, self.source)
+        if np.linalg.det(linear) < 0:  # mirrored: keep counter-clockwise front faces
+            indices = indices[:, [0, 2, 1]]
+
+        normals = uvs = None
+        if "NORMAL" in attrs:
+            normals = self.accessor(attrs["NORMAL"], f"'{node_name}' NORMAL")[:, :3]
+            if len(normals) != n:
+                raise self.bad(f"object '{node_name}' NORMAL count differs from POSITION")
+            # Inverse transpose up to a positive factor: cofactor * sign(det).
+            normals = normals @ (_cofactor(linear) * np.sign(np.linalg.det(linear) or 1.0)).T
+        if "TEXCOORD_0" in attrs:
+            uvs = self.accessor(attrs["TEXCOORD_0"], f"'{node_name}' TEXCOORD_0")[:, :2]
+            if len(uvs) != n:
+                raise self.bad(f"object '{node_name}' TEXCOORD_0 count differs from POSITION")
+            uvs = uvs.astype(np.float64)
+            if not np.all(np.isfinite(uvs)):
+                self.warn(f"{self.source}: object '{name}': non-finite texture coordinates "
+                          "set to 0")
+                uvs = np.nan_to_num(uvs, nan=0.0, posinf=0.0, neginf=0.0)
+
+        bad = degenerate_triangles(positions, indices)
+        if bad.any():
+            self.warn(f"{self.source}: object '{name}': dropped {int(bad.sum())} zero-area "
+                      f"triangle(s) of {len(indices)}")
+            indices = indices[~bad]
+        if len(indices) == 0:
+            self.warn(f"{self.source}: object '{name}' has no triangles with area; skipped")
+            return None
+
+        if normals is None:
+            # glTF: without normals, clients compute flat normals (split every vertex).
+            self.warn(f"{self.source}: object '{name}' has no normals; using flat face normals")
+            positions, uvs = positions[indices].reshape(-1, 3), (
+                None if uvs is None else uvs[indices].reshape(-1, 2))
+            cross = face_cross(positions, np.arange(len(positions)).reshape(-1, 3))
+            normals = np.repeat(cross / np.linalg.norm(cross, axis=1, keepdims=True), 3, axis=0)
+            indices = np.arange(len(positions), dtype=np.int64).reshape(-1, 3)
+        else:
+            # Keep only referenced vertices (primitives may share one big vertex buffer).
+            used, inverse = np.unique(indices, return_inverse=True)
+            positions, normals = positions[used], normals[used]
+            uvs = None if uvs is None else uvs[used]
+            indices = inverse.reshape(-1, 3).astype(np.int64)
+            normals, replaced = repair_normals(normals, positions, indices)
+            if replaced:
+                self.warn(f"{self.source}: object '{name}': {replaced} zero-length normal(s) "
+                          "replaced by the face normal")
+        material = prim.get("material")
+        if material is None:
+            material = self._default(scene)
+        else:
+            material = self._index(material, len(_list(self.tree, "materials", self.source)),
+                                   f"object '{node_name}' {what}", "material")
+        return Object(name=name, positions=positions, normals=np.asarray(normals, np.float32),
+                      indices=indices, material=material,
+                      uvs=None if uvs is None else uvs.astype(np.float32))
+
+    # ---- lights and cameras
+
+    def _lights(self, scene: Scene, worlds) -> None:
+        ext = self.tree.get("extensions", {}).get("KHR_lights_punctual", {})
+        lights = ext.get("lights", [])
+        scale = 1.0 / LUMENS_PER_WATT if self.side.units == "photometric" else 1.0
+        nodes = _list(self.tree, "nodes", self.source)
+        for node_index in sorted(worlds):
+            ref = nodes[node_index].get("extensions", {}).get("KHR_lights_punctual")
+            if ref is None:
+                continue
+            li = self._index(ref.get("light"), len(lights), f"node {node_index}",
+                             "KHR_lights_punctual light")
+            light = lights[li]
+            name = light.get("name") or nodes[node_index].get("name") or f"light{li}"
+            where = f"{self.source}: light '{name}'"
+            color = _numbers(light.get("color", [1, 1, 1]), 3, f"{where} color", minimum=0.0)
+            intensity = _numbers([light.get("intensity", 1.0)], 1, f"{where} intensity",
+                                 minimum=0.0)
+            power = (color * intensity * scale).astype(np.float32)
+            kind = light.get("type")
+            for world in worlds[node_index]:
+                position = world[:3, 3].copy()
+                if not np.all(np.isfinite(world)):
+                    raise GlintError(f"{where}: its node transform is not finite")
+                direction = _unit(world[:3, :3] @ [0.0, 0.0, -1.0])
+                if kind == "point":
+                    scene.point_lights.append(PointLight(position, power, name))
+                elif kind == "spot":
+                    spot = light.get("spot", {})
+                    inner, outer = _numbers([spot.get("innerConeAngle", 0.0),
+                                             spot.get("outerConeAngle", np.pi / 4)], 2,
+                                            f"{where} cone angles")
+                    if not 0 <= inner < outer <= np.pi / 2:
+                        self.warn(f"{self.source}: spot light '{name}': cone angles "
+                                  f"{inner}, {outer} need 0 <= inner < outer <= pi/2; clamped")
+                        outer = float(np.clip(outer, 1e-4, np.pi / 2))
+                        inner = float(np.clip(inner, 0.0, outer * (1 - 1e-6)))
+                    scene.spot_lights.append(SpotLight(position, direction, power, inner,
+                                                       outer, name))
+                elif kind == "directional":
+                    scene.directional_lights.append(DirectionalLight(direction, power, name))
+                else:
+                    raise self.bad(f"light '{name}' has unknown type {kind!r}")
+
+    def _cameras(self, scene: Scene, worlds) -> None:
+        nodes = _list(self.tree, "nodes", self.source)
+        for node_index in sorted(worlds):
+            node = nodes[node_index]
+            if "camera" not in node:
+                continue
+            cam = self.item("cameras", node["camera"], f"node {node_index}")
+            name = node.get("name") or cam.get("name") or f"camera{node['camera']}"
+            if cam.get("type") != "perspective":
+                self.warn(f"{self.source}: camera '{name}' is {cam.get('type')}; only "
+                          "perspective cameras are supported, skipped")
+                continue
+            p = cam.get("perspective", {})
+            where = f"{self.source}: camera '{name}'"
+            if "yfov" not in p:
+                raise self.bad(f"camera '{name}' has no yfov")
+            yfov, znear = _numbers([p["yfov"], p.get("znear", 0.01)], 2, f"{where} yfov/znear",
+                                   minimum=1e-9)
+            zfar = float(_numbers([p.get("zfar", 1000.0)], 1, f"{where} zfar", minimum=znear)[0])
+            aspect = p.get("aspectRatio")
+            if aspect is not None:
+                aspect = float(_numbers([aspect], 1, f"{where} aspectRatio", minimum=1e-9)[0])
+            for world in worlds[node_index]:
+                if not np.all(np.isfinite(world)):
+                    raise GlintError(f"{where}: its node transform is not finite")
+                forward = _unit(world[:3, :3] @ [0.0, 0.0, -1.0])
+                up = world[:3, :3] @ [0.0, 1.0, 0.0]
+                up = _unit(up - forward * np.dot(up, forward))
+                if abs(np.linalg.norm(forward) - 1) > 1e-6 or abs(np.linalg.norm(up) - 1) > 1e-6:
+                    raise GlintError(f"{where}: its node transform is singular (zero scale)")
+                scene.cameras.append(Camera(
+                    name=self._camera_name(scene, name), eye=world[:3, 3].copy(),
+                    forward=forward, up=up, yfov=float(yfov), aspect=aspect,
+                    znear=float(znear), zfar=zfar))
+        for cam in self.side.cameras:
+            if any(c.name == cam.name for c in scene.cameras):
+                self.warn(f"{self.side.path.name}: camera '{cam.name}' has the name of a "
+                          "glTF camera; both are kept")
+            scene.cameras.append(cam)
+
+    @staticmethod
+    def _camera_name(scene: Scene, name: str) -> str:
+        taken = {c.name for c in scene.cameras}
+        out, k = name, 0
+        while out in taken:
+            k += 1
+            out = f"{name}.{k}"
+        return out
+
+    # ---- sidecar roles
+
+    def _role_overrides(self, scene: Scene, aliases) -> dict[str, str]:
+        """[objects."NAME"] matches an object name, else a node name, else a mesh name."""
+        out = {}
+        for key, role in self.side.objects.items():
+            hits = [o.name for o in scene.objects if o.name == key]
+            hits = hits or [o.name for o in scene.objects if aliases[o.name][0] == key]
+            hits = hits or [o.name for o in scene.objects if aliases[o.name][1] == key]
+            if not hits:
+                self.warn(f"{self.side.path.name}: [objects.\"{key}\"]: no object, node or "
+                          "mesh has that name")
+            out.update({h: role for h in hits})
+        return out
+
+    def _check_material_names(self) -> None:
+        for key in self.side.materials:
+            if key not in self._material_names:
+                self.warn(f"{self.side.path.name}: [materials.\"{key}\"]: no material has "
+                          "that name")
+
+
+def _triangles(flat: np.ndarray, mode: int) -> np.ndarray:
+    """Index list of a triangles / strip / fan primitive -> (M, 3) counter-clockwise."""
+    if mode == 4:
+        return flat.reshape(-1, 3)
+    k = np.arange(max(len(flat) - 2, 0))
+    if mode == 5:  # strip: every other triangle is wound the other way
+        even = (k % 2) == 0
+        a = np.where(even, flat[k], flat[k + 1])
+        b = np.where(even, flat[k + 1], flat[k])
+        return np.stack([a, b, flat[k + 2]], axis=1)
+    return np.stack([np.full_like(k, flat[0]) if len(k) else k, flat[k + 1], flat[k + 2]],
+                    axis=1)
+
+
+def _numbers(values, n: int, where: str, minimum: float | None = None) -> np.ndarray:
+    """n finite numbers (>= minimum) from glTF JSON, or a one-line error."""
+    ok = isinstance(values, list) and len(values) == n and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+        and (minimum is None or v >= minimum) for v in values)
+    if not ok:
+        bound = "" if minimum is None else f" >= {minimum:g}"
+        raise GlintError(f"{where} must be {n} finite number(s){bound}, not {values!r}")
+    return np.asarray(values, np.float64)
+
+
+def _cofactor(m: np.ndarray) -> np.ndarray:
+    """det(m) * inv(m).T, defined for singular m too (columns: cross products)."""
+    c0, c1, c2 = m[:, 0], m[:, 1], m[:, 2]
+    return np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=1)
+
+
+def _unit(v) -> np.ndarray:
+    v = np.asarray(v, np.float64)
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v

@@ -1,0 +1,264 @@
+"""glTF metallic-roughness materials -> the section 3.3 BSDF (kd + lobes, Eq. 3.2-3.6).
+
+The rule
+--------
+Inputs are the glTF core factors (baseColor b, metallic M, roughness r, emissive e)
+and, where present, KHR_materials_transmission (t), _ior (n), _specular (s, s_c),
+_anisotropy (strength a), _clearcoat (c, r_c) and _emissive_strength (k).
+glTF's BRDF is mix(dielectric, metal, M), with the dielectric a Fresnel-weighted
+layer of specular reflection over mix(diffuse, specular transmission, t). So:
+
+- Roughness: glTF's r is perceptual, its microfacet width is alpha = r^2. The
+  Beckmann m of Eq. 3.3 is taken equal to it: m = max(r^2, 1e-4) (Beckmann and
+  GGX agree closely for narrow lobes, which are the ones that matter here).
+- Diffuse: kd = b * (1 - M) * (1 - t). The base colour texture, when present,
+  multiplies kd (`Material.kd_texture`), as in glTF.
+- Dielectric reflection: one reflect lobe, ks = (1 - M) * s, r0 = ((n - 1) / (n + 1))^2
+  times the mean of s_c (0.04 for the default n = 1.5), alpha = 0 (Eq. 3.4).
+- Metal reflection: one reflect lobe, ks = b * M, r0 = 1 (Schlick's F is then 1:
+  a metal's colour is its ks).
+- Transmission (t > 0): one transmit lobe (Eq. 3.5, thin surface), ks = b * (1 - M) * t,
+  the same m and r0; Eq. 3.5's (1 - F) factor plays glTF's Fresnel weighting.
+- Clearcoat (c > 0): one more reflect lobe, ks = c, r0 = 0.04, m = max(r_c^2, 1e-4).
+- Anisotropy a: the tangent width widens, mx = m + (1 - m) * a^2, my = m (the
+  KHR_materials_anisotropy definition, applied to Beckmann m); tangent = the
+  mesh's TEXCOORD_0 u direction. anisotropyRotation and anisotropyTexture are
+  not supported (warning).
+- Rough dielectrics are diffuse: a dielectric reflect lobe (base or clearcoat)
+  whose roughness r >= `diffuse_roughness` (0.5; sidecar `[bake] diffuse_roughness`)
+  is dropped when the material does not transmit. Its highlight is too broad to be
+  worth a cube map, and Blender's default Principled BSDF exports r = 0.5, so plain
+  walls stay in the `diffuse` role (light map only). Metal and transmit lobes are
+  always kept. Lobes whose ks is 0 are dropped.
+- Emission (radiance, W/(m^2 sr)) = e * k.
+- Ignored, with a warning: metallicRoughness, normal and emissive textures
+  (the factors are used), alphaMode BLEND/MASK (opaque). Occlusion textures are
+  ignored silently (the bake computes occlusion itself).
+
+Overrides
+---------
+A material's `extras.glint` and the sidecar's `[materials."NAME"]` may give any
+of `kd` (RGB or grey number), `emission`, `lobes` (list of {kind, ks, mx, my, r0,
+alpha}, or `m` for mx = my; missing keys take `bake.scene.Lobe`'s defaults).
+The sidecar wins over extras, extras win over the rule above; `lobes` replaces
+the whole list. `kd` still multiplies a base colour texture.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bake.scene import Lobe, Material
+from bake.validate import add_warning, check_number, check_rgb, warn_unknown_keys
+from glint.errors import GlintError
+
+DIFFUSE_ROUGHNESS = 0.5
+MIN_M = 1e-4
+CLEARCOAT_R0 = 0.04  # KHR_materials_clearcoat: fixed ior 1.5
+# Material extensions this rule reads; others are reported by the loader.
+MATERIAL_EXTENSIONS = (
+    "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior",
+    "KHR_materials_specular", "KHR_materials_anisotropy", "KHR_materials_clearcoat",
+    "KHR_materials_volume",  # thickness/attenuation: meaningless for thin surfaces, ignored
+)
+OVERRIDE_KEYS = ("kd", "emission", "lobes")
+LOBE_KEYS = ("kind", "ks", "mx", "my", "m", "r0", "alpha")
+
+
+@dataclass
+class GltfPbr:
+    """The glTF parameters the rule reads (defaults are the glTF spec's)."""
+
+    base_color: tuple = (1.0, 1.0, 1.0)
+    metallic: float = 1.0
+    roughness: float = 1.0
+    transmission: float = 0.0
+    ior: float = 1.5
+    specular: float = 1.0
+    specular_color: tuple = (1.0, 1.0, 1.0)
+    anisotropy: float = 0.0
+    clearcoat: float = 0.0
+    clearcoat_roughness: float = 0.0
+    emissive: tuple = (0.0, 0.0, 0.0)
+    emissive_strength: float = 1.0
+
+
+def beckmann_m(roughness: float) -> float:
+    """glTF perceptual roughness -> Beckmann m of Eq. 3.3."""
+    r = float(np.clip(roughness, 0.0, 1.0))
+    return max(r * r, MIN_M)
+
+
+def fresnel_r0(ior: float) -> float:
+    """Schlick's reflectance at normal incidence for a dielectric of index `ior` in air."""
+    return ((ior - 1.0) / (ior + 1.0)) ** 2
+
+
+def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS):
+    """The rule of the module docstring: -> (kd (3,) float32, lobes, emission (3,) float32)."""
+    base = np.clip(np.asarray(p.base_color, np.float64)[:3], 0.0, None)
+    metal = float(np.clip(p.metallic, 0.0, 1.0))
+    t = float(np.clip(p.transmission, 0.0, 1.0))
+    dielectric = 1.0 - metal
+    m = beckmann_m(p.roughness)
+    a = float(np.clip(p.anisotropy, 0.0, 1.0))
+    mx, my = m + (1.0 - m) * a * a, m
+    rough = p.roughness >= diffuse_roughness and t == 0.0
+
+    kd = base * dielectric * (1.0 - t)
+    r0 = float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
+    lobes = []
+    if not rough:
+        lobes.append(Lobe("reflect", _rgb3(dielectric * p.specular), mx, my, r0, 0.0))
+    lobes.append(Lobe("reflect", _rgb3(base * metal), mx, my, 1.0, 0.0))
+    if t > 0:
+        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), mx, my, r0, 0.0))
+    if p.clearcoat > 0 and not (p.clearcoat_roughness >= diffuse_roughness and t == 0.0):
+        mc = beckmann_m(p.clearcoat_roughness)
+        lobes.append(Lobe("reflect", _rgb3(p.clearcoat), mc, mc, CLEARCOAT_R0, 0.0))
+    lobes = [lobe for lobe in lobes if max(lobe.ks) > 0]
+    emission = np.asarray(p.emissive, np.float64)[:3] * p.emissive_strength
+    return kd.astype(np.float32), lobes, np.clip(emission, 0.0, None).astype(np.float32)
+
+
+def pbr_from_gltf(gm: dict, where: str, warnings: list[str]) -> GltfPbr:
+    """Read a glTF material JSON object into GltfPbr; warn about what the rule ignores."""
+    pmr = gm.get("pbrMetallicRoughness", {})
+    ext = gm.get("extensions", {})
+    p = GltfPbr(
+        base_color=tuple(_floats(pmr.get("baseColorFactor", [1, 1, 1, 1]), 4, where,
+                                 "baseColorFactor")[:3]),
+        metallic=_float(pmr.get("metallicFactor", 1.0), where, "metallicFactor"),
+        roughness=_float(pmr.get("roughnessFactor", 1.0), where, "roughnessFactor"),
+        emissive=tuple(_floats(gm.get("emissiveFactor", [0, 0, 0]), 3, where, "emissiveFactor")),
+    )
+    e = ext.get("KHR_materials_emissive_strength", {})
+    p.emissive_strength = _float(e.get("emissiveStrength", 1.0), where, "emissiveStrength")
+    e = ext.get("KHR_materials_transmission", {})
+    p.transmission = _float(e.get("transmissionFactor", 0.0), where, "transmissionFactor")
+    e = ext.get("KHR_materials_ior", {})
+    p.ior = _float(e.get("ior", 1.5), where, "ior")
+    e = ext.get("KHR_materials_specular", {})
+    p.specular = _float(e.get("specularFactor", 1.0), where, "specularFactor")
+    p.specular_color = tuple(_floats(e.get("specularColorFactor", [1, 1, 1]), 3, where,
+                                     "specularColorFactor"))
+    e = ext.get("KHR_materials_anisotropy", {})
+    p.anisotropy = _float(e.get("anisotropyStrength", 0.0), where, "anisotropyStrength")
+    if _float(e.get("anisotropyRotation", 0.0), where, "anisotropyRotation") != 0.0:
+        add_warning(warnings, f"{where}: anisotropyRotation is not supported yet; "
+                              "the anisotropy runs along the texture u direction")
+    e = ext.get("KHR_materials_clearcoat", {})
+    p.clearcoat = _float(e.get("clearcoatFactor", 0.0), where, "clearcoatFactor")
+    p.clearcoat_roughness = _float(e.get("clearcoatRoughnessFactor", 0.0), where,
+                                   "clearcoatRoughnessFactor")
+
+    ignored = [key for key, table in (
+        ("metallicRoughnessTexture", pmr), ("normalTexture", gm), ("emissiveTexture", gm),
+        ("transmissionTexture", ext.get("KHR_materials_transmission", {})),
+        ("specularTexture", ext.get("KHR_materials_specular", {})),
+        ("specularColorTexture", ext.get("KHR_materials_specular", {})),
+        ("anisotropyTexture", ext.get("KHR_materials_anisotropy", {})),
+        ("clearcoatTexture", ext.get("KHR_materials_clearcoat", {})),
+        ("clearcoatRoughnessTexture", ext.get("KHR_materials_clearcoat", {})),
+        ("clearcoatNormalTexture", ext.get("KHR_materials_clearcoat", {}))) if key in table]
+    if ignored:
+        add_warning(warnings, f"{where}: {', '.join(ignored)} not supported, "
+                              "the constant factors are used")
+    if gm.get("alphaMode", "OPAQUE") != "OPAQUE":
+        add_warning(warnings, f"{where}: alphaMode {gm['alphaMode']} not supported, "
+                              "rendered opaque (use KHR_materials_transmission for glass)")
+    return p
+
+
+def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = None,
+                       diffuse_roughness: float = DIFFUSE_ROUGHNESS,
+                       override: dict | None = None, warnings: list[str] | None = None,
+                       source: str = "") -> Material:
+    """One glTF material -> Material: the rule, then `extras.glint`, then the sidecar override."""
+    warnings = [] if warnings is None else warnings
+    where = f"{source}: material '{name}'" if source else f"material '{name}'"
+    kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings), diffuse_roughness)
+    mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
+                   double_sided=bool(gm.get("doubleSided", False)))
+    extras = gm.get("extras")
+    if isinstance(extras, dict) and "glint" in extras:
+        apply_override(mat, parse_material_override(extras["glint"], f"{where} extras.glint",
+                                                    warnings))
+    if override:
+        apply_override(mat, override)
+    return mat
+
+
+def apply_override(mat: Material, override: dict) -> Material:
+    """Replace the fields given in a parsed override (see `parse_material_override`)."""
+    if "kd" in override:
+        mat.kd = np.array(override["kd"], np.float32)
+    if "emission" in override:
+        mat.emission = np.array(override["emission"], np.float32)
+    if "lobes" in override:
+        mat.lobes = [Lobe(**vars(lobe)) for lobe in override["lobes"]]
+    return mat
+
+
+def parse_material_override(table, where: str, warnings: list[str]) -> dict:
+    """Check a {kd, emission, lobes} table (sidecar or extras.glint) -> {key: value}."""
+    if not isinstance(table, dict):
+        raise GlintError(f"{where} must be a table with any of {', '.join(OVERRIDE_KEYS)}")
+    warn_unknown_keys(table, OVERRIDE_KEYS, where, "", warnings)
+    out = {}
+    if "kd" in table:
+        out["kd"] = check_rgb(table["kd"], f"{where} kd", minimum=0.0)
+    if "emission" in table:
+        out["emission"] = check_rgb(table["emission"], f"{where} emission", minimum=0.0)
+    if "lobes" in table:
+        if not isinstance(table["lobes"], list):
+            raise GlintError(f"{where} lobes must be a list of tables "
+                             "{ kind, ks, mx, my, r0, alpha }")
+        out["lobes"] = [_lobe(item, f"{where} lobes[{i}]", warnings)
+                        for i, item in enumerate(table["lobes"])]
+    return out
+
+
+def _lobe(item, where: str, warnings: list[str]) -> Lobe:
+    if not isinstance(item, dict):
+        raise GlintError(f"{where} must be a table {{ kind, ks, mx, my, r0, alpha }}")
+    warn_unknown_keys(item, LOBE_KEYS, where, "", warnings)
+    lobe = Lobe()
+    kind = item.get("kind", "reflect")
+    if kind not in ("reflect", "transmit"):
+        raise GlintError(f"{where} kind must be \"reflect\" or \"transmit\", not {kind!r}")
+    lobe.kind = kind
+    if "ks" in item:
+        lobe.ks = tuple(float(v) for v in check_rgb(item["ks"], f"{where} ks", minimum=0.0))
+    if "m" in item:
+        if "mx" in item or "my" in item:
+            raise GlintError(f"{where}: give either m or mx/my, not both")
+        lobe.mx = lobe.my = check_number(item["m"], f"{where} m", positive=True)
+    for key in ("mx", "my"):
+        if key in item:
+            setattr(lobe, key, check_number(item[key], f"{where} {key}", positive=True))
+    # Below 1e-4 the lobe is a mirror anyway; clamping keeps Eq. 3.3 finite.
+    lobe.mx, lobe.my = max(lobe.mx, MIN_M), max(lobe.my, MIN_M)
+    for key in ("r0", "alpha"):
+        if key in item:
+            value = check_number(item[key], f"{where} {key}", minimum=0.0)
+            if value > 1:
+                raise GlintError(f"{where} {key} must be between 0 and 1, not {value}")
+            setattr(lobe, key, value)
+    return lobe
+
+
+def _rgb3(value) -> tuple[float, float, float]:
+    v = np.broadcast_to(np.asarray(value, np.float64), (3,))
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _float(value, where: str, key: str) -> float:
+    return check_number(value, f"{where}: {key}")
+
+
+def _floats(value, n: int, where: str, key: str) -> list[float]:
+    if not isinstance(value, list) or len(value) != n:
+        raise GlintError(f"{where}: {key} must be a list of {n} numbers, not {value!r}")
+    return [check_number(v, f"{where}: {key}") for v in value]

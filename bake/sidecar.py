@@ -1,0 +1,273 @@
+"""The optional sidecar `NAME.glint.toml` beside `NAME.glb` / `NAME.gltf`.
+
+All tables are optional:
+
+    [bake]                        # passed through as Scene.bake_settings
+    quality = "preview"           # draft | preview | final
+    texels_per_metre = 24
+    diffuse_roughness = 0.5       # glTF dielectrics at least this rough get no lobe
+                                  # (see bake/material_mapping.py); > 1 disables the rule
+    [lights]
+    units = "photometric"         # glTF candela / lux divided by 683 lm/W, or "radiometric"
+    [sky]                         # light from infinitely far away
+    radiance = [0.6, 0.7, 0.9]    # constant radiance W/(m^2 sr), linear RGB ...
+    map = "sky.exr"               # ... or an equirectangular EXR/HDR (relative to this file)
+    strength = 1.0                # multiplies either
+    [materials."Floor"]           # by glTF material name: any of kd, emission, lobes
+    kd = [0.3, 0.2, 0.1]
+    lobes = [ { kind = "reflect", ks = [1, 1, 1], mx = 0.05, my = 0.05, r0 = 0.04, alpha = 0.0 } ]
+    [objects."Table top"]         # by glTF node name (or mesh name)
+    role = "planar"               # diffuse | curved | planar | transmissive
+    [cameras.default]             # extra cameras, after the glTF's own
+    eye = [0, 1.6, 3]
+    target = [0, 1, 0]
+    yfov = 50                     # degrees (default 50); optional up, znear, zfar, aspect
+    [camera_paths.tour]
+    keys = [ { time = 0.0, eye = [0, 1.6, 3], target = [0, 1, 0] }, ... ]
+
+`diffuse_roughness` sits in [bake] rather than [materials] because [materials]
+is keyed by material name (a material could be called "diffuse_roughness").
+Wrong types and unknown values are errors naming the file and key; unknown
+keys are warnings (a typo should not silently do nothing, nor stop the work).
+"""
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import numpy as np
+
+from bake.material_mapping import DIFFUSE_ROUGHNESS, parse_material_override
+from bake.scene import ROLES, Camera, CameraPath, Sky
+from bake.settings import BakeSettings
+from bake.validate import check_number as _number, check_rgb as _rgb, check_vec3 as _vec3
+from bake.validate import warn_unknown_keys as _unknown
+from glint.errors import GlintError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+SUFFIX = ".glint.toml"
+TABLES = ("bake", "lights", "sky", "materials", "objects", "cameras", "camera_paths")
+# [bake] keys the bake understands (bake/settings.py) and the material rule's threshold;
+# others pass through with a warning.
+BAKE_KEYS = tuple(f.name for f in fields(BakeSettings)) + ("diffuse_roughness",)
+QUALITIES = ("draft", "preview", "final")
+UNITS = ("photometric", "radiometric")
+DEFAULT_YFOV_DEG = 50.0
+
+
+@dataclass
+class Sidecar:
+    path: Path | None = None  # None when there is no sidecar
+    bake: dict = field(default_factory=dict)
+    units: str = "photometric"
+    diffuse_roughness: float = DIFFUSE_ROUGHNESS
+    sky: Sky | None = None
+    materials: dict[str, dict] = field(default_factory=dict)  # name -> parse_material_override()
+    objects: dict[str, str] = field(default_factory=dict)  # node or mesh name -> role
+    cameras: list[Camera] = field(default_factory=list)
+    camera_paths: list[CameraPath] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+
+
+def sidecar_path(scene_path: Path) -> Path:
+    """`dir/NAME.glb` -> `dir/NAME.glint.toml`."""
+    scene_path = Path(scene_path)
+    return scene_path.with_name(scene_path.with_suffix("").name + SUFFIX)
+
+
+def read_sidecar(scene_path: Path) -> Sidecar:
+    """Read and check the sidecar beside `scene_path`; defaults when there is none."""
+    path = sidecar_path(scene_path)
+    if not path.exists():
+        return Sidecar()
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise GlintError(f"{path.name}: cannot read: {err}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise GlintError(f"{path.name}: invalid TOML: {err}") from None
+    return parse_sidecar(data, path)
+
+
+def parse_sidecar(data: dict, path: Path) -> Sidecar:
+    """Check a parsed TOML document; `path` names the file in messages and anchors `map`."""
+    side = Sidecar(path=Path(path))
+    name = side.path.name
+    w = side.warnings
+    _unknown(data, TABLES, name, "", w)
+    for table in TABLES:
+        if table in data and not isinstance(data[table], dict):
+            raise GlintError(f"{name}: '{table}' must be a table ([{table}])")
+
+    bake = dict(data.get("bake", {}))
+    _unknown(bake, BAKE_KEYS, name, "[bake] ", w)
+    if "quality" in bake and bake["quality"] not in QUALITIES:
+        raise GlintError(f"{name}: [bake] quality must be one of {', '.join(QUALITIES)}, "
+                         f"not {bake['quality']!r}")
+    if "texels_per_metre" in bake:
+        _number(bake["texels_per_metre"], f"{name}: [bake] texels_per_metre", positive=True)
+    if "diffuse_roughness" in bake:
+        side.diffuse_roughness = _number(bake["diffuse_roughness"],
+                                         f"{name}: [bake] diffuse_roughness", minimum=0.0)
+    side.bake = bake
+
+    lights = data.get("lights", {})
+    _unknown(lights, ("units",), name, "[lights] ", w)
+    units = lights.get("units", "photometric")
+    if units not in UNITS:
+        raise GlintError(f"{name}: [lights] units must be \"photometric\" or \"radiometric\", "
+                         f"not {units!r}")
+    side.units = units
+
+    if "sky" in data:
+        side.sky = _sky(data["sky"], side.path, w)
+
+    for mat_name, table in data.get("materials", {}).items():
+        side.materials[mat_name] = parse_material_override(
+            table, f"{name}: [materials.\"{mat_name}\"]", w)
+
+    for obj_name, table in data.get("objects", {}).items():
+        where = f"{name}: [objects.\"{obj_name}\"]"
+        if not isinstance(table, dict):
+            raise GlintError(f"{where} must be a table")
+        _unknown(table, ("role",), name, f"[objects.\"{obj_name}\"] ", w)
+        if "role" in table:
+            role = table["role"]
+            if role not in ROLES:
+                raise GlintError(f"{where}: unknown role {role!r}; use one of "
+                                 f"{', '.join(ROLES)}")
+            side.objects[obj_name] = role
+
+    for cam_name, table in data.get("cameras", {}).items():
+        side.cameras.append(_camera(cam_name, table, name, w))
+
+    for path_name, table in data.get("camera_paths", {}).items():
+        side.camera_paths.append(_camera_path(path_name, table, name, w))
+    return side
+
+
+def look_at(name: str, eye, target, yfov: float, up=(0.0, 1.0, 0.0), *, where: str = "",
+            znear: float = 0.01, zfar: float = 1000.0, aspect: float | None = None) -> Camera:
+    """A Camera looking from eye at target; `up` is made orthogonal to the view direction."""
+    eye = np.asarray(eye, np.float64)
+    forward = np.asarray(target, np.float64) - eye
+    if np.linalg.norm(forward) < 1e-9:
+        raise GlintError(f"{where}: eye and target are the same point")
+    forward /= np.linalg.norm(forward)
+    up = np.asarray(up, np.float64)
+    up = up - forward * np.dot(up, forward)
+    if np.linalg.norm(up) < 1e-6:
+        raise GlintError(f"{where}: the view direction is parallel to up; give another 'up'")
+    up /= np.linalg.norm(up)
+    return Camera(name=name, eye=eye, forward=forward, up=up, yfov=float(yfov),
+                  aspect=aspect, znear=znear, zfar=zfar)
+
+
+def _camera(cam_name: str, table, name: str, w: list[str]) -> Camera:
+    where = f"{name}: [cameras.{cam_name}]"
+    if not isinstance(table, dict):
+        raise GlintError(f"{where} must be a table")
+    _unknown(table, ("eye", "target", "yfov", "up", "znear", "zfar", "aspect"), name,
+             f"[cameras.{cam_name}] ", w)
+    for key in ("eye", "target"):
+        if key not in table:
+            raise GlintError(f"{where}: missing '{key}'")
+    yfov = _number(table.get("yfov", DEFAULT_YFOV_DEG), f"{where} yfov", positive=True)
+    if yfov >= 180:
+        raise GlintError(f"{where} yfov is in degrees and must be below 180")
+    aspect = table.get("aspect")
+    return look_at(cam_name, _vec3(table["eye"], f"{where} eye"),
+                   _vec3(table["target"], f"{where} target"), math.radians(yfov),
+                   _vec3(table.get("up", [0, 1, 0]), f"{where} up"), where=where,
+                   znear=_number(table.get("znear", 0.01), f"{where} znear", positive=True),
+                   zfar=_number(table.get("zfar", 1000.0), f"{where} zfar", positive=True),
+                   aspect=None if aspect is None else _number(aspect, f"{where} aspect",
+                                                              positive=True))
+
+
+def _camera_path(path_name: str, table, name: str, w: list[str]) -> CameraPath:
+    """Keys keep eye/target as 3 floats; an optional per-key yfov is converted to radians."""
+    where = f"{name}: [camera_paths.{path_name}]"
+    if not isinstance(table, dict):
+        raise GlintError(f"{where} must be a table")
+    _unknown(table, ("keys",), name, f"[camera_paths.{path_name}] ", w)
+    keys = table.get("keys")
+    if not isinstance(keys, list) or not keys:
+        raise GlintError(f"{where}: 'keys' must be a non-empty list of "
+                         "{ time = ..., eye = [...], target = [...] }")
+    out, last = [], -math.inf
+    for i, key in enumerate(keys):
+        kw = f"{where} keys[{i}]"
+        if not isinstance(key, dict):
+            raise GlintError(f"{kw} must be a table {{ time, eye, target }}")
+        _unknown(key, ("time", "eye", "target", "yfov"), name,
+                 f"[camera_paths.{path_name}] keys[{i}] ", w)
+        for k in ("time", "eye", "target"):
+            if k not in key:
+                raise GlintError(f"{kw}: missing '{k}'")
+        t = _number(key["time"], f"{kw} time")
+        if t <= last:
+            raise GlintError(f"{kw}: times must increase ({t} after {last})")
+        last = t
+        item = {"time": t, "eye": _vec3(key["eye"], f"{kw} eye").tolist(),
+                "target": _vec3(key["target"], f"{kw} target").tolist()}
+        if "yfov" in key:
+            item["yfov"] = math.radians(_number(key["yfov"], f"{kw} yfov", positive=True))
+        out.append(item)
+    return CameraPath(name=path_name, keys=out)
+
+
+def _sky(table, path: Path, w: list[str]) -> Sky:
+    """[sky]: `strength` times either a constant `radiance` or an equirectangular `map`.
+
+    With a map, `Sky.map` already includes the strength and `Sky.radiance` is (1, 1, 1).
+    """
+    name = path.name
+    _unknown(table, ("radiance", "map", "strength"), name, "[sky] ", w)
+    strength = _number(table.get("strength", 1.0), f"{name}: [sky] strength", minimum=0.0)
+    if "radiance" in table and "map" in table:
+        raise GlintError(f"{name}: [sky] give either 'radiance' or 'map', not both")
+    if "map" in table:
+        if not isinstance(table["map"], str):
+            raise GlintError(f"{name}: [sky] map must be a file name (string)")
+        map_path = (path.parent / table["map"]).resolve()
+        image = read_sky_map(map_path, where=f"{name}: [sky] map")
+        return Sky(radiance=np.ones(3, np.float32), map=image * np.float32(strength),
+                   source=str(map_path))
+    radiance = _rgb(table.get("radiance", 1.0), f"{name}: [sky] radiance", minimum=0.0)
+    return Sky(radiance=(radiance * strength).astype(np.float32))
+
+
+def read_sky_map(path: Path, where: str = "sky map") -> np.ndarray:
+    """An equirectangular EXR/HDR/... -> (H, W, 3) float32 linear RGB, via OpenImageIO."""
+    import OpenImageIO as oiio
+
+    if not Path(path).is_file():
+        raise GlintError(f"{where}: no such file {path}")
+    buf = oiio.ImageBuf(str(path))
+    if buf.has_error:
+        raise GlintError(f"{where}: cannot read {path}: {buf.geterror().strip()}")
+    pixels = buf.get_pixels(oiio.FLOAT)
+    if pixels is None or buf.has_error:
+        raise GlintError(f"{where}: cannot read {path}: {buf.geterror().strip()}")
+    pixels = np.asarray(pixels, np.float32)
+    if pixels.ndim == 2:
+        pixels = pixels[:, :, None]
+    if pixels.ndim == 4:  # (depth, H, W, C) for volume images; take the first slice
+        pixels = pixels[0]
+    if pixels.shape[2] < 3:
+        pixels = np.repeat(pixels[:, :, :1], 3, axis=2)
+    pixels = np.ascontiguousarray(pixels[:, :, :3])
+    if not np.all(np.isfinite(pixels)):
+        raise GlintError(f"{where}: {path} contains NaN or infinite pixels")
+    if np.any(pixels < 0):
+        raise GlintError(f"{where}: {path} contains negative radiance")
+    return pixels

@@ -1,0 +1,58 @@
+"""Shared fixtures: small glTF scenes written with bake/gltf_writer.py."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from bake.gltf_writer import GltfWriter
+
+
+def quad(center, u, v):
+    """Two CCW triangles spanning center +- u +- v; front face along cross(u, v)."""
+    c, u, v = map(np.asarray, (center, u, v))
+    positions = np.array([c - u - v, c + u - v, c + u + v, c - u + v], float)
+    return positions, np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def write_room(path: Path, *, kd=(0.7, 0.7, 0.7), floor_lobes=None, light=8.0, box_height=0.5,
+               sidecar: str | None = None) -> Path:
+    """A closed 2 x 2 x 2 m room (faces inwards), a ceiling light, a box on the floor."""
+    w = GltfWriter()
+    wall = w.add_material("Wall", base_color=kd, roughness=1.0)
+    extras = None if floor_lobes is None else {"glint": {"lobes": floor_lobes}}
+    floor = w.add_material("Floor", base_color=kd, roughness=1.0, extras=extras)
+    lamp = w.add_material("Lamp", base_color=(0.8, 0.8, 0.8), emissive=(1, 1, 1), emissive_strength=light)
+    faces = {
+        "Floor": ((0, 0, 0), (1, 0, 0), (0, 0, -1), floor),
+        "Ceiling": ((0, 2, 0), (1, 0, 0), (0, 0, 1), wall),
+        "Back": ((0, 1, -1), (1, 0, 0), (0, 1, 0), wall),
+        "Front": ((0, 1, 1), (-1, 0, 0), (0, 1, 0), wall),
+        "Left": ((-1, 1, 0), (0, 0, -1), (0, 1, 0), wall),
+        "Right": ((1, 1, 0), (0, 0, 1), (0, 1, 0), wall),
+        "Lamp": ((0, 1.99, 0), (0.25, 0, 0), (0, 0, 0.25), lamp),
+    }
+    for name, (c, u, v, m) in faces.items():
+        p, i = quad(c, u, v)
+        w.add_node(name, mesh=w.add_mesh(name, p, i, m))
+    h = box_height / 2
+    box = np.array([[x, y, z] for x in (-.3, .3) for y in (0, 2 * h) for z in (-.3, .3)], float)
+    import trimesh
+
+    hull = trimesh.convex.convex_hull(box)
+    w.add_node("Box", mesh=w.add_mesh("Box", hull.vertices, hull.faces, wall), translation=(0.55, 0.0, 0.55))
+    w.add_node("Camera", camera=w.add_camera("Camera", 1.0), translation=(0, 1, 0.9))
+    path = Path(path)
+    w.write(path)
+    if sidecar is not None:
+        path.with_name(path.stem + ".glint.toml").write_text(sidecar)
+    return path
+
+
+@pytest.fixture
+def room(tmp_path) -> Path:
+    return write_room(tmp_path / "room.glb")
+
+
+FAST = {"quality": "draft", "samples": 8, "texels_per_metre": 6.0, "denoise": False}

@@ -1,0 +1,217 @@
+"""Bad scene input: one GlintError naming the problem, never a bare exception."""
+import json
+import struct
+
+import numpy as np
+import pytest
+
+from bake.gltf_loader import load_scene
+from bake.gltf_writer import GltfWriter
+from glint.errors import GlintError
+
+QUAD_P = np.array([[0, 0, 0], [1, 0, 0], [1, 0, -1], [0, 0, -1]], float)
+QUAD_I = np.array([[0, 1, 2], [0, 2, 3]])
+QUAD_N = np.tile([0.0, 1.0, 0.0], (4, 1))
+
+
+def good(light=True, positions=QUAD_P, name="Floor") -> GltfWriter:
+    w = GltfWriter()
+    m = w.add_material("Mat")
+    w.add_node(name, mesh=w.add_mesh("FloorMesh", positions, QUAD_I, m, normals=QUAD_N))
+    if light:
+        w.add_node("Bulb", light=w.add_light("Bulb", "point"), translation=(0, 2, 0))
+    return w
+
+
+def error(path) -> str:
+    with pytest.raises(GlintError) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert "\n" not in message  # one line
+    return message
+
+
+def edit_json(path, fn):
+    doc = json.loads(path.read_text())
+    fn(doc)
+    path.write_text(json.dumps(doc))
+
+
+def test_missing_file(tmp_path):
+    msg = error(tmp_path / "nothing.glb")
+    assert "nothing.glb" in msg and "no such file" in msg
+
+
+def test_bad_json_names_line(tmp_path):
+    path = tmp_path / "broken.gltf"
+    path.write_text('{\n  "asset": {"version": "2.0"},\n  "nodes": [\n}\n')
+    msg = error(path)
+    assert "broken.gltf" in msg and "invalid JSON" in msg and "line 4" in msg
+
+
+def test_truncated_glb(tmp_path):
+    path = tmp_path / "scene.glb"
+    good().write(path)
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) - 40])
+    msg = error(path)
+    assert "truncated" in msg and "scene.glb" in msg
+
+
+def test_not_a_glb(tmp_path):
+    path = tmp_path / "scene.glb"
+    path.write_bytes(b"PK\x03\x04 this is a zip file")
+    assert "not a binary glTF" in error(path)
+
+
+def test_missing_buffer_file(tmp_path):
+    path = tmp_path / "scene.gltf"
+    good().write(path)
+    (tmp_path / "scene.bin").unlink()
+    msg = error(path)
+    assert "buffer 0" in msg and "scene.bin" in msg and "missing" in msg
+
+
+def test_short_buffer_file(tmp_path):
+    path = tmp_path / "scene.gltf"
+    good().write(path)
+    (tmp_path / "scene.bin").write_bytes(b"\0" * 10)
+    assert "buffer 0 is truncated" in error(path)
+
+
+def test_accessor_past_end_of_buffer_view(tmp_path):
+    path = tmp_path / "scene.gltf"
+    good().write(path)
+    edit_json(path, lambda d: d["accessors"][0].update(count=1000))
+    msg = error(path)
+    assert "accessor 0" in msg and "POSITION" in msg and "bufferView" in msg
+
+
+def test_accessor_with_bad_component_type(tmp_path):
+    path = tmp_path / "scene.gltf"
+    good().write(path)
+    edit_json(path, lambda d: d["accessors"][0].update(componentType=1234))
+    assert "componentType 1234" in error(path)
+
+
+def test_index_out_of_range(tmp_path):
+    path = tmp_path / "scene.gltf"
+    good().write(path)
+
+    def widen(d):  # the index accessor reads the POSITION floats as indices
+        prim = d["meshes"][0]["primitives"][0]
+        d["accessors"][prim["indices"]]["bufferView"] = d["accessors"][0]["bufferView"]
+        d["accessors"][prim["indices"]]["count"] = 6
+    edit_json(path, widen)
+    msg = error(path)
+    assert "'Floor'" in msg and "out of range" in msg
+
+
+def test_reference_to_missing_mesh(tmp_path):
+    path = tmp_path / "scene.gltf"
+    good().write(path)
+    edit_json(path, lambda d: d["nodes"][0].update(mesh=7))
+    assert "mesh 7, which does not exist" in error(path)
+
+
+def test_no_triangle_meshes(tmp_path):
+    w = GltfWriter()
+    w.add_node("Bulb", light=w.add_light("Bulb", "point"))
+    path = tmp_path / "empty.glb"
+    w.write(path)
+    assert "no triangle meshes" in error(path)
+
+
+def test_only_line_primitives_is_no_triangle_meshes(tmp_path):
+    path = tmp_path / "wire.gltf"
+    good().write(path)
+    edit_json(path, lambda d: d["meshes"][0]["primitives"][0].update(mode=1))
+    assert "no triangle meshes" in error(path)
+
+
+def test_nan_vertex_names_object(tmp_path):
+    p = QUAD_P.copy()
+    p[2, 1] = np.nan
+    path = tmp_path / "scene.glb"
+    good(positions=p, name="Bad chair").write(path)
+    msg = error(path)
+    assert "'Bad chair'" in msg and "NaN" in msg
+
+
+def test_inf_in_node_transform_names_object(tmp_path):
+    path = tmp_path / "scene.gltf"
+    good(name="Lamp shade").write(path)
+    edit_json(path, lambda d: d["nodes"][0].update(scale=[1e308, 1e308, 1e308]) or
+              d["nodes"][0].update(translation=[1e308, 0, 0]))
+    # 1e308 * 1 + 1e308 overflows to inf in world space
+    msg = error(path)
+    assert "'Lamp shade'" in msg
+
+
+def test_no_light_names_the_three_ways(tmp_path):
+    path = tmp_path / "dark.glb"
+    good(light=False).write(path)
+    msg = error(path)
+    assert "no light" in msg
+    assert "emissive" in msg and "KHR_lights_punctual" in msg and "[sky]" in msg
+    assert "dark.glint.toml" in msg
+
+
+def test_bad_sidecar_toml_names_file_and_line(tmp_path):
+    path = tmp_path / "scene.glb"
+    good().write(path)
+    (tmp_path / "scene.glint.toml").write_text('[bake]\nquality = "draft"\nsamples = \n')
+    msg = error(path)
+    assert "scene.glint.toml" in msg and "line 3" in msg
+
+
+def test_sidecar_wrong_type(tmp_path):
+    path = tmp_path / "scene.glb"
+    good().write(path)
+    (tmp_path / "scene.glint.toml").write_text('[sky]\nradiance = "blue"\n')
+    msg = error(path)
+    assert "scene.glint.toml" in msg and "[sky] radiance" in msg
+
+
+def test_unknown_role(tmp_path):
+    path = tmp_path / "scene.glb"
+    good().write(path)
+    (tmp_path / "scene.glint.toml").write_text('[objects."Floor"]\nrole = "shiny"\n')
+    msg = error(path)
+    assert "unknown role 'shiny'" in msg and "planar" in msg and "scene.glint.toml" in msg
+
+
+def test_bad_lobe_in_sidecar(tmp_path):
+    path = tmp_path / "scene.glb"
+    good().write(path)
+    (tmp_path / "scene.glint.toml").write_text(
+        '[materials."Mat"]\nlobes = [ { kind = "refract", mx = 0.1 } ]\n')
+    msg = error(path)
+    assert "lobes[0] kind" in msg and "refract" in msg
+
+
+def test_missing_sky_map(tmp_path):
+    path = tmp_path / "scene.glb"
+    good().write(path)
+    (tmp_path / "scene.glint.toml").write_text('[sky]\nmap = "nowhere.exr"\n')
+    msg = error(path)
+    assert "[sky] map" in msg and "nowhere.exr" in msg
+
+
+def test_required_unsupported_extension(tmp_path):
+    path = tmp_path / "scene.gltf"
+    good().write(path)
+    edit_json(path, lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"],
+                                       extensionsUsed=["KHR_draco_mesh_compression"]))
+    msg = error(path)
+    assert "KHR_draco_mesh_compression" in msg and "requires" in msg
+
+
+def test_glb_with_chunk_length_past_end(tmp_path):
+    path = tmp_path / "scene.glb"
+    good().write(path)
+    data = bytearray(path.read_bytes())
+    jlen = struct.unpack_from("<I", data, 12)[0]
+    struct.pack_into("<I", data, 20 + jlen, 10 ** 6)  # BIN chunk claims 1 MB
+    path.write_bytes(bytes(data))
+    assert "truncated .glb" in error(path)

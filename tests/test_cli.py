@@ -1,0 +1,85 @@
+"""The `glint` command line: help, scene listing, and one-line errors with nothing written."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+from bake.gltf_writer import GltfWriter
+from conftest import quad, write_room
+
+
+def glint(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "glint", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, timeout=300)
+
+
+def assert_one_line_error(result, *words):
+    assert result.returncode == 2, result.stderr
+    lines = [l for l in result.stderr.strip().splitlines() if not l.startswith("glint: warning:")]
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("glint: ") and "Traceback" not in result.stderr
+    for word in words:
+        assert word.lower() in lines[0].lower(), lines[0]
+
+
+def test_help_explains_commands():
+    result = glint("--help")
+    assert result.returncode == 0
+    assert "bake" in result.stdout and "scenes" in result.stdout
+    bake_help = glint("bake", "--help").stdout
+    for option in ("--quality", "--samples", "--texels-per-metre", "--jobs", "--out", "--force"):
+        assert option in bake_help
+
+
+def test_scenes_lists_builtins():
+    result = glint("scenes")
+    assert result.returncode == 0
+    assert "cornell-box" in result.stdout and "living-room" in result.stdout
+
+
+def test_unknown_scene_name(tmp_path):
+    assert_one_line_error(glint("bake", "no-such-scene", cwd=tmp_path), "no-such-scene", "cornell-box")
+
+
+def test_missing_file(tmp_path):
+    assert_one_line_error(glint("bake", tmp_path / "missing.glb"), "missing.glb", "no such file")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_malformed_gltf(tmp_path):
+    bad = tmp_path / "broken.glb"
+    bad.write_bytes(b"glTF\x02\x00\x00\x00garbage")
+    assert_one_line_error(glint("bake", bad), "broken.glb")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken.glb"]
+
+
+def test_scene_without_light(tmp_path):
+    w = GltfWriter()
+    m = w.add_material("Grey")
+    p, i = quad((0, 0, 0), (1, 0, 0), (0, 0, -1))
+    w.add_node("Floor", mesh=w.add_mesh("Floor", p, i, m))
+    path = w.write(tmp_path / "dark.glb")
+    assert_one_line_error(glint("bake", path), "light")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dark.glb"]
+
+
+def test_bad_option_values(tmp_path):
+    for args in (("--samples", "0"), ("--quality", "ultra"), ("--texels-per-metre", "-1"), ("--jobs", "x")):
+        result = glint("bake", "cornell-box", *args, "-o", tmp_path / "x.bake")
+        assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert not (tmp_path / "x.bake").exists()
+
+
+def test_debug_shows_traceback(tmp_path):
+    result = glint("bake", tmp_path / "missing.glb", "--debug")
+    assert result.returncode == 2 and "Traceback" in result.stderr
+
+
+def test_bake_then_up_to_date(tmp_path):
+    path = write_room(tmp_path / "room.glb")
+    args = ("bake", path, "--samples", "4", "--texels-per-metre", "5", "--no-denoise")
+    first = glint(*args)
+    assert first.returncode == 0, first.stderr
+    assert (tmp_path / "room.bake" / "manifest.json").exists()
+    second = glint(*args)
+    assert second.returncode == 0 and "up to date" in second.stdout

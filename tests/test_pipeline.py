@@ -1,0 +1,146 @@
+"""`glint bake` as a whole: bake dir contents, incremental re-bake, atomicity, determinism."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from bake import pipeline
+from bake.bake_dir import Bake
+from bake.gltf_loader import load_scene
+from bake.pipeline import bake_scene
+from bake.settings import resolve_settings
+from conftest import FAST, write_room
+from glint.image_io import read_image
+
+
+def bake(path, out, **overrides):
+    scene = load_scene(path)
+    settings = resolve_settings(scene.bake_settings, **{**FAST, **overrides})
+    return bake_scene(scene, settings, out, progress=False)
+
+
+def lightmap_bytes(out):
+    return {p.name: p.read_bytes() for p in sorted((out / "lightmaps").iterdir())}
+
+
+def test_bake_dir_contents(room, tmp_path):
+    out = tmp_path / "room.bake"
+    report = bake(room, out)
+    assert report.status == "full"
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["format"] == "glint-bake" and manifest["version"] == 1
+    assert set(manifest["stages"]) >= {"geometry", "lightmaps"}
+    stats = manifest["statistics"]["lightmaps"]
+    assert stats["texels"] > 100 and stats["rays"] > stats["texels"] * FAST["samples"]
+    names = [o["name"] for o in manifest["objects"]]
+    assert {"Floor", "Ceiling", "Lamp", "Box"} <= set(names)
+    for page in manifest["lightmaps"]:
+        image = read_image(out / page)
+        assert image.shape[2] == 4 and np.all(np.isfinite(image))
+    # only the committed directory is left: no temporary or old copies beside it
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["room.bake", "room.glb"]
+
+
+def test_lightmap_is_plausible(room, tmp_path):
+    """Ceiling-lit room: the floor under the lamp gets more light than the ceiling corners,
+    and every baked value is finite and non-negative."""
+    out = tmp_path / "room.bake"
+    bake(room, out, samples=32)
+    b = Bake(out)
+    names = [o["name"] for o in b.manifest["objects"]]
+    floor = names.index("Floor")
+    centre = b.irradiance(floor, np.array([0]), np.array([[0.5, 0.0, 0.5]]))[0]  # diagonal midpoint = (0,0,0)
+    assert centre.min() > 0
+    # direct light of a 0.5 x 0.5 m lamp of radiance 8 at 2 m: ~ L*A/h^2 = 0.5; the closed room
+    # (albedo 0.7) adds about as much again (radiosity balance: pi*L*A / (24 m^2 * 0.3) * 0.7 ~ 0.6)
+    assert 0.6 < centre.mean() < 2.0
+
+
+def test_second_bake_is_up_to_date(room, tmp_path):
+    out = tmp_path / "room.bake"
+    bake(room, out)
+    before = lightmap_bytes(out)
+    mtime = (out / "manifest.json").stat().st_mtime_ns
+    report = bake(room, out)
+    assert report.status == "up-to-date"
+    assert "up to date" in report.summary
+    assert (out / "manifest.json").stat().st_mtime_ns == mtime
+    assert lightmap_bytes(out) == before
+
+
+def test_specular_or_camera_change_keeps_lightmaps(tmp_path, monkeypatch):
+    out = tmp_path / "room.bake"
+    path = write_room(tmp_path / "room.glb")
+    bake(path, out)
+    before = lightmap_bytes(out)
+    # a new reflection lobe on the floor and a new camera: no light map is re-baked
+    write_room(path, floor_lobes=[{"kind": "reflect", "ks": [1, 1, 1], "mx": 0.1, "my": 0.1, "r0": 0.04}],
+               sidecar='[cameras.extra]\neye = [0, 1, 0]\ntarget = [0, 0, -1]\nyfov = 40\n')
+
+    def no_bake(*a, **k):
+        raise AssertionError("light maps were re-baked")
+
+    monkeypatch.setattr(pipeline, "_bake_geometry_and_lightmaps", no_bake)
+    report = bake(path, out)
+    assert report.status == "manifest"
+    assert lightmap_bytes(out) == before
+    manifest = json.loads((out / "manifest.json").read_text())
+    floor = next(m for m in manifest["materials"] if m["name"] == "Floor")
+    assert floor["lobes"] and floor["lobes"][0]["mx"] == pytest.approx(0.1)
+    assert "extra" in [c["name"] for c in manifest["cameras"]]
+
+
+def test_diffuse_change_rebakes_lightmaps_only(tmp_path, monkeypatch):
+    out = tmp_path / "room.bake"
+    path = write_room(tmp_path / "room.glb")
+    bake(path, out)
+    before = lightmap_bytes(out)
+    write_room(path, kd=(0.3, 0.3, 0.3))
+    import bake.unwrap as unwrap_module
+
+    def no_unwrap(*a, **k):
+        raise AssertionError("geometry did not change, the unwrap must be reused")
+
+    monkeypatch.setattr(unwrap_module, "unwrap", no_unwrap)
+    report = bake(path, out)
+    assert report.status == "lightmaps"
+    assert lightmap_bytes(out) != before
+
+
+def test_geometry_change_rebakes_everything(tmp_path):
+    out = tmp_path / "room.bake"
+    path = write_room(tmp_path / "room.glb")
+    bake(path, out)
+    write_room(path, box_height=0.8)
+    assert bake(path, out).status == "full"
+
+
+def test_interrupted_bake_leaves_previous_bake_intact(tmp_path, monkeypatch):
+    out = tmp_path / "room.bake"
+    path = write_room(tmp_path / "room.glb")
+    bake(path, out)
+    before = lightmap_bytes(out)
+    manifest = (out / "manifest.json").read_text()
+    write_room(path, kd=(0.2, 0.5, 0.2))
+    import bake.lightmap as lightmap_module
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(lightmap_module, "compute_irradiance", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        bake(path, out, jobs=1)
+    assert lightmap_bytes(out) == before
+    assert (out / "manifest.json").read_text() == manifest
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["room.bake", "room.glb"]
+
+
+def test_result_does_not_depend_on_worker_count(room, tmp_path, monkeypatch):
+    import bake.lightmap as lightmap_module
+
+    monkeypatch.setattr(lightmap_module, "TILE", 64)  # several jobs, so two workers share them
+    bake(room, tmp_path / "a.bake", jobs=1)
+    bake(room, tmp_path / "b.bake", jobs=2)
+    assert lightmap_bytes(tmp_path / "a.bake") == lightmap_bytes(tmp_path / "b.bake")
