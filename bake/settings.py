@@ -40,6 +40,16 @@ class BakeSettings:
         return d
 
 
+def _typed(key: str, value, kind: type, where: str):
+    ok = (isinstance(value, bool) if kind is bool
+          else isinstance(value, (int, float)) and not isinstance(value, bool) and float(value) == float(value)
+          and (kind is float or float(value).is_integer()))
+    if not ok:
+        raise GlintError(f"{where}: {key} must be {'true or false' if kind is bool else 'a whole number' if kind is int else 'a number'}"
+                         f" (got {value!r})")
+    return kind(value)
+
+
 def resolve_settings(sidecar: dict | None = None, **cli) -> BakeSettings:
     """Preset of the chosen quality, then sidecar [bake] keys, then explicit command-line values."""
     sidecar = dict(sidecar or {})
@@ -48,13 +58,14 @@ def resolve_settings(sidecar: dict | None = None, **cli) -> BakeSettings:
         raise GlintError(f"unknown quality '{quality}' (choose {', '.join(PRESETS)})")
     values = dict(PRESETS[quality], quality=quality)
     names = {f.name for f in fields(BakeSettings)}
-    for source in (sidecar, cli):
+    types = {f.name: type(getattr(BakeSettings(), f.name)) for f in fields(BakeSettings)}
+    for where, source in (("[bake] in the sidecar", sidecar), ("command line", cli)):
         for key, value in source.items():
             if value is None or key == "quality":
                 continue
             if key not in names:
                 continue  # unknown sidecar keys are reported by the sidecar reader
-            values[key] = value
+            values[key] = _typed(key, value, types[key], where)
     settings = replace(BakeSettings(), **values)
     if settings.samples < 1:
         raise GlintError(f"samples must be at least 1 (got {settings.samples})")

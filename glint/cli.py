@@ -83,8 +83,8 @@ def add_bake_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--samples", type=_whole(1), metavar="N", help="paths per texel (overrides the preset)")
     p.add_argument("--texels-per-metre", type=_positive_float, metavar="T", dest="texels_per_metre",
                    help="light-map resolution (overrides the preset)")
-    p.add_argument("-j", "--jobs", type=_whole(0), default=0, metavar="N",
-                   help="worker processes (default 0: one per core)")
+    p.add_argument("-j", "--jobs", type=_whole(0), metavar="N",
+                   help="worker processes (default: the sidecar's [bake] jobs, else 0 = one per core)")
     p.add_argument("--no-denoise", action="store_true", help="keep the path-traced noise (no Open Image Denoise)")
     p.add_argument("--force", action="store_true", help="bake everything again even if up to date")
 
