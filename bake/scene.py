@@ -125,9 +125,9 @@ class DirectionalLight:
 class Sky:
     """Radiance arriving from infinitely far away: a constant, or an equirectangular map.
 
-    The map is (H, W, 3) float32; row 0 is straight up (+Y), column u runs with
-    azimuth phi = 2*pi*u measured from +X towards -Z... see `bake/lights.py`
-    for the exact direction <-> pixel mapping, which is the one place it lives.
+    The map is (H, W, 3) float32, equirectangular, row 0 straight up (+Y); the
+    direction <-> pixel mapping lives in one place, `bake/lights.py`. `radiance`
+    multiplies the map.
     """
 
     radiance: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))

@@ -1,0 +1,474 @@
+"""Irradiance at light-map texels by path tracing (wavefront: every path of a batch advances at once).
+
+Estimated quantity, per texel at x with normal n:  E(x) = integral over the hemisphere of L_i(w) cos(w, n) dw
+(W/m^2, RGB), so that the viewer's diffuse radiance is kd / pi x E (Eq. 4.1).
+
+Transport (light-map transport only, no reflection lobes: the viewer adds view-dependent
+light at run time, so a specular edit needs no re-bake):
+- At the texel and at every later diffuse vertex: next-event estimation (NEE) with one
+  area-light sample, MIS against the cosine-weighted direction sample by the power heuristic;
+  every punctual and directional light by a deterministic shadow ray; one sky-map sample
+  (MIS against the cosine sample). A constant sky is reached by the cosine sample alone.
+- Then a cosine-weighted direction. At the texel the "BSDF" is 1 (E integrates L cos),
+  so the throughput is pi; at a later vertex it is kd / pi x cos / (cos / pi) = kd.
+- Emission reached by a direction sample counts with the complementary MIS weight;
+  emitters emit from the front face unless their material is double-sided.
+- Thin transmissive surfaces (materials with transmit lobes): at a hit the path either
+  scatters diffusely (weight kd) or passes straight through (weight
+  T = sum of the transmit lobes' ks x (1 - Schlick F(cos))), chosen with probability
+  proportional to luminance. Shadow rays pass such surfaces multiplied by T (up to
+  MAX_FILTERS of them). Transmissive surfaces count as two-sided.
+- A path that hits the back face of a single-sided, non-transmissive material ends (black), like
+  Mitsuba's one-sided diffuse. The fraction of the texel's own hemisphere rays whose first hit is
+  a back face (of any material) is returned as `backface` (texels inside walls).
+- Russian roulette from depth 3 on the throughput (survival max(beta) / pi, at most 0.95),
+  `max_depth` as a safety cap.
+
+Random numbers: counter-based, so each texel's stream depends only on (seed, global texel
+index, sample index) and a result does not depend on how texels are chunked across jobs.
+The texel's own 2D samples (its hemisphere direction, its light and sky samples) are the R2
+low-discrepancy sequence, Cranley-Patterson rotated per texel, the light and sky sets paired
+with the direction by a per-texel random permutation (unbiased; on the Cornell box the per-texel
+standard deviation drops by 10% at 16 samples and 30% at 256 against independent samples);
+deeper vertices use a hash (splitmix64) of (path, dimension).
+
+Speed (2-core CI machine, one process, mitsuba.cornell_box(), 2048 texels x 512 samples):
+~1.6 M rays/s, ~285 k paths/s, 5.8 rays per path; Embree alone traces these rays at 6-9 M rays/s,
+so numpy is ~75% of the time (np.take gathers, (N, 3) arithmetic, light sampling).
+"""
+from __future__ import annotations
+
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+
+from bake.lights import LightSet, luminance
+from bake.raytrace import RayTracer
+from bake.scene import Scene
+
+BATCH_PATHS = 1 << 16  # paths traced together: bounds memory (~1 kB per path); 2^14..2^18 measured equal
+MAX_FILTERS = 4  # transmissive surfaces a shadow ray may pass before it counts as blocked
+RR_DEPTH = 3
+RR_MAX = 0.95
+INV_PI = 1.0 / np.pi
+UP = np.array([0.0, 1.0, 0.0])
+
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_R2 = 1.32471795724474602596  # plastic number: R2 sequence x_n = frac(n / g, n / g^2)
+_R2_A = np.array([1.0 / _R2, 1.0 / _R2 ** 2])
+
+
+@dataclass
+class IrradianceResult:
+    irradiance: np.ndarray  # (K, 3) float32 E = integral of L_i cos over the hemisphere around n (W/m^2), RGB
+    backface: np.ndarray  # (K,) float32 fraction of first-bounce hemisphere rays that hit a back face
+    rays: int  # rays traced (for statistics)
+
+
+# -- random numbers ----------------------------------------------------------------------------
+def _mix(x: np.ndarray) -> np.ndarray:
+    """splitmix64 finaliser (uint64 -> uint64, a bijection with good avalanche)."""
+    x = x ^ (x >> np.uint64(30))
+    x = x * _M1
+    x = x ^ (x >> np.uint64(27))
+    x = x * _M2
+    return x ^ (x >> np.uint64(31))
+
+
+def _uniform2(key: np.ndarray, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two independent uniforms in [0, 1) from one 64-bit hash of (path key, dimension)."""
+    h = _mix(key + np.uint64((dim + 1) * 0x632BE59BD9B4E019 % (1 << 64)))
+    return ((h >> np.uint64(32)).astype(np.float64) * 2.0 ** -32,
+            (h & np.uint64(0xFFFFFFFF)).astype(np.float64) * 2.0 ** -32)
+
+
+# -- array helpers -----------------------------------------------------------------------------
+# np.take(a, i, axis=0) gathers (N, 3) rows ~4x faster than a[i], and a flat 1-D scatter beats
+# L[rows] += c; these two and the dot product carry most of the wavefront's numpy time.
+def _take(i, *arrays):
+    if len(i) == len(arrays[0]):  # i is sorted and unique (from flatnonzero): all rows, nothing to do
+        return arrays
+    return tuple(np.take(a, i, axis=0) for a in arrays)
+
+
+def _add_rows(L: np.ndarray, rows: np.ndarray, c: np.ndarray) -> None:
+    """L[rows] += c for (N, 3) L and unique rows."""
+    flat = (rows[:, None] * 3 + np.arange(3)).ravel()
+    Lf = L.reshape(-1)
+    Lf[flat] += c.reshape(-1)
+
+
+def _dot(a, b):
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def _cosine_sample(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Cosine-weighted directions around unit n (Malley: concentric disk, Shirley-Chiu, lifted).
+
+    Returns (directions, cos theta); the density is cos / pi.
+    """
+    a, b = 2.0 * u1 - 1.0, 2.0 * u2 - 1.0
+    first = np.abs(a) > np.abs(b)
+    r = np.where(first, a, b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        phi = np.where(first, (np.pi / 4) * (b / a), np.pi / 2 - (np.pi / 4) * (a / b))
+    phi = np.where(r == 0, 0.0, phi)
+    x, y = r * np.cos(phi), r * np.sin(phi)
+    z = np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))
+    # orthonormal basis around n (Duff et al. 2017, branchless)
+    nx, ny, nz = n[:, 0], n[:, 1], n[:, 2]
+    sign = np.where(nz >= 0, 1.0, -1.0)
+    aa = -1.0 / (sign + nz)
+    bb = nx * ny * aa
+    d = np.empty_like(n)
+    d[:, 0] = x * (1.0 + sign * nx * nx * aa) + y * bb + z * nx
+    d[:, 1] = x * (sign * bb) + y * (sign + ny * ny * aa) + z * ny
+    d[:, 2] = x * (-sign * nx) + y * (-ny) + z * nz
+    return d, z
+
+
+def _power_weight(p_this, p_other):
+    """Power heuristic (beta = 2), 0 where both densities are 0."""
+    a, b = p_this * p_this, p_other * p_other
+    s = a + b
+    return np.where(s > 0, a / np.where(s > 0, s, 1.0), 0.0)
+
+
+# -- per-scene tables --------------------------------------------------------------------------
+class _Transport:
+    """Material tables and lights for one tracer (built once per process)."""
+
+    def __init__(self, scene: Scene, tracer: RayTracer):
+        self.tracer = tracer
+        self.lights = LightSet(scene, tracer)
+        mats = scene.materials
+        M = max(len(mats), 1)
+        self.kd = np.zeros((M, 3))
+        self.textures = {}
+        L = max([len(m.transmit_lobes) for m in mats] + [1])
+        self.t_ks = np.zeros((M, L, 3))
+        self.t_r0 = np.zeros((M, L))
+        for i, m in enumerate(mats):
+            self.kd[i] = np.clip(np.nan_to_num(np.asarray(m.kd, np.float64).reshape(3)), 0.0, 1.0)
+            if m.kd_texture is not None:
+                self.textures[i] = np.clip(np.nan_to_num(np.asarray(m.kd_texture, np.float64)[..., :3]),
+                                           0.0, 1.0)
+            for j, lobe in enumerate(m.transmit_lobes):
+                self.t_ks[i, j] = np.clip(np.nan_to_num(np.asarray(lobe.ks, np.float64)), 0.0, 1.0)
+                self.t_r0[i, j] = np.clip(float(lobe.r0), 0.0, 1.0)
+        self.transmissive = self.t_ks.reshape(M, -1).max(axis=1) > 0
+        self.any_transmissive = bool(self.transmissive.any())
+        self.two_sided = self.transmissive.copy()
+        for i, m in enumerate(mats):
+            self.two_sided[i] |= bool(m.double_sided)
+        self.emit_two_sided = np.array([m.double_sided for m in mats] or [False], bool)
+        self.emission = self.lights.area.material_emission if len(mats) else np.zeros((1, 3))
+        self.emissive = self.emission.max(axis=1) > 0 if len(mats) else np.zeros(1, bool)
+        self.emitter_pdf_area = self.lights.area.material_pdf_area if len(mats) else np.zeros(1)
+
+    def transmittance(self, mat: np.ndarray, cos: np.ndarray) -> np.ndarray:
+        """Straight-through weight of thin transmissive surfaces: sum_l ks_l (1 - Schlick F_l(cos))."""
+        c5 = (1.0 - np.clip(cos, 0.0, 1.0)) ** 5
+        r0 = self.t_r0[mat]  # (N, L)
+        return np.einsum("nlc,nl->nc", self.t_ks[mat], 1.0 - (r0 + (1.0 - r0) * c5[:, None]))
+
+    def albedo(self, mat: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
+        """kd x base-colour texture (bilinear, repeat; glTF uv: (0, 0) = top-left of the image)."""
+        kd = np.take(self.kd, mat, axis=0)
+        for m, tex in self.textures.items():
+            sel = np.nonzero(mat == m)[0]
+            if not len(sel):
+                continue
+            uv = self.tracer.texcoords(prim[sel], b1[sel], b2[sel])
+            H, W = tex.shape[:2]
+            x = np.nan_to_num(uv[:, 0]) * W - 0.5
+            y = np.nan_to_num(uv[:, 1]) * H - 0.5
+            x0, y0 = np.floor(x), np.floor(y)
+            fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+            x0 = x0.astype(np.int64) % W
+            y0 = y0.astype(np.int64) % H
+            x1, y1 = (x0 + 1) % W, (y0 + 1) % H
+            c = ((1 - fy) * ((1 - fx) * tex[y0, x0] + fx * tex[y0, x1])
+                 + fy * ((1 - fx) * tex[y1, x0] + fx * tex[y1, x1]))
+            kd[sel] = kd[sel] * c
+        return kd
+
+    # -- shadow rays -------------------------------------------------------------------------
+    def visibility(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray):
+        """Which segments o + t d, 0 < t < tmax, let light through: (mask (N,) bool, T (N, 3) or None).
+
+        T multiplies the light where it passed thin transmissive surfaces (each re-shot from just past
+        it, MAX_FILTERS at most); it is None when the scene has none (a plain occlusion query)."""
+        tr = self.tracer
+        if not self.any_transmissive:
+            return ~tr.occluded(o, d, tmax), None
+        T = np.ones((len(o), 3))
+        clear = np.ones(len(o), bool)
+        live = np.arange(len(o))
+        o, tmax = o.copy(), tmax.copy()
+        for k in range(MAX_FILTERS + 1):
+            rows, h = tr.intersect_hits(o[live], d[live], tmax[live])
+            live = live[rows]
+            passes = self.transmissive[h.material] if k < MAX_FILTERS else np.zeros(len(live), bool)
+            clear[live[~passes]] = False
+            p = np.flatnonzero(passes)
+            live = live[p]
+            if not len(live):
+                break
+            dl = d[live]
+            ng = h.ng[p]
+            T[live] *= self.transmittance(h.material[p], np.abs(_dot(dl, ng)))
+            new_o = tr.offset(h.position[p], ng, dl, h.eps[p])
+            tmax[live] -= _dot(new_o - o[live], dl)
+            o[live] = new_o
+            live = live[tmax[live] > 0]
+        return clear, T
+
+    def next_event(self, x, x_up, eps, ng, ns, fbeta, u_light, u_sky) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Direct light at vertices x (x_up: x lifted eps along ng; ng, ns: geometric and shading
+        normals on the path's side; fbeta: throughput x BSDF value).
+
+        Returns [(rows, contributions)] with rows unique within each pair (one pair per light kind)."""
+        tr, lights = self.tracer, self.lights
+        rows, dirs, tmaxs, values = [], [], [], []
+
+        area = lights.area
+        if area.count:
+            y, nl, Le, two, pdf_a, eps_l = area.sample(*u_light)
+            v = y - x
+            d2 = _dot(v, v)
+            dist = np.sqrt(d2)
+            l = v / np.maximum(dist, 1e-30)[:, None]
+            cos_x = _dot(ns, l)
+            cos_l = -_dot(nl, l)
+            ok = (cos_x > 0) & (_dot(ng, l) > 0) & ((cos_l > 0) | (two & (cos_l < 0)))
+            sel = np.flatnonzero(ok)
+            if len(sel):
+                y, nl, Le, xu, fb = _take(sel, y, nl, Le, x_up, fbeta)
+                cx, cl, d2 = cos_x[sel], cos_l[sel], d2[sel]
+                pdf_l = pdf_a[sel] * d2 / np.abs(cl)  # area -> solid angle
+                w = _power_weight(pdf_l, cx * INV_PI)
+                # the shadow ray runs from x_up to the light point lifted eps off its own triangle towards x
+                seg = y + (eps_l[sel] * np.sign(cl))[:, None] * nl - xu
+                length = np.sqrt(_dot(seg, seg))
+                rows.append(sel)
+                dirs.append(seg / np.maximum(length, 1e-30)[:, None])
+                tmaxs.append(length)
+                values.append((fb * Le) * (cx * w / pdf_l)[:, None])
+
+        if lights.delta.count:
+            for l, dist, E in lights.delta.evaluate(x):
+                cos_x = _dot(ns, l)
+                sel = np.flatnonzero((cos_x > 0) & (_dot(ng, l) > 0) & (E.max(axis=1) > 0))
+                if len(sel):
+                    ls, Es, fb = _take(sel, l, E, fbeta)
+                    rows.append(sel)
+                    dirs.append(ls)
+                    tmaxs.append(dist[sel] - eps[sel])
+                    values.append(fb * Es * cos_x[sel][:, None])
+
+        sky = lights.sky
+        if sky is not None and not sky.constant and sky.samplable:
+            l, pdf_s = sky.sample(*u_sky)
+            cos_x = _dot(ns, l)
+            sel = np.flatnonzero((cos_x > 0) & (_dot(ng, l) > 0) & (pdf_s > 0))
+            if len(sel):
+                cx, ps = cos_x[sel], pdf_s[sel]
+                w = _power_weight(ps, cx * INV_PI)
+                ls, fb = _take(sel, l, fbeta)
+                rows.append(sel)
+                dirs.append(ls)
+                tmaxs.append(np.full(len(sel), np.inf))
+                values.append(fb * sky.radiance(ls) * (cx * w / ps)[:, None])
+
+        if not rows:
+            return []
+        allrows = np.concatenate(rows) if len(rows) > 1 else rows[0]
+        clear, T = self.visibility(np.take(x_up, allrows, axis=0), np.concatenate(dirs) if len(dirs) > 1 else dirs[0],
+                                   np.clip(np.concatenate(tmaxs), 0.0, 1e30))
+        out, start = [], 0
+        for r, v in zip(rows, values):
+            c = clear[start:start + len(r)]
+            if T is not None:
+                v = v * T[start:start + len(r)]
+            c = np.flatnonzero(c)
+            out.append((r[c], np.take(v, c, axis=0)))
+            start += len(r)
+        return out
+
+
+_CACHE: "weakref.WeakKeyDictionary[RayTracer, _Transport]" = weakref.WeakKeyDictionary()
+
+
+def _transport(scene: Scene, tracer: RayTracer) -> _Transport:
+    t = _CACHE.get(tracer)
+    if t is None:
+        t = _CACHE[tracer] = _Transport(scene, tracer)
+    return t
+
+
+# -- the integrator ----------------------------------------------------------------------------
+def compute_irradiance(scene: Scene, tracer: RayTracer, points, normals, samples: int, seed: int = 0,
+                       max_depth: int = 64, progress=None, first_index: int = 0) -> IrradianceResult:
+    """E at K points with unit normals: `samples` paths each; deterministic per (seed, first_index + k).
+
+    progress, when given, is called with the number of texels finished after each batch.
+    """
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    normals = np.asarray(normals, np.float64).reshape(-1, 3)
+    K = len(points)
+    samples = max(int(samples), 1)
+    E = np.zeros((K, 3), np.float32)
+    back = np.zeros(K, np.float32)
+    rays_before = tracer.rays
+    if K == 0:
+        return IrradianceResult(E, back, 0)
+    tp = _transport(scene, tracer)
+    per_batch = max(1, BATCH_PATHS // samples)
+    for start in range(0, K, per_batch):
+        stop = min(K, start + per_batch)
+        e, b = _trace_batch(tp, points[start:stop], normals[start:stop], samples, seed,
+                            first_index + start, max_depth)
+        E[start:stop] = e
+        back[start:stop] = b
+        if progress is not None:
+            progress(stop - start)
+    return IrradianceResult(E, back, int(tracer.rays - rays_before))
+
+
+def _texel_qmc(texel_key: np.ndarray, samples: int, tag: int, permute: bool) -> tuple[np.ndarray, np.ndarray]:
+    """R2 points for every (texel, sample) (texel-major), rotated per texel, optionally permuted per texel."""
+    nt = len(texel_key)
+    index = np.broadcast_to(np.arange(samples, dtype=np.float64), (nt, samples))
+    if permute:
+        keys = _mix(texel_key[:, None] * _GOLDEN + np.arange(samples, dtype=np.uint64)[None, :]
+                    + np.uint64(tag))
+        index = np.argsort(keys, axis=1).astype(np.float64)
+    shift = _uniform2(texel_key, 1000 + tag)
+    u = np.mod(shift[0][:, None] + index * _R2_A[0], 1.0).ravel()
+    v = np.mod(shift[1][:, None] + index * _R2_A[1], 1.0).ravel()
+    return u, v
+
+
+def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, max_depth):
+    tr = tp.tracer
+    sky = tp.lights.sky
+    nt = len(points)
+    N = nt * samples
+    texel_key = _mix(np.arange(first_texel, first_texel + nt, dtype=np.uint64)
+                     + _mix(np.full(1, seed, dtype=np.uint64)))
+    key = _mix(np.repeat(texel_key, samples) * _GOLDEN + np.tile(np.arange(samples, dtype=np.uint64), nt))
+
+    n = normals.copy()
+    length = np.sqrt(_dot(n, n))
+    good = (length > 1e-12) & np.isfinite(points).all(axis=1) & np.isfinite(n).all(axis=1)
+    n[good] /= length[good, None]
+    points = np.where(good[:, None], points, 0.0)
+    n = np.where(good[:, None], n, UP)
+    eps = tr.point_eps(points, n)
+    a = np.flatnonzero(np.repeat(good, samples))  # paths of usable texels (others stay black)
+    texel = a // samples
+    x, n, eps = (np.take(v, texel, axis=0) for v in (points, n, eps))
+    key = key[a]
+    L = np.zeros((N, 3))
+    backface = np.zeros(N)
+
+    # vertex 0, the texel: its BSDF is 1 (E integrates L cos): NEE, then a cosine direction (QMC)
+    x_up = x + eps[:, None] * n
+    u_light = [u[a] for u in _texel_qmc(texel_key, samples, 1, True)]
+    u_sky = [u[a] for u in _texel_qmc(texel_key, samples, 2, True)]
+    for rows, c in tp.next_event(x, x_up, eps, n, n, np.ones((len(a), 3)), u_light, u_sky):
+        _add_rows(L, a[rows], c)
+    d, cos = _cosine_sample(n, *[u[a] for u in _texel_qmc(texel_key, samples, 0, False)])
+    s = np.flatnonzero(cos > 0)
+    idx, o, d, prev_pos, prev_pdf, key = _take(s, a, x_up, d, x, cos * INV_PI, key)
+    beta = np.full((len(s), 3), np.pi)  # f cos / pdf = 1 x cos / (cos / pi)
+
+    for depth in range(max_depth):
+        if not len(idx):
+            break
+
+        rows, h = tr.intersect_hits(o, d)
+        if depth == 0:
+            backface[idx[rows]] = ~h.front
+        if len(rows) < len(idx):
+            if sky is not None:  # escaped: sky radiance, MIS against the previous vertex's sky sample
+                m = np.ones(len(idx), bool)
+                m[rows] = False
+                m = np.flatnonzero(m)
+                dm = np.take(d, m, axis=0)
+                Ls = sky.radiance(dm)
+                if not sky.constant and sky.samplable:
+                    Ls *= _power_weight(prev_pdf[m], sky.pdf(dm))[:, None]
+                _add_rows(L, idx[m], np.take(beta, m, axis=0) * Ls)
+            idx, d, beta, prev_pos, prev_pdf, key = _take(rows, idx, d, beta, prev_pos, prev_pdf, key)
+        mat, pos, ngeo, front = h.material, h.position, h.ng, h.front
+
+        # emission reached by the direction sample: MIS against the light sample of the previous vertex
+        em = np.flatnonzero(tp.emissive[mat] & (front | tp.emit_two_sided[mat]))
+        if len(em):
+            me = mat[em]
+            pe, ppe, ne, de, be = _take(em, pos, prev_pos, ngeo, d, beta)
+            v = pe - ppe
+            pdf_l = tp.emitter_pdf_area[me] * _dot(v, v) / np.maximum(np.abs(_dot(ne, de)), 1e-12)
+            _add_rows(L, idx[em], be * np.take(tp.emission, me, axis=0)
+                      * _power_weight(prev_pdf[em], pdf_l)[:, None])
+        if depth + 1 >= max_depth:
+            break
+
+        kd = tp.albedo(mat, h.prim, h.b1, h.b2)
+        ok = front | tp.two_sided[mat]  # the back face of a single-sided surface ends the path
+        if tp.any_transmissive:
+            # scatter (weight kd) or pass straight through (weight T), chosen by luminance
+            cos_in = np.abs(_dot(d, ngeo))
+            T = np.where(tp.transmissive[mat][:, None], tp.transmittance(mat, cos_in), 0.0)
+            lum_kd, lum_T = luminance(kd), luminance(T)
+            total = lum_kd + lum_T
+            ok &= total > 0
+            p_t = np.where(total > 0, lum_T / np.where(total > 0, total, 1.0), 0.0)
+            through = ok & (_uniform2(key, 8 * (depth + 1) + 6)[0] < p_t)
+            ok &= ~through
+            t = np.flatnonzero(through)
+            # same direction from the far side; MIS state (prev_pos, prev_pdf) unchanged
+            ti, tpos, tng, td, teps, tbeta, tT, tp_t, tprev, tpdf, tkey = _take(
+                t, idx, pos, ngeo, d, h.eps, beta, T, p_t, prev_pos, prev_pdf, key)
+            t_state = (ti, tr.offset(tpos, tng, td, teps), td, tbeta * (tT / tp_t[:, None]), tprev, tpdf, tkey)
+            p_s = 1.0 - p_t
+            beta = beta * np.where(p_s > 0, 1.0 / np.where(p_s > 0, p_s, 1.0), 0.0)[:, None]
+        else:
+            ok &= kd.max(axis=1) > 0
+            t_state = None
+        idx, pos, ngeo, ns, eps, front, beta, key, kd = _take(np.flatnonzero(ok), idx, pos, ngeo, h.ns, h.eps,
+                                                              front, beta, key, kd)
+
+        # diffuse scattering, normals turned to the side the path arrived from
+        flip = np.where(front, 1.0, -1.0)[:, None]
+        ngeo = ngeo * flip
+        ns = ns * flip
+        bad = np.flatnonzero(_dot(ns, ngeo) <= 0)
+        if len(bad):
+            ns[bad] = ngeo[bad]
+        x_up = pos + eps[:, None] * ngeo
+        for rows, c in tp.next_event(pos, x_up, eps, ngeo, ns, beta * (kd * INV_PI),
+                                     _uniform2(key, 8 * (depth + 1)), _uniform2(key, 8 * (depth + 1) + 1)):
+            _add_rows(L, idx[rows], c)
+        d, cos = _cosine_sample(ns, *_uniform2(key, 8 * (depth + 1) + 2))
+        beta *= kd  # kd/pi x cos / (cos/pi)
+        go = (cos > 0) & (_dot(d, ngeo) > 0)
+        if depth + 1 >= RR_DEPTH:  # Russian roulette on the throughput (relative to the texel's pi)
+            q = np.minimum(beta.max(axis=1) * INV_PI, RR_MAX)
+            go &= _uniform2(key, 8 * (depth + 1) + 3)[0] < q
+            beta /= np.where(go, q, 1.0)[:, None]
+        idx, o, d, beta, prev_pos, prev_pdf, key = _take(np.flatnonzero(go), idx, x_up, d, beta, pos,
+                                                         cos * INV_PI, key)
+        if t_state is not None:
+            idx, o, d, beta, prev_pos, prev_pdf, key = (np.concatenate(pair) for pair in
+                                                        zip(t_state, (idx, o, d, beta, prev_pos, prev_pdf, key)))
+
+    L = np.nan_to_num(L, nan=0.0, posinf=0.0, neginf=0.0)
+    E = L.reshape(nt, samples, 3).mean(axis=1)
+    b = backface.reshape(nt, samples).mean(axis=1)
+    return np.clip(E, 0.0, np.finfo(np.float32).max).astype(np.float32), b.astype(np.float32)
