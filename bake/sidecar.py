@@ -248,21 +248,9 @@ def _sky(table, path: Path, w: list[str]) -> Sky:
 
 def read_sky_map(path: Path, where: str = "sky map") -> np.ndarray:
     """An equirectangular EXR/HDR/... -> (H, W, 3) float32 linear RGB, via OpenImageIO."""
-    import OpenImageIO as oiio
+    from glint.image_io import read_image
 
-    if not Path(path).is_file():
-        raise GlintError(f"{where}: no such file {path}")
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise GlintError(f"{where}: cannot read {path}: {buf.geterror().strip()}")
-    pixels = buf.get_pixels(oiio.FLOAT)
-    if pixels is None or buf.has_error:
-        raise GlintError(f"{where}: cannot read {path}: {buf.geterror().strip()}")
-    pixels = np.asarray(pixels, np.float32)
-    if pixels.ndim == 2:
-        pixels = pixels[:, :, None]
-    if pixels.ndim == 4:  # (depth, H, W, C) for volume images; take the first slice
-        pixels = pixels[0]
+    pixels = read_image(path, where)
     if pixels.shape[2] < 3:
         pixels = np.repeat(pixels[:, :, :1], 3, axis=2)
     pixels = np.ascontiguousarray(pixels[:, :, :3])

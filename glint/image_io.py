@@ -17,15 +17,20 @@ from glint.errors import GlintError
 HALF_MAX = 65504.0
 
 
-def read_image(path: str | Path) -> np.ndarray:
+def read_image(path: str | Path, what: str = "image") -> np.ndarray:
     """Any image OpenImageIO reads -> float32 (H, W, C) (8-bit files scaled to [0, 1])."""
+    if not Path(path).is_file():
+        raise GlintError(f"{what}: no such file {path}")
     buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise GlintError(f"{path}: cannot read image: {buf.geterror().strip()}")
-    pixels = buf.get_pixels(oiio.FLOAT)
+    pixels = None if buf.has_error else buf.get_pixels(oiio.FLOAT)
     if pixels is None or buf.has_error:
-        raise GlintError(f"{path}: cannot read image: {buf.geterror().strip()}")
-    return np.ascontiguousarray(pixels, dtype=np.float32)
+        raise GlintError(f"{what}: cannot read {path}: {buf.geterror().strip()}")
+    pixels = np.asarray(pixels, np.float32)
+    if pixels.ndim == 2:
+        pixels = pixels[:, :, None]
+    if pixels.ndim == 4:  # (depth, H, W, C) for volume images; take the first slice
+        pixels = pixels[0]
+    return np.ascontiguousarray(pixels)
 
 
 def write_image(path: str | Path, pixels: np.ndarray, *, half: bool | None = None,
