@@ -456,7 +456,6 @@ SIDECAR = """\
 
 [bake]
 quality = "preview"
-texels_per_metre = 20
 
 [lights]
 units = "photometric"    # KHR_lights_punctual intensities are candela / lux, as glTF says
