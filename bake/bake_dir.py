@@ -101,6 +101,9 @@ class BakeDirWriter:
             shutil.copy2(src, dst)
 
     def commit(self) -> None:
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(self.path, 0o777 & ~umask)  # mkdtemp made it private; a bake dir is an ordinary folder
         old = None
         if self.target.exists():
             old = self.target.with_name(f".{self.target.name}.old-{os.getpid()}")
