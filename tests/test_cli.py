@@ -1,11 +1,16 @@
 """The `glint` command line: help, scene listing, and one-line errors with nothing written."""
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
+import numpy as np
+import pytest
+
 from bake.gltf_writer import GltfWriter
 from conftest import quad, write_room
+from glint.image_io import read_image
 
 
 def glint(*args, cwd=None):
@@ -83,3 +88,22 @@ def test_bake_then_up_to_date(tmp_path):
     assert (tmp_path / "room.bake" / "manifest.json").exists()
     second = glint(*args)
     assert second.returncode == 0 and "up to date" in second.stdout
+
+
+@pytest.mark.slow
+def test_bake_living_room_preview(tmp_path):
+    """The acceptance run of issue 2: `glint bake living-room --quality preview` on the CI machine."""
+    out = tmp_path / "lr.bake"
+    result = glint("bake", "living-room", "--quality", "preview", "-o", out)
+    assert result.returncode == 0, result.stderr
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert len(manifest["objects"]) >= 20
+    assert manifest["statistics"]["lightmaps"]["rays"] > 1e6
+    roles = {o["role"] for o in manifest["objects"]}
+    assert roles == {"diffuse", "curved", "planar", "transmissive"}
+    for page in manifest["lightmaps"]:
+        image = read_image(out / page)
+        assert np.all(np.isfinite(image)) and image.min() >= 0
+        assert image[..., :3].max() > 0.1
+    again = glint("bake", "living-room", "--quality", "preview", "-o", out)
+    assert again.returncode == 0 and "up to date" in again.stdout
