@@ -68,6 +68,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
     add_bake_options(p)
     p.set_defaults(run=cmd_bake)
+    from viewer.view_command import add_view_parser
+    add_view_parser(sub, common)
+    from viewer.capture import add_capture_parser
+    add_capture_parser(sub, common)
     return parser
 
 

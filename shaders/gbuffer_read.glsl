@@ -1,0 +1,45 @@
+// Reading the G-buffer back in compute passes (layout: gbuffer_layout.glsl).
+
+#include "common.glsl"
+#include "camera.glsl"
+#include "gbuffer_layout.glsl"
+
+uniform sampler2D gb_diffuse;
+uniform sampler2D gb_normal;
+uniform sampler2D gb_tangent;
+uniform usampler2D gb_material;
+uniform sampler2D gb_depth;
+
+// One visible surface point, as the shading pass and its per-pixel hooks see it.
+struct Surface {
+    vec3 position;       // world space, reconstructed from depth
+    vec3 normal;         // unit, on the side facing the viewer
+    vec3 tangent;        // unit or zero (no tangent frame)
+    float bitangent_sign;
+    vec3 to_eye;         // unit direction from the point to the eye (-ray)
+    vec3 diffuse;        // light-mapped diffuse radiance kd/pi * E
+    int material;
+    bool dark;           // back face of a single-sided material: sends no light to the viewer
+};
+
+// True where nothing was drawn (the sky shows).
+bool gbuffer_empty(ivec2 p) {
+    return texelFetch(gb_depth, p, 0).r >= 1.0;
+}
+
+Surface gbuffer_surface(ivec2 p, vec3 ray) {
+    Surface s;
+    vec4 n = texelFetch(gb_normal, p, 0);
+    vec4 t = texelFetch(gb_tangent, p, 0);
+    s.normal = safe_normalize(n.xyz, -ray);
+    s.tangent = safe_normalize(t.xyz, vec3(0.0));
+    s.bitangent_sign = t.w < 0.0 ? -1.0 : 1.0;
+    s.dark = n.w > 0.5 * GB_DARK_BACK_FACE;
+    s.diffuse = texelFetch(gb_diffuse, p, 0).rgb;
+    s.material = int(texelFetch(gb_material, p, 0).r);
+    // ray is a unit vector within the field of view, so dot(ray, cam_forward) > 0.
+    float along = eye_depth(texelFetch(gb_depth, p, 0).r) / max(dot(ray, cam_forward), 1e-6);
+    s.position = eye + ray * along;
+    s.to_eye = -ray;
+    return s;
+}

@@ -1,0 +1,21 @@
+// The section 3.3 material (Eq. 3.6: kd/pi + lobes, plus emission) as viewer/gpu_scene.py packs
+// it into shader storage buffers (std430). Flags (MAT_*) and bindings come in as defines from
+// gpu_scene.py, so the Python packer and this declaration cannot drift apart.
+
+struct Material {
+    vec4 kd;        // rgb: diffuse reflectance kd; a: unused
+    vec4 emission;  // rgb: emitted radiance, W/(m^2 sr); a: unused
+    ivec4 info;     // x: MAT_* flags, y: kd texture index (-1: none), z: first lobe, w: lobe count
+};
+
+struct Lobe {
+    vec4 ks;        // rgb: lobe weight ks (Eq. 3.2) or kt (Eq. 3.6); a: LOBE_REFLECT or LOBE_TRANSMIT
+    vec4 shape;     // x: mx, y: my (Beckmann roughness, Eq. 3.3), z: r0 (Schlick), w: alpha (Eq. 3.4)
+};
+
+layout(std430, binding = MATERIAL_BINDING) readonly buffer MaterialBuffer { Material materials[]; };
+layout(std430, binding = LOBE_BINDING) readonly buffer LobeBuffer { Lobe lobes[]; };
+
+bool has_flag(Material m, int flag) {
+    return (m.info.x & flag) != 0;
+}

@@ -1,0 +1,325 @@
+"""`glint capture SCENE -o FILE`: render headless (EGL) into PNG or EXR files.
+
+    glint capture living-room -o hall.png                        # the scene's first camera
+    glint capture cornell-box -o cb.exr --size 256x256            # linear radiance, float32
+    glint capture living-room -o v.png --eye 1.6,1.6,1.6 --target -1,1,-0.8 --fov 55
+    glint capture living-room -o tour.png --path tour --frames 120   # tour_0000.png ...
+
+The scene is baked first when its bake is missing or stale (the `glint bake`
+options apply; the bake directory is --bake-dir, as -o names the image here).
+The same command gives byte-identical images: nothing random, no timestamps.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import re
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from glint.errors import GlintError
+
+EXTENSIONS = {".png": "tone-mapped sRGB, 8 bits", ".exr": "linear radiance, float32"}
+DEFAULT_SIZE = "1280x720"
+DEFAULT_SUPERSAMPLE = 2
+DEFAULT_FRAMES = 30
+STATS_REPEATS = 5  # a single capture with --stats is timed over this many renders (medians)
+_VECTOR_ARG = re.compile(r"^-[\d.]")  # "-1,2,3" is a value, not an option
+
+
+class _BakeOptions:
+    """`glint.cli.add_bake_options` into an argument group, with its -o/--out (the bake
+    directory) renamed --bake-dir: -o is the image file here."""
+
+    def __init__(self, group):
+        self.group = group
+
+    def add_argument(self, *flags, **kwargs):
+        if "--out" in flags:
+            flags = ("--bake-dir",)
+            kwargs["dest"] = "out"
+        return self.group.add_argument(*flags, **kwargs)
+
+
+def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    from glint.cli import SCENE_HELP, add_bake_options
+
+    p = subparsers.add_parser(
+        "capture", parents=[common_parent], help="render images headless (PNG or EXR), no window needed",
+        description="Render a scene without a window or display (EGL; Mesa's llvmpipe where there is no "
+                    "GPU) into a PNG (tone-mapped sRGB) or an OpenEXR file (linear radiance, float32, "
+                    "before exposure and tone mapping). Bakes first when the bake is missing or stale. "
+                    "The same command gives byte-identical files.",
+        epilog="Vectors are X,Y,Z in metres, world space, Y up; a negative first value works as is "
+               "(--eye -1,1.5,2).")
+    # argparse would read "-1,2,3" as an unknown option; vectors may start with a minus sign.
+    p._negative_number_matcher = _VECTOR_ARG
+    p.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
+    p.add_argument("-o", "--output", required=True, type=Path, metavar="FILE",
+                   help="image to write: .png (tone-mapped sRGB) or .exr (linear radiance, float32); "
+                        "with --path, FILE gets a frame number before its extension (out_0000.png, ...)")
+    p.add_argument("--size", default=DEFAULT_SIZE, metavar="WxH", help=f"image size in pixels (default {DEFAULT_SIZE})")
+    view = p.add_argument_group("view (default: the scene's first camera, else a view of the whole scene)")
+    view.add_argument("--camera", metavar="NAME", help="a camera of the scene (glTF or sidecar)")
+    view.add_argument("--eye", metavar="X,Y,Z", help="eye position (needs --target)")
+    view.add_argument("--target", metavar="X,Y,Z", help="point the eye looks at")
+    view.add_argument("--up", metavar="X,Y,Z", help="up direction with --eye (default 0,1,0)")
+    view.add_argument("--fov", metavar="DEG", help="vertical field of view in degrees (default: the "
+                                                   "camera's; 50 with --eye or --path keys without one)")
+    view.add_argument("--path", metavar="NAME", help="a camera path of the scene (sidecar [camera_paths])")
+    view.add_argument("--frames", metavar="N", help=f"frames along --path, first to last key, evenly spaced "
+                                                    f"in time (default {DEFAULT_FRAMES})")
+    image = p.add_argument_group("image")
+    image.add_argument("--exposure", default="0", metavar="EV",
+                       help="exposure in stops for the PNG: radiance x 2^EV before the tone curve "
+                            "(default 0; the EXR is never scaled)")
+    image.add_argument("--supersample", default=str(DEFAULT_SUPERSAMPLE), metavar="N",
+                       help=f"render N x N samples per pixel and average them (box filter, as a path "
+                            f"tracer's pixel integral; 1 to 8, default {DEFAULT_SUPERSAMPLE})")
+    image.add_argument("--stats", type=Path, metavar="FILE.json",
+                       help="write time per pass and what was drawn and skipped as JSON")
+    add_bake_options(_BakeOptions(p.add_argument_group("bake (done first when missing or stale)")))
+    p.set_defaults(run=cmd_capture)
+    return p
+
+
+# -- argument checks (all before the bake, so mistakes cost nothing) ------------------------------
+def parse_size(text: str) -> tuple[int, int]:
+    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text or "")
+    if not m:
+        raise GlintError(f"bad --size '{text}': expected WIDTHxHEIGHT in pixels, e.g. {DEFAULT_SIZE}")
+    w, h = int(m.group(1)), int(m.group(2))
+    if w < 1 or h < 1:
+        raise GlintError(f"bad --size '{text}': width and height must be at least 1 pixel")
+    return w, h
+
+
+def parse_vector(text: str, option: str) -> np.ndarray:
+    parts = [s for s in re.split(r"[,\s]+", text.strip()) if s]
+    try:
+        v = np.array([float(s) for s in parts], np.float64)
+    except ValueError:
+        v = np.zeros(0)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise GlintError(f"bad {option} '{text}': expected three numbers X,Y,Z")
+    return v
+
+
+def _number(text: str, option: str, *, whole: bool = False, lo: float | None = None,
+            hi: float | None = None, open_lo: bool = False):
+    try:
+        value = int(text) if whole else float(text)
+    except (TypeError, ValueError):
+        raise GlintError(f"bad {option} '{text}': expected {'a whole number' if whole else 'a number'}") from None
+    too_low = lo is not None and (value <= lo if open_lo else value < lo)
+    if not math.isfinite(value) or too_low or (hi is not None and value > hi):
+        low = None if lo is None else (f"above {lo:g}" if open_lo else f"at least {lo:g}")
+        high = None if hi is None else f"at most {hi:g}"
+        raise GlintError(f"bad {option} '{text}': must be " + (" and ".join(filter(None, (low, high))) or "finite"))
+    return value
+
+
+def _check_writable(path: Path, option: str) -> None:
+    parent = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise GlintError(f"{option} {path}: is a directory; give a file name")
+    if not parent.is_dir():
+        raise GlintError(f"cannot write {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise GlintError(f"cannot write {path}: permission denied")
+
+
+def check_arguments(args) -> dict:
+    """Everything that can be checked before baking; returns the parsed values."""
+    out = Path(args.output)
+    ext = out.suffix.lower()
+    if ext not in EXTENSIONS:
+        kinds = ", ".join(f"{e} ({what})" for e, what in EXTENSIONS.items())
+        raise GlintError(f"{out}: unsupported image type '{out.suffix or '(none)'}'; use {kinds}")
+    width, height = parse_size(args.size)
+    if args.camera is not None and args.eye is not None:
+        raise GlintError("--camera and --eye both choose the view; give one of them")
+    if args.path is not None and (args.camera is not None or args.eye is not None):
+        raise GlintError("--path moves the camera itself; it cannot be combined with "
+                         f"{'--camera' if args.camera is not None else '--eye'}")
+    if args.eye is not None and args.target is None:
+        raise GlintError("--eye needs --target (the point to look at)")
+    for option in ("target", "up"):
+        if getattr(args, option) is not None and args.eye is None:
+            raise GlintError(f"--{option} only goes with --eye")
+    if args.frames is not None and args.path is None:
+        raise GlintError("--frames only goes with --path")
+    parsed = {
+        "size": (width, height),
+        "fov": None if args.fov is None else math.radians(_number(args.fov, "--fov", lo=0, hi=179, open_lo=True)),
+        "frames": _number(args.frames, "--frames", whole=True, lo=1) if args.frames is not None else DEFAULT_FRAMES,
+        "exposure": _number(args.exposure, "--exposure", lo=-100, hi=100),
+        "supersample": _number(args.supersample, "--supersample", whole=True, lo=1, hi=8),
+    }
+    if args.eye is not None:
+        parsed["eye"] = parse_vector(args.eye, "--eye")
+        parsed["target"] = parse_vector(args.target, "--target")
+        parsed["up"] = parse_vector(args.up, "--up") if args.up is not None else np.array([0.0, 1.0, 0.0])
+        if np.linalg.norm(parsed["target"] - parsed["eye"]) < 1e-9:
+            raise GlintError("--eye and --target are the same point")
+        if np.linalg.norm(parsed["up"]) < 1e-12:
+            raise GlintError("--up must not be zero")
+    _check_writable(out, "-o")
+    if args.stats is not None:
+        _check_writable(Path(args.stats), "--stats")
+    return parsed
+
+
+# -- views ----------------------------------------------------------------------------------------
+def choose_views(manifest: dict, args, parsed: dict) -> list:
+    """The camera of every frame to render, from the bake manifest and the options."""
+    from viewer.camera import DEFAULT_YFOV, ViewCamera, camera_path_at, path_span
+
+    cameras, paths = manifest.get("cameras") or [], manifest.get("camera_paths") or []
+    fov = parsed["fov"]
+    w, h = parsed["size"]
+    if args.path is not None:
+        path = next((p for p in paths if p["name"] == args.path), None)
+        if path is None:
+            have = ", ".join(p["name"] for p in paths)
+            raise GlintError(f"unknown camera path '{args.path}'; "
+                             + (f"the scene has: {have}" if have else "the scene has none (sidecar [camera_paths])"))
+        t0, t1 = path_span(path)
+        n = parsed["frames"]
+        near, far = _clip_range(manifest)
+        times = [t0 + (t1 - t0) * (k / (n - 1) if n > 1 else 0.0) for k in range(n)]
+        views = [camera_path_at(path, t, znear=near, zfar=far) for t in times]
+        return [_with_fov(c, fov) for c in views] if fov is not None else views
+    if args.eye is not None:
+        near, far = _clip_range(manifest, parsed["eye"])
+        return [ViewCamera.look_at(parsed["eye"], parsed["target"], parsed["up"],
+                                   fov if fov is not None else DEFAULT_YFOV, znear=near, zfar=far, name="--eye")]
+    if args.camera is not None:
+        entry = next((c for c in cameras if c["name"] == args.camera), None)
+        if entry is None:
+            have = ", ".join(c["name"] for c in cameras)
+            raise GlintError(f"unknown camera '{args.camera}'; "
+                             + (f"the scene has: {have}" if have else "the scene has no cameras"))
+        camera = ViewCamera.from_manifest(entry)
+    elif cameras:
+        camera = ViewCamera.from_manifest(cameras[0])
+    else:
+        lo, hi = _scene_bounds(manifest)
+        camera = ViewCamera.framing(lo, hi, w / h, fov if fov is not None else DEFAULT_YFOV)
+    return [_with_fov(camera, fov) if fov is not None else camera]
+
+
+def _with_fov(camera, fov: float):
+    return dataclasses.replace(camera, yfov=fov)
+
+
+def _scene_bounds(manifest: dict) -> tuple[np.ndarray, np.ndarray]:
+    boxes = np.array([o["bounds"] for o in manifest.get("objects", []) if o.get("triangles")], np.float64)
+    if not len(boxes):
+        return np.full(3, -1.0), np.full(3, 1.0)
+    return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
+
+
+def _clip_range(manifest: dict, eye=None) -> tuple[float, float]:
+    """Near and far planes for views the scene does not define: 1 cm, and far enough to hold
+    the whole scene from wherever the eye is."""
+    lo, hi = _scene_bounds(manifest)
+    centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+    reach = radius * 2 + (float(np.linalg.norm(np.asarray(eye) - centre)) if eye is not None else 0.0)
+    return 0.01, max(1000.0, 2 * reach)
+
+
+# -- the command ----------------------------------------------------------------------------------
+def frame_paths(out: Path, count: int) -> list[Path]:
+    """FILE itself for one frame of a view; FILE_0000.ext ... for a sequence along a path."""
+    digits = max(4, len(str(count - 1)))
+    return [out.with_name(f"{out.stem}_{k:0{digits}d}{out.suffix}") for k in range(count)]
+
+
+def cmd_capture(args) -> int:
+    from glint.cli import run_bake
+    from glint.image_io import write_image
+
+    parsed = check_arguments(args)
+    out = Path(args.output)
+    report = run_bake(args, progress=sys.stderr.isatty())
+
+    from bake.bake_dir import Bake
+    from viewer.context import headless_context
+    from viewer.renderer import Renderer
+
+    bake = Bake(report.bake_dir)
+    views = choose_views(bake.manifest, args, parsed)
+    files = frame_paths(out, len(views)) if args.path is not None else [out]
+    width, height = parsed["size"]
+    exr = out.suffix.lower() == ".exr"
+
+    ctx = headless_context()
+    try:
+        renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"])
+        renderer.check_size(width, height)
+        started = time.perf_counter()
+        frames = []
+        for camera, path in zip(views, files):
+            renderer.render(camera, width, height)
+            if exr:
+                write_image(path, renderer.read_linear(), half=False)
+            else:
+                write_image(path, renderer.read_srgb())
+            if args.stats is not None:
+                s = renderer.stats
+                frames.append({"file": str(path), "camera": _camera_json(camera), "gpu_ms": s["gpu_ms"],
+                               "objects_drawn": s["objects_drawn"], "triangles": s["triangles"],
+                               "skipped": s["skipped"]})
+        seconds = time.perf_counter() - started
+        if args.stats is not None:
+            if len(views) == 1:  # time a few more renders of the same view: medians, warm caches
+                for _ in range(STATS_REPEATS - 1):
+                    renderer.render(views[0], width, height)
+            _write_stats(Path(args.stats), args, report, renderer, frames)
+        renderer.release()
+    finally:
+        ctx.release()
+    what = f"{files[0]}" if len(files) == 1 else f"{len(files)} frames {files[0].name} .. {files[-1].name}"
+    print(f"wrote {what} ({width}x{height}, {EXTENSIONS[out.suffix.lower()]}, {seconds:.2f} s)")
+    return 0
+
+
+def _camera_json(camera) -> dict:
+    return {"name": camera.name, "eye": [float(x) for x in camera.eye],
+            "forward": [float(x) for x in camera.forward], "up": [float(x) for x in camera.up],
+            "yfov_degrees": math.degrees(camera.yfov)}
+
+
+def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
+    s = renderer.stats
+    data = {
+        "scene": args.scene,
+        "bake_dir": str(report.bake_dir),
+        "bake": report.status,
+        "device": s["device"],
+        "timing": s["timing"],
+        "size": s["size"],
+        "render_size": s["render_size"],
+        "supersample": s["supersample"],
+        "exposure": s["exposure"],
+        "frames": len(frames),
+        "gpu_ms_median": s["gpu_ms_median"],
+        "frames_timed": s["frames_timed"],
+        "objects": s["objects"],
+        "triangles_in_scene": s["triangles_in_scene"],
+        "lightmap_format": s["lightmap_format"],
+        "per_frame": frames,
+    }
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(data, indent=1) + "\n")
+        os.replace(tmp, path)
+    except OSError as e:
+        raise GlintError(f"cannot write {path}: {e.strerror}") from e

@@ -1,0 +1,295 @@
+"""A bake directory on the GPU: meshes, light maps, materials, textures and sky.
+
+Everything here is read-only after upload; passes bind what they need.
+
+- Meshes: one vertex/index buffer per object, interleaved as `VERTEX_DTYPE`, and
+  one vertex array per (object, program) on demand (`GpuObject.vertex_array`).
+  Tangents are not in the bake: they are derived from the texture coordinates
+  (per original vertex, summed over its triangles, so light-map seams do not
+  split them), and are zero where an object has no texture coordinates.
+- Light maps: one texture array, a layer per page, RGBA16F, or RGBA32F when a
+  value does not fit in half float (very bright emitters must not become Inf);
+  GL_LINEAR and clamp to edge, which is `bake.texels.sample_bilinear`. Row 0 of a
+  page (v = 0) is the first row uploaded, i.e. GL's t = 0: no flip anywhere.
+- Materials and lobes: two shader storage buffers (`MATERIAL_DTYPE`,
+  `LOBE_DTYPE`, std430; GLSL side in shaders/materials.glsl).
+- Base-colour textures: one 2-D texture per textured material (sizes differ, so
+  no array), mip-mapped, repeating (the glTF default sampler). A draw binds its
+  material's texture; the others bind a 1x1 white one.
+- Sky: none, a constant radiance, or the equirectangular sky.exr (times the
+  radiance as a scale), repeating in u and clamped in v as bake/lights.py samples it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import moderngl
+import numpy as np
+
+from glint.errors import GlintError
+
+HALF_MAX = 65504.0
+
+MATERIAL_BINDING, LOBE_BINDING = 0, 1
+MATERIAL_FLAGS = {
+    "MAT_TWO_SIDED": 1,    # glTF doubleSided, or thin transmissive (the bake treats both as two-sided)
+    "MAT_EMISSIVE": 2,
+    "MAT_KD_TEXTURE": 4,
+    "MAT_SPECULAR": 8,     # has reflection or transmission lobes: the shading pass calls the lobe hook
+    "MAT_TRANSMISSIVE": 16,
+}
+LOBE_KINDS = {"LOBE_REFLECT": 0, "LOBE_TRANSMIT": 1}
+SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
+
+MATERIAL_DTYPE = np.dtype([("kd", "<f4", 4), ("emission", "<f4", 4), ("info", "<i4", 4)])
+LOBE_DTYPE = np.dtype([("ks", "<f4", 4), ("shape", "<f4", 4)])
+VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent", "<f4", 4),
+                         ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4")])
+VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i"
+VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page")
+
+
+def shader_defines() -> dict:
+    """The constants shaders/materials.glsl and sky.glsl take as defines."""
+    return {"MATERIAL_BINDING": MATERIAL_BINDING, "LOBE_BINDING": LOBE_BINDING,
+            **MATERIAL_FLAGS, **LOBE_KINDS, **SKY_MODES}
+
+
+def _clean(a, lo=0.0, hi=None) -> np.ndarray:
+    """Non-finite -> 0, then clamped to [lo, hi] (what bake/lights.py and irradiance.py do)."""
+    a = np.nan_to_num(np.asarray(a, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    return a if lo is None and hi is None else np.clip(a, lo, hi)
+
+
+@dataclass
+class GpuObject:
+    name: str
+    material: int
+    role: str
+    triangles: int
+    bounds: np.ndarray  # (2, 3) world-space box
+    vbo: moderngl.Buffer | None
+    ibo: moderngl.Buffer | None
+    _vaos: dict = field(default_factory=dict)
+
+    def vertex_array(self, program: moderngl.Program) -> moderngl.VertexArray:
+        """This object's vertex array for `program` (made once; attributes it lacks are skipped)."""
+        key = program.glo
+        if key not in self._vaos:
+            self._vaos[key] = program.ctx.vertex_array(
+                program, [(self.vbo, VERTEX_FORMAT, *VERTEX_ATTRIBUTES)], index_buffer=self.ibo,
+                index_element_size=4, skip_errors=True)
+        return self._vaos[key]
+
+    def release(self) -> None:
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos.clear()
+        for buf in (self.vbo, self.ibo):
+            if buf is not None:
+                buf.release()
+
+
+class GpuScene:
+    def __init__(self, ctx: moderngl.Context, bake):
+        self.ctx = ctx
+        self.software = "llvmpipe" in ctx.info.get("GL_RENDERER", "").lower()
+        manifest = bake.manifest
+        count = len(manifest["materials"])
+        for entry in manifest["objects"]:
+            if not 0 <= int(entry["material"]) < count:  # the shaders index the material buffer with it
+                raise GlintError(f"{bake.path}: object '{entry['name']}' has material {entry['material']} "
+                                 f"of {count}; run `glint bake --force`")
+        self.objects = [self._object(entry, mesh) for entry, mesh in zip(manifest["objects"], bake.meshes)]
+        self.triangles = sum(o.triangles for o in self.objects)
+        drawn = [o.bounds for o in self.objects if o.triangles]
+        self.bounds = (np.stack([np.min([b[0] for b in drawn], axis=0), np.max([b[1] for b in drawn], axis=0)])
+                       if drawn else np.zeros((2, 3)))
+        self.white = ctx.texture((1, 1), 4, np.ones(4, np.float32).tobytes(), dtype="f4")
+        self._materials(bake)
+        self._lightmaps(bake)
+        self._sky(bake)
+
+    # -- meshes ----------------------------------------------------------------------------------
+    def _object(self, entry: dict, mesh: dict) -> GpuObject:
+        indices = np.asarray(mesh.get("indices", np.zeros((0, 3))), np.uint32).reshape(-1, 3)
+        positions = np.asarray(mesh["positions"], np.float64).reshape(-1, 3)
+        n = len(positions)
+        if len(indices) and (not np.all(np.isfinite(positions)) or int(indices.max()) >= n):
+            raise GlintError(f"bake: object '{entry['name']}' has invalid positions or indices; run "
+                             "`glint bake --force`")
+        v = np.zeros(n, VERTEX_DTYPE)
+        v["position"] = positions
+        v["normal"] = _clean(mesh["normals"], None).reshape(-1, 3)  # zero-length is guarded in GLSL
+        uvs = mesh.get("uvs")
+        if uvs is not None:
+            v["uv"] = _clean(uvs, None).reshape(-1, 2)
+            v["tangent"] = tangents(positions, v["normal"], v["uv"], indices,
+                                    mesh.get("vmapping", np.arange(n)))
+        v["lm_uv"] = _clean(mesh["lm_uv"], None).reshape(-1, 2)
+        v["lm_page"] = np.asarray(mesh["lm_page"], np.int32).reshape(-1)
+        bounds = (np.stack([positions[indices.ravel()].min(axis=0), positions[indices.ravel()].max(axis=0)])
+                  if len(indices) else np.zeros((2, 3)))
+        if not len(indices):
+            return GpuObject(entry["name"], int(entry["material"]), entry.get("role", "diffuse"), 0, bounds,
+                             None, None)
+        return GpuObject(entry["name"], int(entry["material"]), entry.get("role", "diffuse"), len(indices),
+                         bounds, self.ctx.buffer(v.tobytes()), self.ctx.buffer(indices.tobytes()))
+
+    # -- materials -------------------------------------------------------------------------------
+    def _materials(self, bake) -> None:
+        from glint.image_io import read_image
+
+        entries = bake.manifest["materials"]
+        mats = np.zeros(max(len(entries), 1), MATERIAL_DTYPE)
+        lobe_rows = []
+        self.kd_textures: list[moderngl.Texture | None] = []
+        for i, m in enumerate(entries):
+            flags = 0
+            lobes = m.get("lobes") or []
+            kinds = {lobe.get("kind", "reflect") for lobe in lobes}
+            if m.get("double_sided") or "transmit" in kinds:
+                flags |= MATERIAL_FLAGS["MAT_TWO_SIDED"]
+            if "transmit" in kinds:
+                flags |= MATERIAL_FLAGS["MAT_TRANSMISSIVE"]
+            if lobes:
+                flags |= MATERIAL_FLAGS["MAT_SPECULAR"]
+            emission = _clean(m.get("emission", (0, 0, 0)))
+            if np.any(emission > 0):
+                flags |= MATERIAL_FLAGS["MAT_EMISSIVE"]
+            texture = None
+            if m.get("kd_texture"):
+                image = read_image(bake.path / m["kd_texture"])
+                texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0), mipmaps=True)
+                flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"]
+            self.kd_textures.append(texture)
+            mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
+            mats[i]["emission"][:3] = emission
+            mats[i]["info"] = (flags, i if texture is not None else -1, len(lobe_rows), len(lobes))
+            for lobe in lobes:
+                row = np.zeros((), LOBE_DTYPE)
+                row["ks"][:3] = np.clip(_clean(lobe.get("ks", (1, 1, 1))), 0.0, 1.0)
+                row["ks"][3] = LOBE_KINDS["LOBE_TRANSMIT" if lobe.get("kind") == "transmit" else "LOBE_REFLECT"]
+                row["shape"] = (lobe.get("mx", 0.1), lobe.get("my", 0.1), lobe.get("r0", 0.04),
+                                lobe.get("alpha", 0.0))
+                lobe_rows.append(row)
+        lobes = np.array(lobe_rows, LOBE_DTYPE) if lobe_rows else np.zeros(1, LOBE_DTYPE)
+        self.material_table = mats
+        self.lobe_table = lobes
+        self.material_buffer = self.ctx.buffer(mats.tobytes())
+        self.lobe_buffer = self.ctx.buffer(lobes.tobytes())
+
+    def bind_materials(self) -> None:
+        self.material_buffer.bind_to_storage_buffer(MATERIAL_BINDING)
+        self.lobe_buffer.bind_to_storage_buffer(LOBE_BINDING)
+
+    def kd_texture(self, material: int) -> moderngl.Texture:
+        t = self.kd_textures[material] if 0 <= material < len(self.kd_textures) else None
+        return t if t is not None else self.white
+
+    def _texture(self, rgb: np.ndarray, *, mipmaps: bool) -> moderngl.Texture:
+        h, w = rgb.shape[:2]
+        rgba = np.concatenate([rgb, np.ones((h, w, 1))], axis=-1)
+        tex = self.ctx.texture((w, h), 4, rgba.astype(np.float16).tobytes(), dtype="f2")
+        tex.repeat_x = tex.repeat_y = True
+        if mipmaps:
+            tex.build_mipmaps()
+            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+            if not self.software:  # llvmpipe's anisotropic filter blurs magnified textures (Mesa 22.3)
+                tex.anisotropy = min(8.0, self.ctx.max_anisotropy)
+        else:
+            tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        return tex
+
+    # -- light maps ------------------------------------------------------------------------------
+    def _lightmaps(self, bake) -> None:
+        names = bake.manifest.get("lightmaps") or []
+        pages = [_clean(bake.lightmap(k)) for k in range(len(names))]
+        if not pages:
+            pages = [np.zeros((1, 1, 4))]
+        shapes = {p.shape[:2] for p in pages}
+        if len(shapes) != 1:
+            raise GlintError(f"{bake.path}: light-map pages differ in size ({sorted(shapes)}); "
+                             "run `glint bake --force`")
+        h, w = pages[0].shape[:2]
+        stack = np.zeros((len(pages), h, w, 4))
+        for k, p in enumerate(pages):
+            stack[k, :, :, :p.shape[2]] = p[..., :4]
+        self.lightmap_dtype = "f2" if stack.max(initial=0.0) <= HALF_MAX else "f4"
+        data = stack.astype(np.float16 if self.lightmap_dtype == "f2" else np.float32)
+        self.lightmaps = self.ctx.texture_array((w, h, len(pages)), 4, data.tobytes(),
+                                                dtype=self.lightmap_dtype)
+        self.lightmaps.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.lightmaps.repeat_x = self.lightmaps.repeat_y = False  # clamp to edge
+
+    # -- sky -------------------------------------------------------------------------------------
+    def _sky(self, bake) -> None:
+        sky = bake.manifest.get("sky")
+        self.sky_mode = SKY_MODES["SKY_NONE"]
+        self.sky_scale = np.zeros(3, np.float32)
+        self.sky_map = self.white
+        if not sky:
+            return
+        self.sky_scale = _clean(sky.get("radiance", (1, 1, 1))).astype(np.float32)
+        if sky.get("map"):
+            from glint.image_io import read_image
+
+            image = _clean(read_image(bake.path / sky["map"])[..., :3])
+            h, w = image.shape[:2]
+            rgba = np.concatenate([image, np.ones((h, w, 1))], axis=-1).astype(np.float32)
+            self.sky_map = self.ctx.texture((w, h), 4, rgba.tobytes(), dtype="f4")
+            self.sky_map.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            self.sky_map.repeat_x, self.sky_map.repeat_y = True, False  # wrap in u, clamp in v
+            self.sky_mode = SKY_MODES["SKY_MAP"]
+        elif np.any(self.sky_scale > 0):
+            self.sky_mode = SKY_MODES["SKY_CONSTANT"]
+
+    def sky_uniforms(self) -> dict:
+        return {"sky_mode": self.sky_mode, "sky_scale": tuple(map(float, self.sky_scale))}
+
+    def release(self) -> None:
+        for o in self.objects:
+            o.release()
+        for t in [*self.kd_textures, self.lightmaps, self.white]:
+            if t is not None:
+                t.release()
+        if self.sky_map is not self.white:
+            self.sky_map.release()
+        self.material_buffer.release()
+        self.lobe_buffer.release()
+
+
+def tangents(positions, normals, uvs, indices, vmapping) -> np.ndarray:
+    """(N, 4) unit tangents along +u of the texture coordinates, w = bitangent handedness (+-1);
+    zero where the coordinates are degenerate. Summed per original vertex (`vmapping`), so
+    vertices split along light-map seams keep one frame."""
+    n = len(positions)
+    out = np.zeros((n, 4), np.float32)
+    if not len(indices):
+        return out
+    tri = indices.astype(np.int64)
+    p, t = positions[tri], uvs.astype(np.float64)[tri]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
+    ok = np.abs(det) > 1e-12
+    r = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
+    # Solve [e1 e2] = [T B] [d1 d2]: T = (e1 dv2 - e2 dv1) / det, B = (e2 du1 - e1 du2) / det;
+    # scaled by det's magnitude the sums weight triangles by their area.
+    T = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * r * np.abs(det)[:, None]
+    B = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * r * np.abs(det)[:, None]
+    vmap = np.asarray(vmapping, np.int64).reshape(-1)
+    groups = vmap.max(initial=-1) + 1
+    sum_t, sum_b = np.zeros((groups, 3)), np.zeros((groups, 3))
+    for c in range(3):
+        np.add.at(sum_t, vmap[tri[:, c]], T)
+        np.add.at(sum_b, vmap[tri[:, c]], B)
+    nrm = np.asarray(normals, np.float64)
+    tv, bv = sum_t[vmap], sum_b[vmap]
+    tv = tv - nrm * np.einsum("ij,ij->i", tv, nrm)[:, None]
+    length = np.linalg.norm(tv, axis=1)
+    good = length > 1e-12
+    out[good, :3] = tv[good] / length[good, None]
+    handed = np.einsum("ij,ij->i", np.cross(nrm, tv), bv)
+    out[good, 3] = np.where(handed[good] < 0, -1.0, 1.0)
+    return out

@@ -1,0 +1,103 @@
+"""G-buffer pass: rasterise the visible objects once into the targets the shading pass reads.
+
+Targets and their encoding: shaders/gbuffer_layout.glsl. Objects whose bounding box
+lies outside the view frustum are not drawn (`in_frustum`); nothing is culled by
+facing, because back faces must show (black for single-sided materials, as in Mitsuba).
+"""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from viewer.camera import ViewCamera, gl_bytes
+from viewer.shader_source import raster_program, set_uniforms
+
+GB_ATTACHMENTS = {"GB_DIFFUSE": 0, "GB_NORMAL": 1, "GB_TANGENT": 2, "GB_MATERIAL": 3}
+LIGHTMAP_UNIT, KD_TEXTURE_UNIT = 0, 1
+
+
+def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
+    """False only when the box certainly lies outside: all 8 corners beyond one clip plane
+    (-w <= x, y, z <= w in homogeneous clip space, so corners behind the eye count correctly)."""
+    lo, hi = np.asarray(bounds, np.float64)
+    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    clip = corners @ np.asarray(view_proj, np.float64).T
+    w = clip[:, 3]
+    for axis in range(3):
+        if np.all(clip[:, axis] > w) or np.all(clip[:, axis] < -w):
+            return False
+    return True
+
+
+class GBufferPass:
+    name = "gbuffer"
+
+    def __init__(self, ctx: moderngl.Context, scene, defines: dict):
+        self.ctx = ctx
+        self.scene = scene
+        self.program = raster_program(ctx, "gbuffer.vert", "gbuffer.frag", {**defines, **GB_ATTACHMENTS})
+        set_uniforms(self.program, lightmaps=LIGHTMAP_UNIT, kd_texture=KD_TEXTURE_UNIT)
+        self.size: tuple[int, int] | None = None
+        self.fbo = None
+        self.targets: dict[str, moderngl.Texture] = {}
+
+    def resize(self, size: tuple[int, int]) -> None:
+        if size == self.size:
+            return
+        self._release_targets()
+        ctx = self.ctx
+        t = {"diffuse": ctx.texture(size, 4, dtype="f4"),
+             "normal": ctx.texture(size, 4, dtype="f2"),
+             "tangent": ctx.texture(size, 4, dtype="f2"),
+             "material": ctx.texture(size, 1, dtype="u4"),
+             "depth": ctx.depth_texture(size)}
+        for tex in t.values():
+            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # read with texelFetch; integer targets need it
+            tex.repeat_x = tex.repeat_y = False
+        t["depth"].compare_func = ""  # read raw depth values, not shadow comparisons
+        self.targets = t
+        self.fbo = ctx.framebuffer([t["diffuse"], t["normal"], t["tangent"], t["material"]], t["depth"])
+        self.size = size
+
+    def run(self, camera: ViewCamera, aspect: float) -> dict:
+        """Draw every object in view; returns what was drawn and skipped."""
+        ctx, scene = self.ctx, self.scene
+        view_proj = camera.view_projection(aspect)
+        self.fbo.use()
+        self.fbo.viewport = (0, 0, *self.size)
+        ctx.enable_only(moderngl.DEPTH_TEST)
+        ctx.depth_func = "<"
+        self.fbo.clear(depth=1.0)  # colour targets need no clear: depth 1 marks the empty pixels
+        self.program["view_proj"].write(gl_bytes(view_proj))
+        set_uniforms(self.program, eye=tuple(map(float, camera.eye)))
+        scene.bind_materials()
+        scene.lightmaps.use(LIGHTMAP_UNIT)
+        drawn = triangles = 0
+        culled, empty = [], []
+        for obj in scene.objects:
+            if not obj.triangles:
+                empty.append(obj.name)
+                continue
+            if not in_frustum(obj.bounds, view_proj):
+                culled.append(obj.name)
+                continue
+            self.program["material_index"] = obj.material
+            scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
+            obj.vertex_array(self.program).render(moderngl.TRIANGLES)
+            drawn += 1
+            triangles += obj.triangles
+        return {"objects_drawn": drawn, "triangles": triangles, "objects_culled": culled,
+                "objects_empty": empty}
+
+    def _release_targets(self) -> None:
+        if self.fbo is not None:
+            if self.ctx.fbo is self.fbo:  # deleting a bound framebuffer binds none (GL); say so
+                self.ctx.fbo = None
+            self.fbo.release()
+        for tex in self.targets.values():
+            tex.release()
+        self.fbo, self.targets = None, {}
+
+    def release(self) -> None:
+        self._release_targets()
+        self.program.release()

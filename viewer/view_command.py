@@ -1,0 +1,106 @@
+"""`glint view SCENE`: bake when needed, then walk through the scene in a window.
+
+glint/cli.py adds the sub-command with `add_view_parser(subparsers, common)`.
+Without a display the command stops before baking with one line that points to
+`glint capture`, which renders the same frames headless.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import textwrap
+
+from glint.errors import GlintError
+
+DEFAULT_SIZE = "1280x720"
+
+
+def add_view_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    from glint.cli import SCENE_HELP, add_bake_options  # here: glint.cli imports this module
+
+    from viewer.controls import KEY_HELP
+    p = subparsers.add_parser(
+        "view", parents=[common_parent], help="walk through a scene in a window (bakes first if needed)",
+        description=textwrap.fill("Open a window on a scene and walk through it. The scene is baked first "
+                                  "when its bake directory is missing or out of date (the bake options "
+                                  "below apply). Needs a display; `glint capture` renders frames without one.",
+                                  78),
+        epilog="keys and mouse:\n" + KEY_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
+    p.add_argument("--size", default=DEFAULT_SIZE, metavar="WxH",
+                   help=f"window size in pixels (default {DEFAULT_SIZE})")
+    p.add_argument("--camera", metavar="NAME",
+                   help="start at this camera of the scene (default: its first camera, else a view of the whole scene)")
+    p.add_argument("--fullscreen", action="store_true", help="start in fullscreen (F toggles it)")
+    p.add_argument("--vsync", action=argparse.BooleanOptionalAction, default=True,
+                   help="wait for the monitor's refresh (default: on); --no-vsync shows the real frame rate")
+    add_bake_options(p)
+    p.set_defaults(run=cmd_view)
+    return p
+
+
+def missing_display() -> str | None:
+    """Why no window can open here, when that is plain without trying; else None."""
+    if sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")) and \
+            not os.environ.get("DISPLAY") and not os.environ.get("WAYLAND_DISPLAY"):
+        return "no display (neither DISPLAY nor WAYLAND_DISPLAY is set)"
+    return None
+
+
+def no_window(scene: str, reason: str) -> GlintError:
+    return GlintError(f"cannot open a window: {reason}; to render without a display use "
+                      f"`glint capture {scene} -o frame.png`")
+
+
+def home_camera(manifest: dict, aspect: float):
+    """A view of the whole scene, for scenes without cameras."""
+    import numpy as np
+
+    from viewer.camera import ViewCamera
+
+    bounds = np.array([o["bounds"] for o in manifest["objects"] if o.get("triangles")],
+                      np.float64).reshape(-1, 2, 3)
+    if not len(bounds):
+        return ViewCamera(eye=(0.0, 1.6, 3.0), forward=(0.0, 0.0, -1.0), name="home")
+    return ViewCamera.framing(bounds[:, 0].min(axis=0), bounds[:, 1].max(axis=0), aspect)
+
+
+def cmd_view(args) -> int:
+    from glint.cli import run_bake
+
+    from viewer.capture import parse_size  # the same WxH rules and message as `glint capture`
+
+    width, height = parse_size(args.size)
+    reason = missing_display()
+    if reason:  # before baking: the bake would be wasted on a machine that cannot show it
+        raise no_window(args.scene, reason)
+
+    report = run_bake(args, progress=sys.stderr.isatty())
+    if report.status != "up-to-date":
+        print(report.summary, flush=True)
+
+    from bake.bake_dir import Bake
+    from viewer.controls import WalkControls
+
+    bake = Bake(report.bake_dir)
+    manifest = bake.manifest
+    names = [c["name"] for c in manifest["cameras"]]
+    if args.camera is not None and args.camera not in names:
+        raise GlintError(f"unknown camera '{args.camera}'; "
+                         + (f"the scene has: {', '.join(names)}" if names else "the scene has no cameras"))
+    controls = WalkControls(manifest["cameras"], manifest["camera_paths"], home_camera(manifest, width / height),
+                            start=args.camera)
+
+    from viewer.window import ViewerWindow, create_window, run
+
+    name = manifest["scene"]["name"]
+    try:
+        window = create_window(size=(width, height), title=f"glint — {name}", vsync=args.vsync,
+                               fullscreen=args.fullscreen)
+    except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
+        detail = " ".join(str(e).split()) or type(e).__name__
+        raise no_window(args.scene, f"{type(e).__name__}: {detail}") from e
+    viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name)
+    run(viewer)
+    return 0

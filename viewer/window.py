@@ -1,0 +1,189 @@
+"""The walkthrough window: moderngl-window around the renderer.
+
+`ViewerWindow` is the one WindowConfig of `glint view`. Each frame it asks the
+controls (viewer/controls.py) for a camera, has the renderer draw the frame at
+the window's framebuffer size, copies the tone-mapped result onto the window
+with a full-screen triangle and blends the overlay on top. The renderer never
+sees the window; the controls never see OpenGL.
+
+    window = create_window(size=(1280, 720), title="glint", vsync=True)
+    viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls)
+    run(viewer)   # until Esc or the window is closed
+"""
+from __future__ import annotations
+
+import time
+import weakref
+from pathlib import Path
+
+import moderngl
+import moderngl_window
+from moderngl_window.context.base import BaseWindow
+from PIL import Image
+
+from glint.errors import warn
+from viewer.context import GL_REQUIRED, check_context
+from viewer.controls import WalkControls
+from viewer.overlay import Overlay
+from viewer.renderer import Renderer
+from viewer.shader_source import raster_program
+
+GL_VERSION = (GL_REQUIRED // 100, GL_REQUIRED % 100 // 10)
+
+# moderngl-window key constant (attribute of the backend's Keys class) -> controls' key name
+KEY_NAMES = {
+    **{chr(c): chr(c).lower() for c in range(ord("A"), ord("Z") + 1)},
+    **{f"NUMBER_{d}": str(d) for d in range(1, 10)},
+    "SPACE": "space", "TAB": "tab", "ESCAPE": "escape", "F1": "f1", "F11": "f11", "F12": "f12",
+    "LEFT_SHIFT": "shift", "RIGHT_SHIFT": "shift",
+    "UP": "up", "DOWN": "down", "LEFT": "left", "RIGHT": "right",
+}
+
+
+def key_table(keys) -> dict:
+    """Backend key code -> key name; keys the backend does not define are left out."""
+    table = {}
+    for attribute, name in KEY_NAMES.items():
+        code = getattr(keys, attribute, "undefined")
+        if code != "undefined":
+            table[code] = name
+    return table
+
+
+def create_window(*, size: tuple[int, int], title: str, vsync: bool = True, fullscreen: bool = False,
+                  backend: str = "pyglet", **options) -> BaseWindow:
+    """Open a window of moderngl-window's `backend` (the MODERNGL_WINDOW environment variable
+    overrides it) with an OpenGL 4.3 core context. Raises whatever the backend raises when there
+    is no display; the command line turns that into its message."""
+    window_cls = moderngl_window.get_local_window_cls(backend)
+    window = window_cls(title=title, size=size, fullscreen=fullscreen, resizable=True, vsync=vsync,
+                        gl_version=GL_VERSION, aspect_ratio=None, **options)
+    moderngl_window.activate_context(window=window)
+    return window
+
+
+def screenshot_path(directory: Path, stem: str) -> Path:
+    """A new file `stem-YYYYmmdd-HHMMSS.png` in directory, with -2, -3, ... when taken within one second."""
+    base = f"{stem}-{time.strftime('%Y%m%d-%H%M%S')}"
+    for k in range(1, 10_000):
+        path = Path(directory) / (base + (f"-{k}" if k > 1 else "") + ".png")
+        try:
+            path.open("xb").close()  # claim the name, so two viewers never write the same file
+            return path
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"{directory}: no free screenshot name for {base}")
+
+
+class ViewerWindow(moderngl_window.WindowConfig):
+    gl_version = GL_VERSION
+    title = "glint"
+    aspect_ratio = None  # the frame always fills the window, whatever its shape
+    clear_color = None  # the blit writes every pixel
+    resizable = True
+
+    def __init__(self, *, bake, controls: WalkControls, supersample: int = 1, name: str = "glint",
+                 screenshot_dir: Path | None = None, **kwargs):
+        super().__init__(**kwargs)
+        check_context(self.ctx)
+        self.controls = controls
+        self.name = name
+        self.screenshot_dir = Path.cwd() if screenshot_dir is None else Path(screenshot_dir)
+        self.screenshots: list[Path] = []
+        self.renderer = Renderer(self.ctx, bake, supersample=supersample)
+        self.blit = raster_program(self.ctx, "blit.vert", "blit.frag")
+        self.triangle = self.ctx.vertex_array(self.blit, [])
+        self.overlay = Overlay(self.ctx, self.blit, self.triangle)
+        self.keys = key_table(self.wnd.keys)
+        # Esc and fullscreen go through the controls like every other key, not the backend's defaults.
+        self.wnd.exit_key = None
+        self.wnd.fullscreen_key = None
+        self.camera = None  # the last frame's, for tests and screenshots
+
+    # -- drawing ---------------------------------------------------------------------------------
+    def on_render(self, time: float, frame_time: float) -> None:
+        self.camera = self.controls.update(frame_time)
+        width, height = self.wnd.buffer_size
+        if width < 1 or height < 1:
+            return  # minimised: some backends report a 0 x 0 framebuffer
+        self.renderer.render(self.camera, width, height)
+
+        self.wnd.use()
+        self.ctx.viewport = (0, 0, width, height)
+        self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        self.renderer.display_texture.use(0)
+        self.blit["image"] = 0
+        self.blit["opaque"] = True
+        self.triangle.render(moderngl.TRIANGLES, vertices=3)
+
+        if self.overlay.visible and self.overlay.due(frame_time):
+            # stats waits for the GPU's timer queries: read it only when the text is redrawn
+            self.overlay.update(self.renderer.stats["gpu_ms_median"], self.controls.status)
+        self.overlay.draw(height)
+
+    def on_resize(self, width: int, height: int) -> None:
+        pass  # every frame renders at the current framebuffer size; the renderer follows it
+
+    # -- input -----------------------------------------------------------------------------------
+    def on_key_event(self, key, action, modifiers) -> None:
+        name = self.keys.get(key)
+        if name is None:
+            return
+        if action == self.wnd.keys.ACTION_PRESS:
+            action_name = self.controls.key_press(name, ctrl=bool(modifiers.ctrl), shift=bool(modifiers.shift))
+            if action_name is not None:
+                self.perform(action_name)
+        elif action == self.wnd.keys.ACTION_RELEASE:
+            self.controls.key_release(name)
+
+    def on_unicode_char_entered(self, char: str) -> None:
+        self.controls.text(char)
+
+    def on_mouse_drag_event(self, x: int, y: int, dx: int, dy: int) -> None:
+        self.controls.mouse_look(dx, dy)
+
+    def on_iconify(self, iconified: bool) -> None:
+        self.controls.release_all()  # key releases while minimised never arrive
+
+    def perform(self, action: str) -> None:
+        if action == "screenshot":
+            self.save_screenshot()
+        elif action == "overlay":
+            self.overlay.visible = not self.overlay.visible
+        elif action == "fullscreen":
+            self.wnd.fullscreen = not self.wnd.fullscreen
+        elif action == "quit":
+            self.wnd.close()
+
+    def save_screenshot(self) -> Path | None:
+        """The last frame, tone-mapped, without the overlay, as a PNG in `screenshot_dir`."""
+        if self.renderer.size is None:
+            return None
+        try:
+            path = screenshot_path(self.screenshot_dir, self.name)
+            try:
+                Image.fromarray(self.renderer.read_srgb(), "RGB").save(path, format="PNG")
+            except BaseException:
+                path.unlink(missing_ok=True)  # no empty or half-written file left behind
+                raise
+        except OSError as e:  # a read-only directory must not end the walkthrough
+            warn(f"screenshot not saved: {e}")
+            return None
+        self.screenshots.append(path)
+        print(f"glint: screenshot {path}", flush=True)
+        return path
+
+    def release(self) -> None:
+        self.overlay.release()
+        self.renderer.release()
+        self.triangle.release()
+        self.blit.release()
+
+
+def run(viewer: ViewerWindow) -> None:
+    """The main loop, until the window closes (moderngl-window's own loop)."""
+    window = viewer.wnd
+    window._config = weakref.ref(viewer)  # as moderngl_window.create_window_config_instance does
+    window.swap_buffers()  # can report the real framebuffer size before the first frame
+    window.set_default_viewport()
+    moderngl_window.run_window_config_instance(viewer)
