@@ -75,11 +75,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def add_bake_options(p: argparse.ArgumentParser) -> None:
+def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out")) -> None:
+    """The bake's options, for `bake` and for the commands that bake first (`view`, `capture`);
+    `out_flags` name the bake-directory option (capture's -o is its image)."""
     from bake.settings import PRESETS
 
     presets = "; ".join(f"{k}: {v['samples']} samples, {v['texels_per_metre']:g} texels/m" for k, v in PRESETS.items())
-    p.add_argument("-o", "--out", type=Path, metavar="DIR",
+    p.add_argument(*out_flags, dest="out", type=Path, metavar="DIR",
                    help="bake directory (default: NAME.bake beside the scene file; "
                         "built-in scenes bake into ~/.cache/glint or $GLINT_CACHE)")
     p.add_argument("-q", "--quality", choices=list(PRESETS),

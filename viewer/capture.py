@@ -33,20 +33,6 @@ STATS_REPEATS = 5  # a single capture with --stats is timed over this many rende
 _VECTOR_ARG = re.compile(r"^-[\d.]")  # "-1,2,3" is a value, not an option
 
 
-class _BakeOptions:
-    """`glint.cli.add_bake_options` into an argument group, with its -o/--out (the bake
-    directory) renamed --bake-dir: -o is the image file here."""
-
-    def __init__(self, group):
-        self.group = group
-
-    def add_argument(self, *flags, **kwargs):
-        if "--out" in flags:
-            flags = ("--bake-dir",)
-            kwargs["dest"] = "out"
-        return self.group.add_argument(*flags, **kwargs)
-
-
 def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
     from glint.cli import SCENE_HELP, add_bake_options
 
@@ -84,7 +70,7 @@ def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> ar
                             f"tracer's pixel integral; 1 to 8, default {DEFAULT_SUPERSAMPLE})")
     image.add_argument("--stats", type=Path, metavar="FILE.json",
                        help="write time per pass and what was drawn and skipped as JSON")
-    add_bake_options(_BakeOptions(p.add_argument_group("bake (done first when missing or stale)")))
+    add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
     p.set_defaults(run=cmd_capture)
     return p
 
