@@ -342,10 +342,10 @@ def wall_with_window() -> Mesh:
               for j in range(3) for i in range(3) if (i, j) != (1, 1)]
     (x0, x1), (y0, y1), zo = WINDOW_X, WINDOW_Y, z - WALL_DEPTH
     reveals = [
-        quad((x0, y0, zo), (x1, y0, zo), (x1, y0, z), (x0, y0, z)),  # sill, faces up
-        quad((x0, y1, z), (x1, y1, z), (x1, y1, zo), (x0, y1, zo)),  # head, faces down
-        quad((x0, y0, z), (x0, y1, z), (x0, y1, zo), (x0, y0, zo)),  # west jamb, faces +x
-        quad((x1, y0, zo), (x1, y1, zo), (x1, y1, z), (x1, y0, z)),  # east jamb, faces -x
+        quad((x0, y0, z), (x1, y0, z), (x1, y0, zo), (x0, y0, zo)),  # sill, faces up
+        quad((x0, y1, zo), (x1, y1, zo), (x1, y1, z), (x0, y1, z)),  # head, faces down
+        quad((x0, y0, zo), (x0, y1, zo), (x0, y1, z), (x0, y0, z)),  # west jamb, faces +x
+        quad((x1, y0, z), (x1, y1, z), (x1, y1, zo), (x1, y0, zo)),  # east jamb, faces -x
     ]
     return merge(*panels, *reveals)
 

@@ -3,7 +3,10 @@ and the committed files against a fresh run of scenes/generate.py."""
 import json
 import math
 import struct
-import tomllib
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
 from pathlib import Path
 
 import numpy as np
@@ -315,6 +318,13 @@ def test_living_room_shell_faces_inwards_and_is_closed_except_the_window(room):
                       & (exit_point[:, 1] > 0.9) & (exit_point[:, 1] < 2.2))
     assert np.all(hit | through_window)
     assert through_window.sum() > 20
+    # Every shell face a ray from inside reaches first is a front face (the window reveals too).
+    locations, index_ray, index_tri = shell.ray.intersects_location(origins, d, multiple_hits=False)
+    facing = np.einsum("ij,ij->i", shell.face_normals[index_tri], d[index_ray])
+    assert np.all(facing < 0), f"{(facing >= 0).sum()} rays from inside hit a back face"
+    reveal = np.abs(locations[:, 2] + 2.0) > 1e-3
+    reveal &= locations[:, 2] < -2.0
+    assert reveal.sum() > 0  # the reveals were reached, so they were checked
 
 
 def test_living_room_cameras_and_lights(room):
