@@ -1,0 +1,276 @@
+"""Which planar reflectors get a mirror pass this frame (section 4.5.1; DESIGN.md viewer step 1).
+
+`plan_mirror_passes(reflectors, camera, aspect, ...)` decides, per frame, on the
+CPU and in this order:
+
+1. outside the view frustum (the reflector's world bounds against the six planes
+   of the real camera's view-projection; behind the camera counts as outside)
+   -> skipped, `SkipReason.OUTSIDE_FRUSTUM`;
+2. seen from behind or edge-on (the eye not strictly on the normal's side of the
+   plane) -> `SkipReason.BACK_FACING`;
+3. hidden according to the latest occlusion-query result the renderer recorded
+   in an `OcclusionResults` -> `SkipReason.OCCLUDED`;
+4. the survivors are grouped by plane (`viewer.mirror_camera.group_coplanar`):
+   one pass per group, ordered largest projected screen area first (the
+   members' bounds, clipped to the screen, summed, capped at the full screen),
+   then nearest (eye-to-bounds distance); the first `budget` groups run, the
+   members of the rest are skipped with `SkipReason.OVER_BUDGET`.
+
+The result is a `MirrorPlan`: `passes` (plane, members, mirrored camera) and
+`skipped` (reflector, reason); `stats()` / `summary()` give "passes run and
+skipped" per reason for `--stats`.
+
+Occlusion queries (the GL side is the renderer's)
+-------------------------------------------------
+The mirror passes run before the G-buffer, so this frame's depth is not there
+yet: the planner uses the results of the previous frame. Each frame the renderer
+issues one query per reflector in `MirrorPlan.queries` (every reflector in the
+frustum and facing the eye, including those skipped as occluded, so they can
+come back): after the G-buffer, draw the reflector's own triangles with depth
+test on and colour/depth writes off inside a
+`GL_ANY_SAMPLES_PASSED_CONSERVATIVE` (or `GL_SAMPLES_PASSED`) query. At the
+start of the next frame, for each query whose result is available (never wait),
+call `OcclusionResults.record(name, samples, frame)`; unavailable results keep
+the older value. A reflector is treated as occluded only with a recorded zero no
+older than `max_age` frames; unknown means visible. A reflector that becomes
+visible after being hidden misses its reflection for one frame (the usual cost
+of reading queries a frame late instead of stalling).
+"""
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from viewer.camera import ViewCamera
+from viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HEIGHT, MirrorCamera, group_coplanar
+
+DEFAULT_BUDGET = 4  # mirror passes per frame
+
+
+class SkipReason(str, enum.Enum):
+    OUTSIDE_FRUSTUM = "outside frustum"
+    BACK_FACING = "seen from behind"
+    OCCLUDED = "occluded"
+    OVER_BUDGET = "over budget"
+
+
+@dataclass(frozen=True, eq=False)
+class Reflector:
+    """A planar reflector: its plane (point, unit normal on its reflecting side),
+    world bounds (2, 3) [lo, hi] and area (m^2, informational)."""
+
+    name: str
+    point: np.ndarray
+    normal: np.ndarray
+    bounds: np.ndarray
+    area: float = 0.0
+
+    def __post_init__(self):
+        n = np.asarray(self.normal, np.float64).reshape(3)
+        object.__setattr__(self, "point", np.asarray(self.point, np.float64).reshape(3))
+        object.__setattr__(self, "normal", n / np.linalg.norm(n))
+        object.__setattr__(self, "bounds", np.asarray(self.bounds, np.float64).reshape(2, 3))
+
+    @classmethod
+    def from_object(cls, obj) -> "Reflector":
+        """From a `bake.scene.Object` whose role is `planar` (plane by `bake.roles.plane_of`)."""
+        from bake.roles import plane_of
+
+        point, normal = plane_of(obj)
+        return cls(obj.name, point, normal, obj.bounds, obj.area)
+
+
+# -- occlusion -------------------------------------------------------------------------------------
+@dataclass
+class OcclusionResults:
+    """Latest occlusion-query result per reflector name (see the module docstring)."""
+
+    max_age: int = 2  # frames a zero result is trusted
+    _latest: dict[str, tuple[int, int]] = field(default_factory=dict)  # name -> (samples, frame)
+
+    def record(self, name: str, samples_passed: int | bool, frame: int) -> None:
+        self._latest[name] = (int(samples_passed), int(frame))
+
+    def forget(self, name: str | None = None) -> None:
+        """Drop one result, or all (e.g. after a scene reload)."""
+        if name is None:
+            self._latest.clear()
+        else:
+            self._latest.pop(name, None)
+
+    def occluded(self, name: str, frame: int) -> bool:
+        entry = self._latest.get(name)
+        return entry is not None and entry[0] == 0 and frame - entry[1] <= self.max_age
+
+
+# -- the plan ----------------------------------------------------------------------------------------
+@dataclass
+class MirrorPass:
+    """One mirror pass: the plane (normal towards the eye), the reflectors sharing it,
+    the mirrored camera, and the numbers it was ordered by."""
+
+    point: np.ndarray
+    normal: np.ndarray
+    members: list[Reflector]
+    camera: MirrorCamera
+    screen_area: float  # fraction of the screen, [0, 1]
+    distance: float  # m, eye to the nearest member's bounds
+
+    @property
+    def names(self) -> list[str]:
+        return [r.name for r in self.members]
+
+
+@dataclass
+class Skipped:
+    reflector: Reflector
+    reason: SkipReason
+
+
+@dataclass
+class MirrorPlan:
+    passes: list[MirrorPass]
+    skipped: list[Skipped]
+    queries: list[Reflector]  # issue an occlusion query for each this frame
+    budget: int
+    passes_over_budget: int = 0  # groups (would-be passes) left out by the budget
+
+    def pass_for(self, name: str) -> int | None:
+        """Index of the pass whose mirror buffer reflector `name` samples, or None."""
+        for i, p in enumerate(self.passes):
+            if name in p.names:
+                return i
+        return None
+
+    def skipped_by_reason(self) -> dict[SkipReason, list[str]]:
+        out: dict[SkipReason, list[str]] = {r: [] for r in SkipReason}
+        for s in self.skipped:
+            out[s.reason].append(s.reflector.name)
+        return out
+
+    def stats(self) -> dict:
+        """For `--stats`: passes run, reflectors they cover, reflectors skipped per reason
+        (over-budget counts reflectors; `passes_over_budget` counts the passes)."""
+        by = self.skipped_by_reason()
+        return {
+            "passes_run": len(self.passes),
+            "reflectors_in_passes": sum(len(p.members) for p in self.passes),
+            "skipped": {r.value: len(names) for r, names in by.items()},
+            "passes_over_budget": self.passes_over_budget,
+            "budget": self.budget,
+        }
+
+    def summary(self) -> str:
+        s = self.stats()
+        parts = ", ".join(f"{n} {reason}" for reason, n in s["skipped"].items())
+        return f"mirror passes: {s['passes_run']} run ({s['reflectors_in_passes']} reflectors); skipped: {parts}"
+
+
+# -- geometry helpers --------------------------------------------------------------------------------
+_CORNERS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+_EDGES = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
+
+
+def frustum_planes(view_proj: np.ndarray) -> np.ndarray:
+    """The six planes (6, 4) of an OpenGL view-projection (Gribb & Hartmann), inside
+    where dot(plane, (x, 1)) >= 0; order left, right, bottom, top, near, far. Not normalised."""
+    m = np.asarray(view_proj, np.float64)
+    r0, r1, r2, r3 = m
+    return np.array([r3 + r0, r3 - r0, r3 + r1, r3 - r1, r3 + r2, r3 - r2])
+
+
+def box_outside_frustum(bounds: np.ndarray, planes: np.ndarray) -> bool:
+    """True when the box [lo, hi] lies entirely outside one frustum plane (conservative:
+    a box near a frustum corner may be reported inside)."""
+    lo, hi = np.asarray(bounds, np.float64)
+    # The box corner farthest along each plane normal (the "p-vertex").
+    pv = np.where(planes[:, :3] >= 0, hi, lo)
+    return bool(np.any(np.einsum("ij,ij->i", planes[:, :3], pv) + planes[:, 3] < 0))
+
+
+def box_distance(bounds: np.ndarray, x: np.ndarray) -> float:
+    lo, hi = np.asarray(bounds, np.float64)
+    return float(np.linalg.norm(np.maximum(0.0, np.maximum(lo - x, x - hi))))
+
+
+def projected_area(bounds: np.ndarray, view_proj: np.ndarray, w_min: float = 1e-6) -> float:
+    """Fraction of the screen covered by the screen-space bounding rectangle of the box,
+    after clipping the box's edges at w = w_min (in front of the eye); in [0, 1]."""
+    lo, hi = np.asarray(bounds, np.float64)
+    corners = np.where(_CORNERS, hi, lo)
+    clip = np.c_[corners, np.ones(8)] @ np.asarray(view_proj, np.float64).T
+    pts = [clip[i] for i in range(8) if clip[i, 3] > w_min]
+    for a, b in _EDGES:
+        wa, wb = clip[a, 3], clip[b, 3]
+        if (wa > w_min) != (wb > w_min):
+            t = (w_min - wa) / (wb - wa)
+            pts.append(clip[a] + t * (clip[b] - clip[a]))
+    if not pts:
+        return 0.0
+    p = np.array(pts)
+    ndc = np.clip(p[:, :2] / p[:, 3:4], -1.0, 1.0)
+    ext = ndc.max(axis=0) - ndc.min(axis=0)
+    return float(ext[0] * ext[1] / 4.0)
+
+
+# -- the planner -------------------------------------------------------------------------------------
+def plan_mirror_passes(reflectors: Sequence[Reflector], camera: ViewCamera, aspect: float, *,
+                       budget: int = DEFAULT_BUDGET, occlusion: OcclusionResults | None = None,
+                       frame: int = 0, angle_deg: float = GROUP_ANGLE_DEG,
+                       offset: float = GROUP_OFFSET) -> MirrorPlan:
+    """This frame's mirror passes; see the module docstring for the rules and their order."""
+    vp = camera.view_projection(aspect).astype(np.float64)
+    planes = frustum_planes(vp)
+    eye = camera.eye
+    skipped: list[Skipped] = []
+    queries: list[Reflector] = []
+    alive: list[Reflector] = []
+    for r in reflectors:
+        if box_outside_frustum(r.bounds, planes):
+            skipped.append(Skipped(r, SkipReason.OUTSIDE_FRUSTUM))
+            continue
+        if not float((eye - r.point) @ r.normal) > MIN_EYE_HEIGHT:
+            skipped.append(Skipped(r, SkipReason.BACK_FACING))
+            continue
+        queries.append(r)
+        if occlusion is not None and occlusion.occluded(r.name, frame):
+            skipped.append(Skipped(r, SkipReason.OCCLUDED))
+            continue
+        alive.append(r)
+
+    area = {id(r): projected_area(r.bounds, vp) for r in alive}
+    groups = group_coplanar([(i, r.point, r.normal) for i, r in enumerate(alive)],
+                            [area[id(r)] for r in alive], angle_deg=angle_deg, offset=offset)
+    candidates = []
+    for g in groups:
+        members = [alive[i] for i in sorted(g.keys)]
+        screen = min(1.0, sum(area[id(r)] for r in members))
+        dist = min(box_distance(r.bounds, eye) for r in members)
+        candidates.append((screen, dist, g, members))
+    candidates.sort(key=lambda c: (-c[0], c[1]))
+
+    passes: list[MirrorPass] = []
+    over = 0
+    for screen, dist, g, members in candidates:
+        if len(passes) >= max(int(budget), 0):
+            skipped.extend(Skipped(r, SkipReason.OVER_BUDGET) for r in members)
+            over += 1
+            continue
+        # The group's plane, oriented towards the eye (every member faces it).
+        normal = g.normal if float((eye - g.point) @ g.normal) > 0 else -g.normal
+        try:
+            mirror = MirrorCamera(camera, g.point, normal)
+        except ValueError:  # the averaged plane passes through the eye: edge-on
+            skipped.extend(Skipped(r, SkipReason.BACK_FACING) for r in members)
+            continue
+        passes.append(MirrorPass(mirror.point, mirror.normal, members, mirror, screen, dist))
+    return MirrorPlan(passes=passes, skipped=skipped, queries=queries, budget=int(budget),
+                      passes_over_budget=over)
+
+
+def reflectors_of(objects: Iterable) -> list[Reflector]:
+    """`Reflector`s of the `planar` objects among `objects` (bake.scene.Object)."""
+    return [Reflector.from_object(o) for o in objects if getattr(o, "role", None) == "planar"]
