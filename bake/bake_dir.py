@@ -7,6 +7,15 @@
     lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;
                            half float unless a value does not fit
     textures/material_<i>.exr   base-colour textures (linear)
+    cubemaps/<i>.exr       cube map of object i, only for curved and transmissive objects
+                           (bake/cubemap.py): RGBA, S wide and 6 S high, the faces +X, -X, +Y,
+                           -Y, +Z, -Z stacked top to bottom, each with its first row at GL's
+                           t = 0 and first column at s = 0 (glTexImage2D's order); RGB radiance,
+                           A the distance in metres from the centre to the visible surface
+                           (65504 for sky); half float unless a value does not fit. The object's
+                           manifest entry says `cubemap: {file, size, centre, bounding_planes:
+                           [{point, normal, object}]}`, or null; `stages.cubemaps` has each
+                           one's input hash by object index
 
 A bake is written into a temporary sibling directory and renamed into place, so an
 interrupted bake never leaves a half-written result (`BakeDirWriter`).

@@ -286,6 +286,9 @@ class _SceneBuilder:
         self._cameras(scene, worlds)
         self._check_material_names()
         assign_roles(scene, self._role_overrides(scene, aliases))
+        options = self._object_options(scene, aliases)
+        if options:
+            scene.bake_settings["objects"] = options
         scene.warnings = list(side.warnings) + self.warnings
         validate_scene(scene)
         return scene
@@ -683,14 +686,25 @@ class _SceneBuilder:
         """[objects."NAME"] matches an object name, else a node name, else a mesh name."""
         out = {}
         for key, role in self.side.objects.items():
-            hits = [o.name for o in scene.objects if o.name == key]
-            hits = hits or [o.name for o in scene.objects if aliases[o.name][0] == key]
-            hits = hits or [o.name for o in scene.objects if aliases[o.name][1] == key]
-            if not hits:
-                self.warn(f"{self.side.path.name}: [objects.\"{key}\"]: no object, node or "
-                          "mesh has that name")
-            out.update({h: role for h in hits})
+            out.update({h: role for h in self._matching(scene, aliases, key)})
         return out
+
+    def _object_options(self, scene: Scene, aliases) -> dict[str, dict]:
+        """[objects."NAME"] cube-map settings (bake/sidecar.py) by object name, matched as roles are."""
+        out = {}
+        for key, options in self.side.object_options.items():
+            hits = self._matching(scene, aliases, key, warn=key not in self.side.objects)
+            out.update({h: dict(options) for h in hits})
+        return out
+
+    def _matching(self, scene: Scene, aliases, key: str, warn: bool = True) -> list[str]:
+        hits = [o.name for o in scene.objects if o.name == key]
+        hits = hits or [o.name for o in scene.objects if aliases[o.name][0] == key]
+        hits = hits or [o.name for o in scene.objects if aliases[o.name][1] == key]
+        if not hits and warn:  # once per table
+            self.warn(f"{self.side.path.name}: [objects.\"{key}\"]: no object, node or "
+                      "mesh has that name")
+        return hits
 
     def _check_material_names(self) -> None:
         for key in self.side.materials:

@@ -5,6 +5,10 @@ lightmaps  -> geometry + everything diffuse transport reads: kd (and textures),
               emission, transmission lobes (glass lets light through), lights, sky,
               transport settings. Reflection lobes, roles and cameras are not in it:
               they only change the manifest, never a light map.
+cubemaps   -> one hash per cube map: lightmaps + its object, face size, projection centre,
+              the objects hidden in it and how it is rendered (bake/cubemap.py), so editing
+              one object's lobes re-renders at most its own cube map (when its size changes).
+              Bounding planes are not in it: they only change the manifest.
 """
 from __future__ import annotations
 
@@ -18,6 +22,7 @@ from bake.scene import Scene
 # Bump when the integrator or the unwrap changes what they produce.
 GEOMETRY_VERSION = 1
 TRANSPORT_VERSION = 1
+CUBEMAP_VERSION = 1  # bump when the renderer changes what a cube map's pixels are
 
 
 class _Hasher:
@@ -71,3 +76,8 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
         if scene.sky.map is not None:
             h.array(scene.sky.map)
     return h.hexdigest()
+
+
+def cubemap_hash(transport: str, inputs: dict) -> str:
+    """`inputs`: everything of one cube map besides the light-mapped scene (bake/cubemap.py)."""
+    return _Hasher(f"cubemap-v{CUBEMAP_VERSION}").value(transport).value(inputs).hexdigest()

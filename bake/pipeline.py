@@ -3,7 +3,8 @@
 Stages and what invalidates them (bake/hashing.py):
     unwrap + texels   geometry, texel density, padding
     light maps        the above + diffuse transport (kd, emission, glass, lights, sky, samples)
-    manifest          everything else (reflection lobes, roles, cameras): rewritten, nothing re-baked
+    cube maps         one hash each: the light maps + its object, face size, centre, hidden objects
+    manifest          everything else (reflection lobes, roles, cameras, bounding planes): rewritten
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import numpy as np
 from bake import hashing
 from bake.bake_dir import (FORMAT_VERSION, BakeDirWriter, load_meshes, read_manifest,
                            save_meshes, write_json)
+from bake.cubemap import CubeMapPlan, plan_cubemaps, render_cubemaps
 from bake.scene import Scene
 from bake.settings import BakeSettings
 from glint.image_io import write_image
@@ -25,7 +27,7 @@ from glint.image_io import write_image
 @dataclass
 class BakeReport:
     bake_dir: Path
-    status: str  # "up-to-date" | "manifest" | "lightmaps" | "full"
+    status: str  # "up-to-date" | "manifest" | "cubemaps" | "lightmaps" | "full"
     manifest: dict
     redone: list[str] = field(default_factory=list)
 
@@ -36,10 +38,15 @@ class BakeReport:
             return f"{self.bake_dir}: up to date, nothing to do"
         if self.status == "manifest":
             return f"{self.bake_dir}: light maps up to date; manifest updated (materials, roles or cameras)"
+        cm = stats.get("cubemaps", {})
+        cubes = (f"{cm['rendered']} of {cm['count']} cube maps in {cm['seconds']:.1f} s"
+                 if cm.get("rendered") else "")
+        if self.status == "cubemaps":
+            return f"{self.bake_dir}: light maps up to date; rendered {cubes}"
         lm = stats["lightmaps"]
         return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels, "
                 f"{lm['rays'] / 1e6:.1f} M rays in {lm['seconds']:.1f} s "
-                f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)")
+                f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)" + (f"; {cubes}" if cubes else ""))
 
 
 def source_hash(scene: Scene) -> str:
@@ -50,7 +57,7 @@ def source_hash(scene: Scene) -> str:
     return h.hexdigest()[:32]
 
 
-def describe(scene: Scene) -> dict:
+def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     """The part of the manifest the viewer reads besides the light maps (JSON-ready)."""
     from bake.roles import plane_of
 
@@ -58,12 +65,14 @@ def describe(scene: Scene) -> dict:
         return [float(x) for x in np.asarray(v).ravel()]
 
     objects = []
-    for obj in scene.objects:
+    cubes = {plan.index: plan.manifest_entry() for plan in cubemaps}
+    for i, obj in enumerate(scene.objects):
         entry = {"name": obj.name, "material": obj.material, "role": obj.role,
                  "bounds": [vec(b) for b in obj.bounds], "triangles": int(len(obj.indices))}
         if obj.role == "planar":
             point, normal = plane_of(obj)
             entry["plane"] = {"point": vec(point), "normal": vec(normal)}
+        entry["cubemap"] = cubes.get(i)
         objects.append(entry)
     materials = [{"name": m.name, "kd": vec(m.kd), "emission": vec(m.emission),
                   "double_sided": bool(m.double_sided), "lobes": [lobe.to_dict() for lobe in m.lobes],
@@ -94,13 +103,15 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     old = None if force else read_manifest(bake_dir)
     geometry = hashing.geometry_hash(scene, settings)
     transport = hashing.transport_hash(scene, settings, geometry)
-    description = describe(scene)
+    cubemaps = plan_cubemaps(scene, transport)
+    description = describe(scene, cubemaps)
     manifest = {
         "format": "glint-bake", "version": FORMAT_VERSION,
         "scene": {"name": scene.name, "source": str(scene.source) if scene.source else None,
                   "hash": source_hash(scene)},
         "settings": {**settings.transport_dict(), "quality": settings.quality},
-        "stages": {"geometry": geometry, "lightmaps": transport},
+        "stages": {"geometry": geometry, "lightmaps": transport,
+                   "cubemaps": {str(plan.index): plan.hash for plan in cubemaps}},
         **description,
     }
 
@@ -109,7 +120,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     if reuse_lightmaps:
         manifest["atlas"] = old["atlas"]
         manifest["lightmaps"] = old["lightmaps"]
-        manifest["statistics"] = old["statistics"]
+        manifest["statistics"] = dict(old["statistics"])
         if {k: v for k, v in old.items() if k != "statistics"} == \
                 {k: v for k, v in manifest.items() if k != "statistics"}:
             return BakeReport(bake_dir, "up-to-date", old)
@@ -125,9 +136,35 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
             manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
                                                           bake_dir if reuse_geometry else None))
             status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
+        manifest["statistics"]["cubemaps"] = _cubemaps(cubemaps, old, bake_dir, out, manifest, progress)
+        if manifest["statistics"]["cubemaps"]["rendered"]:
+            status = "cubemaps" if status == "manifest" else status
+            redone.append("cube maps")
         write_json(out.path / "manifest.json", manifest)
         out.commit()
     return BakeReport(bake_dir, status, manifest, redone)
+
+
+def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: BakeDirWriter, manifest: dict,
+              progress: bool) -> dict:
+    """Carry over the cube maps whose inputs did not change, render the others (bake/cubemap.py)."""
+    from tqdm import tqdm
+
+    old_hashes = old["stages"].get("cubemaps", {}) if old is not None else {}
+    todo = []
+    for plan in plans:
+        if old_hashes.get(str(plan.index)) == plan.hash and (Path(old_dir) / plan.file).is_file():
+            out.reuse(old_dir, plan.file)
+        else:
+            todo.append(plan)
+    stats = {"count": len(plans), "rendered": len(todo), "reused": len(plans) - len(todo), "seconds": 0.0,
+             "texels": int(sum(6 * p.size ** 2 for p in todo))}
+    if todo:
+        write_json(out.path / "manifest.json", manifest)  # the renderer reads the bake written so far
+        with tqdm(total=len(todo), desc="cube maps", unit="map", disable=not progress, leave=False) as bar:
+            stats.update(render_cubemaps(out.path, todo, progress=bar.update))
+        stats["seconds_per_cubemap"] = round(stats["seconds"] / len(todo), 3)
+    return stats
 
 
 def _write_textures(scene: Scene, path: Path) -> None:

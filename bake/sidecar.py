@@ -18,6 +18,10 @@ All tables are optional:
     lobes = [ { kind = "reflect", ks = [1, 1, 1], mx = 0.05, my = 0.05, r0 = 0.04, alpha = 0.0 } ]
     [objects."Table top"]         # by glTF node name (or mesh name)
     role = "planar"               # diffuse | curved | planar | transmissive
+    [objects."Teapot"]            # cube-map settings of a curved or transmissive object:
+    cubemap_size = 256            # face size, a power of two (default: bake/cubemap.py's rule)
+    bounding_planes = false       # none; or true (automatic, bake/bounding_planes.py), or a list:
+                                  # [ { point = [0, 0, 0], normal = [0, 1, 0] }, ... ]
     [cameras.default]             # extra cameras, after the glTF's own
     eye = [0, 1.6, 3]
     target = [0, 1, 0]
@@ -29,6 +33,10 @@ All tables are optional:
 is keyed by material name (a material could be called "diffuse_roughness").
 Wrong types and unknown values are errors naming the file and key; unknown
 keys are warnings (a typo should not silently do nothing, nor stop the work).
+
+The per-object cube-map settings reach the bake as `Scene.bake_settings["objects"]`
+(object name -> {"cubemap_size": int, "bounding_planes": bool | [{point, normal}]}), present
+only when the sidecar gives any; bake/gltf_loader.py resolves the names.
 """
 from __future__ import annotations
 
@@ -39,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bake.bounding_planes import MAX_PLANES
 from bake.material_mapping import DIFFUSE_ROUGHNESS, parse_material_override
 from bake.scene import ROLES, Camera, CameraPath, Sky
 from bake.settings import BakeSettings
@@ -59,6 +68,8 @@ BAKE_KEYS = tuple(f.name for f in fields(BakeSettings)) + ("diffuse_roughness",)
 QUALITIES = ("draft", "preview", "final")
 UNITS = ("photometric", "radiometric")
 DEFAULT_YFOV_DEG = 50.0
+OBJECT_KEYS = ("role", "cubemap_size", "bounding_planes")
+CUBEMAP_SIZE_RANGE = (4, 4096)  # an explicit cube-map face size: a power of two in this range
 
 
 @dataclass
@@ -70,6 +81,8 @@ class Sidecar:
     sky: Sky | None = None
     materials: dict[str, dict] = field(default_factory=dict)  # name -> parse_material_override()
     objects: dict[str, str] = field(default_factory=dict)  # node or mesh name -> role
+    # node or mesh name -> {"cubemap_size": int, "bounding_planes": bool | [{point, normal}]}
+    object_options: dict[str, dict] = field(default_factory=dict)
     cameras: list[Camera] = field(default_factory=list)
     camera_paths: list[CameraPath] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
@@ -138,13 +151,16 @@ def parse_sidecar(data: dict, path: Path) -> Sidecar:
         where = f"{name}: [objects.\"{obj_name}\"]"
         if not isinstance(table, dict):
             raise GlintError(f"{where} must be a table")
-        _unknown(table, ("role",), name, f"[objects.\"{obj_name}\"] ", w)
+        _unknown(table, OBJECT_KEYS, name, f"[objects.\"{obj_name}\"] ", w)
         if "role" in table:
             role = table["role"]
             if role not in ROLES:
                 raise GlintError(f"{where}: unknown role {role!r}; use one of "
                                  f"{', '.join(ROLES)}")
             side.objects[obj_name] = role
+        options = _cubemap_options(table, name, obj_name, w)
+        if options:
+            side.object_options[obj_name] = options
 
     for cam_name, table in data.get("cameras", {}).items():
         side.cameras.append(_camera(cam_name, table, name, w))
@@ -152,6 +168,46 @@ def parse_sidecar(data: dict, path: Path) -> Sidecar:
     for path_name, table in data.get("camera_paths", {}).items():
         side.camera_paths.append(_camera_path(path_name, table, name, w))
     return side
+
+
+def _cubemap_options(table: dict, name: str, obj_name: str, w: list[str]) -> dict:
+    """`cubemap_size` (a power of two) and `bounding_planes` (true, false or a list of
+    {point, normal} with a non-zero normal, made unit length) of an [objects."NAME"] table."""
+    where = f"{name}: [objects.\"{obj_name}\"]"
+    options = {}
+    if "cubemap_size" in table:
+        size, (lo, hi) = table["cubemap_size"], CUBEMAP_SIZE_RANGE
+        if (isinstance(size, bool) or not isinstance(size, int) or not lo <= size <= hi
+                or size & (size - 1)):
+            raise GlintError(f"{where} cubemap_size must be a power of two from {lo} to {hi}, "
+                             f"not {size!r}")
+        options["cubemap_size"] = size
+    if "bounding_planes" in table:
+        planes = table["bounding_planes"]
+        if isinstance(planes, bool):
+            options["bounding_planes"] = planes
+        elif isinstance(planes, list) and len(planes) <= MAX_PLANES:
+            options["bounding_planes"] = [_plane(plane, f"{where} bounding_planes[{k}]", name,
+                                                 f"[objects.\"{obj_name}\"] bounding_planes[{k}] ", w)
+                                          for k, plane in enumerate(planes)]
+        else:
+            raise GlintError(f"{where} bounding_planes must be true, false or a list of at most "
+                             f"{MAX_PLANES} {{ point = [x, y, z], normal = [x, y, z] }}, not {planes!r}")
+    return options
+
+
+def _plane(plane, where: str, name: str, prefix: str, w: list[str]) -> dict:
+    if not isinstance(plane, dict):
+        raise GlintError(f"{where} must be a table {{ point = [x, y, z], normal = [x, y, z] }}")
+    _unknown(plane, ("point", "normal"), name, prefix, w)
+    for key in ("point", "normal"):
+        if key not in plane:
+            raise GlintError(f"{where}: missing '{key}'")
+    normal = _vec3(plane["normal"], f"{where} normal")
+    length = float(np.linalg.norm(normal))
+    if not length > 1e-12:
+        raise GlintError(f"{where} normal must not be zero")
+    return {"point": _vec3(plane["point"], f"{where} point").tolist(), "normal": (normal / length).tolist()}
 
 
 def look_at(name: str, eye, target, yfov: float, up=(0.0, 1.0, 0.0), *, where: str = "",

@@ -16,6 +16,7 @@ in vec4 v_tangent;
 in vec2 v_uv;
 in vec2 v_lm_uv;
 flat in int v_lm_page;
+flat in int v_object;
 
 layout(location = GB_DIFFUSE) out vec4 out_diffuse;
 layout(location = GB_NORMAL) out vec4 out_normal;
@@ -55,5 +56,5 @@ void main() {
     out_diffuse = vec4(diffuse, 1.0);
     out_normal = vec4(n, dark ? GB_DARK_BACK_FACE : 0.0);
     out_tangent = vec4(t, back ? -sign_b : sign_b);
-    out_material = uint(material_index);
+    out_material = gb_pack_ids(material_index, v_object);
 }

@@ -4,7 +4,21 @@
 //   GB_NORMAL    rgba16f  xyz: unit shading normal on the side the viewer sees;
 //                         w: GB_DARK_BACK_FACE on back faces of single-sided materials, else 0
 //   GB_TANGENT   rgba16f  xyz: unit tangent orthogonal to the normal, or 0; w: bitangent sign
-//   GB_MATERIAL  r32ui    material index
+//   GB_MATERIAL  r32ui    bits 0-15: material index, bits 16-31: object index (the object picks its
+//                         cube map; gb_pack_ids / gb_material_id / gb_object_id)
 //   depth        24 bit   window depth; 1.0 (the clear value) = nothing drawn = sky
 
 const float GB_DARK_BACK_FACE = 1.0;
+
+// Material and object index share the one integer target: at most 65536 of each.
+uint gb_pack_ids(int material, int object) {
+    return (uint(object) << 16) | (uint(material) & 0xFFFFu);
+}
+
+int gb_material_id(uint ids) {
+    return int(ids & 0xFFFFu);
+}
+
+int gb_object_id(uint ids) {
+    return int(ids >> 16);
+}

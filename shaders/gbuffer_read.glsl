@@ -19,6 +19,7 @@ struct Surface {
     vec3 to_eye;         // unit direction from the point to the eye (-ray)
     vec3 diffuse;        // light-mapped diffuse radiance kd/pi * E
     int material;
+    int object;          // index of the object in the bake manifest
     bool dark;           // back face of a single-sided material: sends no light to the viewer
 };
 
@@ -36,7 +37,9 @@ Surface gbuffer_surface(ivec2 p, vec3 ray) {
     s.bitangent_sign = t.w < 0.0 ? -1.0 : 1.0;
     s.dark = n.w > 0.5 * GB_DARK_BACK_FACE;
     s.diffuse = texelFetch(gb_diffuse, p, 0).rgb;
-    s.material = int(texelFetch(gb_material, p, 0).r);
+    uint ids = texelFetch(gb_material, p, 0).r;
+    s.material = gb_material_id(ids);
+    s.object = gb_object_id(ids);
     // ray is a unit vector within the field of view, so dot(ray, cam_forward) > 0.
     float along = eye_depth(texelFetch(gb_depth, p, 0).r) / max(dot(ray, cam_forward), 1e-6);
     s.position = eye + ray * along;

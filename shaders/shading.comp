@@ -1,5 +1,10 @@
 // Shading pass: outgoing radiance per G-buffer pixel, in a compute shader (DESIGN.md "Viewer":
 // rasterise little, shade in compute). Background pixels get the sky along their view ray.
+//
+// This dispatch writes the view-independent part (light-mapped diffuse, emission, sky) and sorts
+// tiles: a pixel that needs specular light puts its LOCAL_SIZE x LOCAL_SIZE tile on the list of
+// specular.comp's indirect dispatch, so tiles without such pixels never run the specular code
+// (and a scene without any runs no specular dispatch at all).
 
 #include "common.glsl"
 #include "materials.glsl"
@@ -10,16 +15,12 @@
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 layout(rgba32f) uniform writeonly image2D radiance_out;
 
-// Eq. 3.6 towards the eye: light-mapped diffuse (Eq. 4.1, from the G-buffer) + emission +
-// the lobes. A dark back face sends nothing, emission included (Mitsuba's one-sided emitters).
+// Eq. 3.6 towards the eye without the lobes: light-mapped diffuse (Eq. 4.1, from the G-buffer) +
+// emission. A dark back face sends nothing, emission included (Mitsuba's one-sided emitters).
 vec3 surface_radiance(Surface s) {
     if (s.dark)
         return vec3(0.0);
-    Material m = materials[s.material];
-    vec3 L = s.diffuse + m.emission.rgb;
-    if (has_flag(m, MAT_SPECULAR))
-        L += specular_radiance(s, m);
-    return L;
+    return s.diffuse + materials[s.material].emission.rgb;
 }
 
 void main() {
@@ -28,6 +29,14 @@ void main() {
     if (p.x >= size.x || p.y >= size.y)
         return;
     vec3 ray = view_ray(p, size);
-    vec3 L = gbuffer_empty(p) ? sky_radiance(ray) : surface_radiance(gbuffer_surface(p, ray));
+    vec3 L;
+    if (gbuffer_empty(p)) {
+        L = sky_radiance(ray);
+    } else {
+        Surface s = gbuffer_surface(p, ray);
+        L = surface_radiance(s);
+        if (needs_specular(s, materials[s.material]))
+            queue_specular_tile(uvec2(p) / uint(LOCAL_SIZE));
+    }
     imageStore(radiance_out, p, vec4(clean_radiance(L), 1.0));
 }

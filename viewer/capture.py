@@ -4,6 +4,12 @@
     glint capture cornell-box -o cb.exr --size 256x256            # linear radiance, float32
     glint capture living-room -o v.png --eye 1.6,1.6,1.6 --target -1,1,-0.8 --fov 55
     glint capture living-room -o tour.png --path tour --frames 120   # tour_0000.png ...
+    glint capture living-room -o still.png --converge 64             # the still camera's image
+
+Without --converge a frame is what the walkthrough shows (regular lobe patterns,
+section 4.4.3); with --converge N it is the mean of N still-camera frames of
+quasi-random samples (section 4.4.2), which converges to the exact integral of the
+cube maps' light.
 
 The scene is baked first when its bake is missing or stale (the `glint bake`
 options apply; the bake directory is --bake-dir, as -o names the image here).
@@ -30,11 +36,14 @@ DEFAULT_SIZE = "1280x720"
 DEFAULT_SUPERSAMPLE = 2
 DEFAULT_FRAMES = 30
 STATS_REPEATS = 5  # a single capture with --stats is timed over this many renders (medians)
+MAX_CONVERGE = 100_000
+MAX_LOBE_SAMPLES = 256
 _VECTOR_ARG = re.compile(r"^-[\d.]")  # "-1,2,3" is a value, not an option
 
 
 def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
     from glint.cli import SCENE_HELP, add_bake_options
+    from viewer.progressive import DEFAULT_SAMPLES_PER_FRAME
 
     p = subparsers.add_parser(
         "capture", parents=[common_parent], help="render images headless (PNG or EXR), no window needed",
@@ -68,6 +77,19 @@ def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> ar
     image.add_argument("--supersample", default=str(DEFAULT_SUPERSAMPLE), metavar="N",
                        help=f"render N x N samples per pixel and average them (box filter, as a path "
                             f"tracer's pixel integral; 1 to 8, default {DEFAULT_SUPERSAMPLE})")
+    specular = p.add_argument_group("view-dependent materials (section 4.4)")
+    specular.add_argument("--converge", default="0", metavar="N",
+                          help="render N still-camera frames of quasi-random samples per view and write their "
+                               f"mean (the converged image; {DEFAULT_SAMPLES_PER_FRAME} samples per lobe and pixel "
+                               "per frame); 0: the walkthrough image (default)")
+    specular.add_argument("--lobe-samples", metavar="N",
+                          help="samples per lobe of the walkthrough's regular patterns (default: chosen per lobe "
+                               "from its width)")
+    specular.add_argument("--weights", choices=("eq4.25", "eq4.24"), default="eq4.25",
+                          help="the walkthrough's normalised estimator: the thesis' Eq. 4.25 (default) or Eq. 4.24")
+    specular.add_argument("--walkthrough-method", choices=("patterns", "filtered-importance"), default="patterns",
+                          help="regular patterns (default), or Colbert-Krivanek filtered importance sampling with "
+                               "as many samples, for comparisons")
     image.add_argument("--stats", type=Path, metavar="FILE.json",
                        help="write time per pass and what was drawn and skipped as JSON")
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
@@ -147,6 +169,9 @@ def check_arguments(args) -> dict:
         "frames": _number(args.frames, "--frames", whole=True, lo=1) if args.frames is not None else DEFAULT_FRAMES,
         "exposure": _number(args.exposure, "--exposure", lo=-100, hi=100),
         "supersample": _number(args.supersample, "--supersample", whole=True, lo=1, hi=8),
+        "converge": _number(args.converge, "--converge", whole=True, lo=0, hi=MAX_CONVERGE),
+        "lobe_samples": (_number(args.lobe_samples, "--lobe-samples", whole=True, lo=1, hi=MAX_LOBE_SAMPLES)
+                         if args.lobe_samples is not None else None),
     }
     if args.eye is not None:
         parsed["eye"] = parse_vector(args.eye, "--eye")
@@ -248,12 +273,17 @@ def cmd_capture(args) -> int:
 
     ctx = headless_context()
     try:
-        renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"])
+        converge = parsed["converge"]
+        renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
+                            lobe_samples=parsed["lobe_samples"], weights=args.weights,
+                            walkthrough=args.walkthrough_method, max_frames=max(converge, 1))
         renderer.check_size(width, height)
+        mode = "converge" if converge else "walkthrough"
         started = time.perf_counter()
         frames = []
         for camera, path in zip(views, files):
-            renderer.render(camera, width, height)
+            for _ in range(max(converge, 1)):
+                renderer.render(camera, width, height, mode=mode)
             if exr:
                 write_image(path, renderer.read_linear(), half=False)
             else:
@@ -262,10 +292,10 @@ def cmd_capture(args) -> int:
                 s = renderer.stats
                 frames.append({"file": str(path), "camera": _camera_json(camera), "gpu_ms": s["gpu_ms"],
                                "objects_drawn": s["objects_drawn"], "triangles": s["triangles"],
-                               "skipped": s["skipped"]})
+                               "skipped": s["skipped"], "specular": s["specular"]})
         seconds = time.perf_counter() - started
         if args.stats is not None:
-            if len(views) == 1:  # time a few more renders of the same view: medians, warm caches
+            if len(views) == 1 and not converge:  # time a few more renders of the same view: medians, warm caches
                 for _ in range(STATS_REPEATS - 1):
                     renderer.render(views[0], width, height)
             _write_stats(Path(args.stats), args, report, renderer, frames)

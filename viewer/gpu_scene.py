@@ -6,7 +6,18 @@ Everything here is read-only after upload; passes bind what they need.
   one vertex array per (object, program) on demand (`GpuObject.vertex_array`).
   Tangents are not in the bake: they are derived from the texture coordinates
   (per original vertex, summed over its triangles, so light-map seams do not
-  split them), and are zero where an object has no texture coordinates.
+  split them). Where there are none (no texture coordinates, or degenerate
+  ones) the tangent is a fixed world axis projected onto the tangent plane
+  (`axis_tangents`: world X, or world Z where the normal is within ~25 degrees
+  of X), so anisotropic lobes keep one orientation across such objects. Each
+  vertex also carries its object's index, which the G-buffer stores beside the
+  material (an object picks its cube map).
+- Lobe sampling patterns (section 4.4.3): the (xi1, xi2) positions of every
+  lobe's regular pattern (viewer/lobe_patterns.py) in one storage buffer, and
+  per lobe (offset, count) in another (`PATTERN_DTYPE`); the sample count is
+  chosen per lobe from its width, or set for all lobes by `set_lobe_samples`.
+- Cube maps of curved and transmissive objects and their bounding planes:
+  viewer/cubemaps.py.
 - Light maps: one texture array, a layer per page, RGBA16F, or RGBA32F when a
   value does not fit in half float (very bright emitters must not become Inf);
   GL_LINEAR and clamp to edge, which is `bake.texels.sample_bilinear`. Row 0 of a
@@ -27,10 +38,13 @@ import moderngl
 import numpy as np
 
 from glint.errors import GlintError
+from viewer.cubemaps import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, CubeMaps
+from viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
 HALF_MAX = 65504.0
 
 MATERIAL_BINDING, LOBE_BINDING = 0, 1
+PATTERN_BINDING, LOBE_PATTERN_BINDING = 2, 3  # shaders/specular.glsl; viewer/cubemaps.py uses 4 and 5
 MATERIAL_FLAGS = {
     "MAT_TWO_SIDED": 1,    # glTF doubleSided, or thin transmissive (the bake treats both as two-sided)
     "MAT_EMISSIVE": 2,
@@ -43,15 +57,20 @@ SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
 
 MATERIAL_DTYPE = np.dtype([("kd", "<f4", 4), ("emission", "<f4", 4), ("info", "<i4", 4)])
 LOBE_DTYPE = np.dtype([("ks", "<f4", 4), ("shape", "<f4", 4)])
+# Per lobe: first pattern sample, sample count, pattern kind (PATTERN_KINDS), unused (ivec4, std430).
+PATTERN_DTYPE = np.dtype([("info", "<i4", 4)])
+PATTERN_KINDS = {"ring": 0, "line_x": 1, "line_y": 2, "multi_ring": 3}
 VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent", "<f4", 4),
-                         ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4")])
-VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i"
-VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page")
+                         ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4"), ("object", "<i4")])
+VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i"
+VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object")
 
 
 def shader_defines() -> dict:
-    """The constants shaders/materials.glsl and sky.glsl take as defines."""
+    """The constants shaders/materials.glsl, sky.glsl, specular.glsl and cubemaps.glsl take as defines."""
     return {"MATERIAL_BINDING": MATERIAL_BINDING, "LOBE_BINDING": LOBE_BINDING,
+            "PATTERN_BINDING": PATTERN_BINDING, "LOBE_PATTERN_BINDING": LOBE_PATTERN_BINDING,
+            "CUBE_OBJECT_BINDING": CUBE_OBJECT_BINDING, "BOUNDING_PLANE_BINDING": BOUNDING_PLANE_BINDING,
             **MATERIAL_FLAGS, **LOBE_KINDS, **SKY_MODES}
 
 
@@ -100,7 +119,8 @@ class GpuScene:
             if not 0 <= int(entry["material"]) < count:  # the shaders index the material buffer with it
                 raise GlintError(f"{bake.path}: object '{entry['name']}' has material {entry['material']} "
                                  f"of {count}; run `glint bake --force`")
-        self.objects = [self._object(entry, mesh) for entry, mesh in zip(manifest["objects"], bake.meshes)]
+        self.objects = [self._object(i, entry, mesh)
+                        for i, (entry, mesh) in enumerate(zip(manifest["objects"], bake.meshes))]
         self.triangles = sum(o.triangles for o in self.objects)
         drawn = [o.bounds for o in self.objects if o.triangles]
         self.bounds = (np.stack([np.min([b[0] for b in drawn], axis=0), np.max([b[1] for b in drawn], axis=0)])
@@ -109,9 +129,10 @@ class GpuScene:
         self._materials(bake)
         self._lightmaps(bake)
         self._sky(bake)
+        self.cubemaps = CubeMaps(ctx, bake)
 
     # -- meshes ----------------------------------------------------------------------------------
-    def _object(self, entry: dict, mesh: dict) -> GpuObject:
+    def _object(self, index: int, entry: dict, mesh: dict) -> GpuObject:
         indices = np.asarray(mesh.get("indices", np.zeros((0, 3))), np.uint32).reshape(-1, 3)
         positions = np.asarray(mesh["positions"], np.float64).reshape(-1, 3)
         n = len(positions)
@@ -126,6 +147,9 @@ class GpuScene:
             v["uv"] = _clean(uvs, None).reshape(-1, 2)
             v["tangent"] = tangents(positions, v["normal"], v["uv"], indices,
                                     mesh.get("vmapping", np.arange(n)))
+        none = ~np.any(v["tangent"][:, :3] != 0, axis=1)  # no texture coordinates, or degenerate ones
+        v["tangent"][none] = axis_tangents(v["normal"][none])
+        v["object"] = index
         v["lm_uv"] = _clean(mesh["lm_uv"], None).reshape(-1, 2)
         v["lm_page"] = np.asarray(mesh["lm_page"], np.int32).reshape(-1)
         bounds = (np.stack([positions[indices.ravel()].min(axis=0), positions[indices.ravel()].max(axis=0)])
@@ -176,12 +200,46 @@ class GpuScene:
         lobes = np.array(lobe_rows, LOBE_DTYPE) if lobe_rows else np.zeros(1, LOBE_DTYPE)
         self.material_table = mats
         self.lobe_table = lobes
+        self.lobe_count = len(lobe_rows)
         self.material_buffer = self.ctx.buffer(mats.tobytes())
         self.lobe_buffer = self.ctx.buffer(lobes.tobytes())
+        self.pattern_buffer = self.lobe_pattern_buffer = None
+        self.set_lobe_samples(None)
+
+    def set_lobe_samples(self, samples: int | None) -> None:
+        """Build every lobe's regular sampling pattern (section 4.4.3): the pattern kind from the
+        lobe's anisotropy, and `samples` positions per lobe, or the automatic count from its width
+        (viewer/lobe_patterns.py) when None."""
+        if samples is not None and not (isinstance(samples, (int, np.integer)) and samples >= 1):
+            raise GlintError(f"samples per lobe must be a whole number of at least 1 (got {samples!r})")
+        table = np.zeros(max(self.lobe_count, 1), PATTERN_DTYPE)
+        points, self.lobe_patterns = [], []
+        first = 0
+        for k in range(self.lobe_count):
+            mx, my = (float(x) for x in self.lobe_table[k]["shape"][:2])
+            kind = choose_pattern(mx, my)
+            n = int(samples) if samples is not None else int(samples_for_lobe(mx, my))
+            xi = np.asarray(pattern_xi(kind, n), np.float32).reshape(-1, 2)
+            table[k]["info"] = (first, len(xi), PATTERN_KINDS.get(kind, -1), 0)
+            points.append(xi)
+            self.lobe_patterns.append({"pattern": kind, "samples": len(xi)})
+            first += len(xi)
+        xi = np.concatenate(points) if points else np.zeros((1, 2), np.float32)
+        for buf in (self.pattern_buffer, self.lobe_pattern_buffer):
+            if buf is not None:
+                buf.release()
+        self.pattern_buffer = self.ctx.buffer(np.ascontiguousarray(xi, np.float32).tobytes())
+        self.lobe_pattern_buffer = self.ctx.buffer(table.tobytes())
 
     def bind_materials(self) -> None:
         self.material_buffer.bind_to_storage_buffer(MATERIAL_BINDING)
         self.lobe_buffer.bind_to_storage_buffer(LOBE_BINDING)
+
+    def bind_specular(self) -> None:
+        """Lobe patterns, cube maps and bounding planes, for the shading pass."""
+        self.pattern_buffer.bind_to_storage_buffer(PATTERN_BINDING)
+        self.lobe_pattern_buffer.bind_to_storage_buffer(LOBE_PATTERN_BINDING)
+        self.cubemaps.bind_buffers()
 
     def kd_texture(self, material: int) -> moderngl.Texture:
         t = self.kd_textures[material] if 0 <= material < len(self.kd_textures) else None
@@ -257,6 +315,9 @@ class GpuScene:
             self.sky_map.release()
         self.material_buffer.release()
         self.lobe_buffer.release()
+        self.pattern_buffer.release()
+        self.lobe_pattern_buffer.release()
+        self.cubemaps.release()
 
 
 def tangents(positions, normals, uvs, indices, vmapping) -> np.ndarray:
@@ -292,4 +353,20 @@ def tangents(positions, normals, uvs, indices, vmapping) -> np.ndarray:
     out[good, :3] = tv[good] / length[good, None]
     handed = np.einsum("ij,ij->i", np.cross(nrm, tv), bv)
     out[good, 3] = np.where(handed[good] < 0, -1.0, 1.0)
+    return out
+
+
+def axis_tangents(normals) -> np.ndarray:
+    """(N, 4) tangents for vertices without texture coordinates: world X projected onto the
+    tangent plane (world Z where the normal lies within ~25 degrees of X, where that projection
+    gets short), bitangent sign +1; zero for zero-length normals (the shader then builds any frame)."""
+    nrm = np.asarray(normals, np.float64).reshape(-1, 3)
+    out = np.zeros((len(nrm), 4), np.float32)
+    length = np.linalg.norm(nrm, axis=1)
+    good = length > 1e-12
+    n = nrm[good] / length[good, None]
+    axis = np.where((np.abs(n[:, 0]) > 0.9)[:, None], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
+    t = axis - n * np.einsum("ij,ij->i", axis, n)[:, None]  # |t| >= sin(25 deg) by the choice of axis
+    out[good, :3] = t / np.linalg.norm(t, axis=1, keepdims=True)
+    out[good, 3] = 1.0
     return out

@@ -4,6 +4,7 @@
     renderer.render(camera, 1280, 720)
     renderer.read_linear()     # (720, 1280, 3) float32 radiance, row 0 = top of the image
     renderer.read_srgb()       # (720, 1280, 3) uint8, tone-mapped
+    renderer.read_distance()   # (720, 1280) float32 metres from the eye to the visible surface
     renderer.display_texture   # RGBA8 texture (GL orientation) a window blits to the screen
     renderer.stats             # GPU ms per pass, what was drawn and skipped
 
@@ -15,6 +16,17 @@ Per frame (DESIGN.md "Viewer"): G-buffer raster pass at N times the output size
 (N = supersample) -> shading in compute -> resolve (N x N box mean; skipped for
 N = 1) -> tone map. `read_linear` is the resolved radiance before exposure and
 tone mapping: physical radiance, comparable with a path tracer's image.
+
+Specular light (section 4.4) depends on the frame's mode:
+
+    renderer.render(camera, w, h)                    # "walkthrough": regular lobe patterns
+    renderer.render(camera, w, h, mode="converge")   # one still-camera frame (viewer/progressive.py)
+    renderer.render(camera, w, h, mode="auto")       # the window: converge while the view stands still
+
+A "converge" frame adds quasi-random samples to the running mean of the frames
+before it (same camera, size, supersampling, exposure and hidden objects; any
+change starts over) and shows that mean; the G-buffer of a standing view is drawn
+once.
 """
 from __future__ import annotations
 
@@ -29,29 +41,55 @@ from viewer.passes.gbuffer import GBufferPass
 from viewer.passes.resolve import ResolvePass
 from viewer.passes.shading import ShadingPass
 from viewer.passes.tonemap import TonemapPass
+from viewer.progressive import DEFAULT_MAX_FRAMES, DEFAULT_SAMPLES_PER_FRAME, Progressive
 from viewer.timing import PassTimer
 
 MAX_SUPERSAMPLE = 8
+MODES = ("walkthrough", "converge", "auto")
+# How the walkthrough estimates lobes: the thesis' regular patterns (Eq. 4.10-4.25), or, for
+# comparisons, Colbert and Krivanek's filtered importance sampling with as many samples.
+WALKTHROUGH_METHODS = {"patterns": "SPECULAR_PATTERNS", "filtered-importance": "SPECULAR_FILTERED_IS"}
 
 
 class Renderer:
-    def __init__(self, ctx: moderngl.Context, bake, supersample: int = 1, exposure: float = 0.0):
+    def __init__(self, ctx: moderngl.Context, bake, supersample: int = 1, exposure: float = 0.0, *,
+                 lobe_samples: int | None = None, weights: str = "eq4.25", walkthrough: str = "patterns",
+                 samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
+                 blend_frames: int = 0):
+        """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
+        width); weights: "eq4.25" or "eq4.24" (walkthrough); walkthrough: a key of
+        WALKTHROUGH_METHODS; samples_per_frame, max_frames, blend_frames: the still camera's
+        (viewer/progressive.py)."""
         check_context(ctx)
+        if walkthrough not in WALKTHROUGH_METHODS:
+            raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
         self.ctx = ctx
         self.bake = bake
         self.supersample = supersample
         self.exposure = float(exposure)  # EV: the tone-mapped image is scaled by 2^exposure
         self.scene = GpuScene(ctx, bake)
+        if lobe_samples is not None:
+            self.scene.set_lobe_samples(lobe_samples)
         defines = shader_defines()
         self.gbuffer = GBufferPass(ctx, self.scene, defines)
-        self.shading = ShadingPass(ctx, self.scene, defines)
+        self.shading = ShadingPass(ctx, self.scene, defines, weights=weights)
         self.resolve = ResolvePass(ctx, defines)
         self.tonemap = TonemapPass(ctx, defines)
+        self.progressive = Progressive(ctx, defines, samples_per_frame=samples_per_frame, max_frames=max_frames,
+                                       blend_frames=blend_frames)
+        self.weights = weights
+        self.walkthrough = walkthrough
         self.timer = PassTimer(ctx)
         self.size: tuple[int, int] | None = None
+        self.mode: str | None = None  # of the last frame: "walkthrough" or "converge"
+        self._last_key = None  # view of the last frame, for mode="auto"
+        self._walkthrough_key = None  # view of the walkthrough image in _linear, while it is one
+        self._has_base = False  # the still camera fades from that image
+        self._gbuffer_key = None  # view the G-buffer holds
         self._linear: moderngl.Texture | None = None
         self._display: moderngl.Texture | None = None
         self._drawn: dict = {}
+        self._view: tuple[ViewCamera, float] | None = None  # camera and aspect of the last frame
         self._device = describe(ctx)
 
     @property
@@ -75,9 +113,43 @@ class Renderer:
                              f"{width * n}x{height * n} pixels; this OpenGL allows at most {limit} "
                              "per side: use a smaller size or --supersample")
 
-    def render(self, camera: ViewCamera, width: int, height: int) -> None:
-        """Render one frame of `camera` at width x height output pixels."""
+    def render(self, camera: ViewCamera, width: int, height: int, hidden_objects=(),
+               mode: str = "walkthrough") -> None:
+        """Render one frame of `camera` at width x height output pixels, leaving out the
+        objects whose manifest index is in `hidden_objects` (the bake's cube maps, section 4.4.1);
+        `mode` is one of MODES (see the module docstring)."""
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
         self.check_size(width, height)
+        hidden = tuple(sorted(set(int(i) for i in hidden_objects)))
+        key = (Progressive.view_key(camera, (width, height), self.supersample, self.exposure), hidden)
+        if mode == "auto":  # the window: refine while the view stands still
+            mode = "converge" if key == self._last_key else "walkthrough"
+        self._last_key = key
+        if mode == "walkthrough":
+            self.progressive.invalidate()
+            self._frame(camera, width, height, hidden, WALKTHROUGH_METHODS[self.walkthrough], key)
+            self._walkthrough_key = key
+            return
+        progressive = self.progressive
+        restarted = progressive.begin(key)
+        if progressive.converged or (not restarted and not self.shading.has_specular):
+            return  # the image is final (without specular light the first frame is exact)
+        if restarted:  # fade from the walkthrough image of this very view, when there is one
+            self._has_base = progressive.blend_frames > 0 and self._walkthrough_key == key
+            if self._has_base:
+                progressive.keep_base(self._linear)
+        self._walkthrough_key = None
+        first, count = progressive.samples()
+        self._frame(camera, width, height, hidden, "SPECULAR_QMC", key, qmc=(first, count),
+                    blend=progressive.blend(self._has_base))
+
+    def _frame(self, camera: ViewCamera, width: int, height: int, hidden: tuple, specular: str, key, *,
+               qmc=(0, 0), blend: float | None = None) -> None:
+        """One frame: G-buffer (a still-camera frame skips it when it holds this view `key`
+        already), shading with the specular mode `specular` (viewer/passes/shading.py
+        SPECULAR_MODES), resolve, the still camera's accumulation when `blend` (the weight of
+        the mean) is given, tone map. A walkthrough frame always costs a whole frame."""
         ctx, n, timer = self.ctx, self.supersample, self.timer
         aspect = width / height
         full = (width * n, height * n)
@@ -85,17 +157,28 @@ class Renderer:
         self.shading.resize(full)
         previous = ctx.fbo  # after resizing, which may have deleted our own bound framebuffer
         timer.start_frame()
-        with timer("gbuffer"):
-            self._drawn = self.gbuffer.run(camera, aspect)
+        if blend is None or key != self._gbuffer_key:
+            with timer("gbuffer"):
+                self._drawn = self.gbuffer.run(camera, aspect, hidden)
+            self._gbuffer_key = key
         with timer("shading"):
             linear = self.shading.run(self.gbuffer.targets, camera, aspect)
+        if self.shading.has_specular:
+            with timer("specular"):
+                linear = self.shading.run_specular(self.gbuffer.targets, camera, aspect, mode=specular,
+                                                   qmc_first=qmc[0], qmc_count=qmc[1])
         if n > 1:
             with timer("resolve"):
                 linear = self.resolve.run(linear, n)
+        if blend is not None:
+            with timer("accumulate"):
+                linear = self.progressive.add(linear, blend)
         with timer("tonemap"):
             self._display = self.tonemap.run(linear, self.exposure)
         self._linear = linear
+        self._view = (camera, aspect)
         self.size = (width, height)
+        self.mode = "walkthrough" if blend is None else "converge"
         if previous is not None:  # a standalone context has none bound
             previous.use()
 
@@ -118,6 +201,32 @@ class Renderer:
         data = np.frombuffer(self._display.read(alignment=1), np.uint8).reshape(h, w, 4)
         return np.ascontiguousarray(data[::-1, :, :3])
 
+    def read_distance(self) -> np.ndarray:
+        """(H, W) float32 distance in metres from the eye to the visible surface, the mean over the
+        pixel's N x N supersamples that hit one; inf where only sky shows. Row 0 is the top.
+
+        From the depth buffer: the eye-space depth of camera.glsl's `eye_depth`, times the length
+        of the pixel's ray per unit of depth along the view axis."""
+        self._require_frame()
+        camera, aspect = self._view
+        depth = self.gbuffer.targets["depth"]
+        w, h = depth.size
+        d = np.frombuffer(depth.read(alignment=1), np.float32).reshape(h, w).astype(np.float64)
+        n, f = camera.znear, camera.zfar
+        z_eye = 2.0 * n * f / np.maximum(f + n - (2.0 * d - 1.0) * (f - n), 1e-30)
+        _, right, up = camera.ray_basis(aspect)
+        x = (np.arange(w) + 0.5) / w * 2.0 - 1.0
+        y = (np.arange(h) + 0.5) / h * 2.0 - 1.0  # GL rows: row 0 at the bottom
+        # |forward + x right' + y up'| with the three orthogonal and |forward| = 1
+        per_depth = np.hypot(1.0, np.hypot(y[:, None] * np.linalg.norm(up), x[None, :] * np.linalg.norm(right)))
+        distance = np.where(d < 1.0, z_eye * per_depth, np.nan)
+        k = w // self.size[0]  # the supersampling of that frame
+        blocks = distance.reshape(h // k, k, w // k, k)
+        hits = np.isfinite(blocks).sum(axis=(1, 3))
+        total = np.nansum(blocks, axis=(1, 3))
+        mean = np.divide(total, hits, out=np.full(hits.shape, np.inf), where=hits > 0)
+        return np.ascontiguousarray(mean[::-1], np.float32)
+
     @property
     def display_texture(self) -> moderngl.Texture:
         """The last frame, tone-mapped: RGBA8, GL orientation (row 0 at the bottom), sRGB-encoded
@@ -130,12 +239,21 @@ class Renderer:
         """GPU ms per pass (last frame and median of recent ones), what was drawn and skipped."""
         skipped: dict = {"objects_outside_view": list(self._drawn.get("objects_culled", [])),
                          "objects_without_triangles": list(self._drawn.get("objects_empty", []))}
+        if self._drawn.get("objects_hidden"):
+            skipped["objects_hidden"] = list(self._drawn["objects_hidden"])
         if self.supersample == 1:
             skipped["resolve"] = "supersample 1: the shaded image is the output"
-        with_lobes = [m["name"] for m in self.bake.manifest["materials"] if m.get("lobes")]
-        if with_lobes:
-            skipped["lobes"] = (f"view-dependent lobes are not shaded yet (issues 4 and 5): "
-                                f"{len(with_lobes)} materials show their diffuse part only")
+        specular = self._specular_stats()
+        if not specular["materials_with_lobes"]:
+            skipped["specular"] = "no material has view-dependent lobes: no specular work at all"
+        elif specular["tiles_skipped"]:
+            skipped["specular_tiles"] = (f"{specular['tiles_skipped']} of "
+                                         f"{specular['tiles_skipped'] + specular['tiles_with_lobes']} tiles "
+                                         "have no view-dependent pixels and skipped the specular code")
+        if specular["objects_without_cube_map"]:
+            skipped["lobes_without_cube_map"] = (
+                "objects with lobes but no cube map show their diffuse part only (planar mirrors: "
+                "issue 5): " + ", ".join(specular["objects_without_cube_map"]))
         size = list(self.size) if self.size else None
         median = self.timer.median_ms  # reads the last frame's queries first
         return {
@@ -154,10 +272,44 @@ class Renderer:
             "triangles_in_scene": self.scene.triangles,
             "lightmap_format": "RGBA16F" if self.scene.lightmap_dtype == "f2" else "RGBA32F",
             "skipped": skipped,
+            "specular": specular,
+        }
+
+    def _specular_stats(self) -> dict:
+        """The specular work of the last frame (reads the shading pass's counters: waits for the GPU)."""
+        manifest, scene = self.bake.manifest, self.scene
+        materials = manifest["materials"]
+        lobed = [i for i, m in enumerate(materials) if m.get("lobes")]
+        counts = (self.shading.specular_counts() if self.size else
+                  {"pixels": 0, "tiles": 0, "tiles_skipped": 0, "lookups": 0})
+        lobes, k = [], 0
+        for m in materials:
+            for j, _ in enumerate(m.get("lobes") or []):
+                lobes.append({"material": m["name"], "lobe": j, **scene.lobe_patterns[k]})
+                k += 1
+        mode = self.mode
+        if mode == "converge":
+            mode = "converged" if self.progressive.converged else "converging"
+        return {
+            "mode": mode,
+            "walkthrough": self.walkthrough,
+            "weights": self.weights,
+            "materials_with_lobes": len(lobed),
+            "objects_without_cube_map": [o["name"] for i, o in enumerate(manifest["objects"])
+                                         if o["material"] in lobed and not scene.cubemaps.has_cubemap(i)],
+            "pixels_with_lobes": counts["pixels"],
+            "tiles_with_lobes": counts["tiles"],
+            "tiles_skipped": counts["tiles_skipped"],
+            "cube_map_lookups": counts["lookups"],
+            "lookups_per_pixel_with_lobes": counts["lookups"] / counts["pixels"] if counts["pixels"] else 0.0,
+            "samples_per_lobe": lobes,
+            "cube_maps_bound": self.shading.cube_maps_bound,
+            "cube_map_classes": scene.cubemaps.describe(),
+            "progressive": self.progressive.describe(),
         }
 
     def release(self) -> None:
-        for part in (self.gbuffer, self.shading, self.resolve, self.tonemap, self.scene):
+        for part in (self.gbuffer, self.shading, self.resolve, self.tonemap, self.progressive, self.scene):
             part.release()
         self._linear = self._display = None
 

@@ -6,6 +6,11 @@ the window's framebuffer size, copies the tone-mapped result onto the window
 with a full-screen triangle and blends the overlay on top. The renderer never
 sees the window; the controls never see OpenGL.
 
+While the camera moves, frames show the walkthrough's regular lobe patterns; as
+soon as it stands still the renderer keeps refining the same view with
+quasi-random samples (mode "auto", viewer/progressive.py), fading from the last
+walkthrough image over `BLEND_FRAMES` frames, until `MAX_STILL_FRAMES` frames.
+
     window = create_window(size=(1280, 720), title="glint", vsync=True)
     viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls)
     run(viewer)   # until Esc or the window is closed
@@ -29,6 +34,8 @@ from viewer.renderer import Renderer
 from viewer.shader_source import raster_program
 
 GL_VERSION = (GL_REQUIRED // 100, GL_REQUIRED % 100 // 10)
+BLEND_FRAMES = 4  # from the walkthrough image to the running mean when the camera stops
+MAX_STILL_FRAMES = 512  # then the image is final: 4096 samples per lobe and pixel
 
 # moderngl-window key constant (attribute of the backend's Keys class) -> controls' key name
 KEY_NAMES = {
@@ -90,7 +97,8 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.name = name
         self.screenshot_dir = Path.cwd() if screenshot_dir is None else Path(screenshot_dir)
         self.screenshots: list[Path] = []
-        self.renderer = Renderer(self.ctx, bake, supersample=supersample)
+        self.renderer = Renderer(self.ctx, bake, supersample=supersample, blend_frames=BLEND_FRAMES,
+                                 max_frames=MAX_STILL_FRAMES)
         self.blit = raster_program(self.ctx, "blit.vert", "blit.frag")
         self.triangle = self.ctx.vertex_array(self.blit, [])
         self.overlay = Overlay(self.ctx, self.blit, self.triangle)
@@ -106,7 +114,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
         width, height = self.wnd.buffer_size
         if width < 1 or height < 1:
             return  # minimised: some backends report a 0 x 0 framebuffer
-        self.renderer.render(self.camera, width, height)
+        self.renderer.render(self.camera, width, height, mode="auto")  # refines while the camera is still
 
         self.wnd.use()
         self.ctx.viewport = (0, 0, width, height)

@@ -59,8 +59,9 @@ class GBufferPass:
         self.fbo = ctx.framebuffer([t["diffuse"], t["normal"], t["tangent"], t["material"]], t["depth"])
         self.size = size
 
-    def run(self, camera: ViewCamera, aspect: float) -> dict:
-        """Draw every object in view; returns what was drawn and skipped."""
+    def run(self, camera: ViewCamera, aspect: float, hidden=()) -> dict:
+        """Draw every object in view except those whose index is in `hidden` (a cube map leaves
+        out its own object); returns what was drawn and skipped."""
         ctx, scene = self.ctx, self.scene
         view_proj = camera.view_projection(aspect)
         self.fbo.use()
@@ -73,8 +74,12 @@ class GBufferPass:
         scene.bind_materials()
         scene.lightmaps.use(LIGHTMAP_UNIT)
         drawn = triangles = 0
-        culled, empty = [], []
-        for obj in scene.objects:
+        culled, empty, left_out = [], [], []
+        hidden = set(hidden)
+        for index, obj in enumerate(scene.objects):
+            if index in hidden:
+                left_out.append(obj.name)
+                continue
             if not obj.triangles:
                 empty.append(obj.name)
                 continue
@@ -87,7 +92,7 @@ class GBufferPass:
             drawn += 1
             triangles += obj.triangles
         return {"objects_drawn": drawn, "triangles": triangles, "objects_culled": culled,
-                "objects_empty": empty}
+                "objects_empty": empty, "objects_hidden": left_out}
 
     def _release_targets(self) -> None:
         if self.fbo is not None:

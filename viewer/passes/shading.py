@@ -1,55 +1,140 @@
 """Shading pass (compute): outgoing radiance per G-buffer pixel into an rgba32f image.
 
 Per pixel (shaders/shading.comp): sky along the view ray where nothing was drawn;
-else light-mapped diffuse + emission + the material's lobes through the per-pixel
-hook of shaders/specular.glsl, which the specular issues fill; black for back faces
-of single-sided materials.
+else light-mapped diffuse + emission; black for back faces of single-sided materials.
+
+Specular light (section 4.4) is a second dispatch (shaders/specular.comp), for
+pixels whose material has lobes and whose object has a cube map: shading.comp
+queues the 8 x 8 tiles holding such pixels, and specular.comp runs one work group
+per queued tile (glDispatchComputeIndirect), adding the lobes' light in one of
+the modes of specular.glsl (`SPECULAR_MODES`): the walkthrough's regular
+patterns, still-camera quasi-random samples (frame by frame, see
+viewer/progressive.py), or filtered importance sampling for comparisons. Tiles
+without such pixels cost nothing there (a branch inside a work group would still
+cost its masked lanes on a SIMD machine, and on llvmpipe it cost ten times the
+diffuse shading); a scene without lobes on cube-mapped objects skips the dispatch.
+The work buffer also counts pixels and cube-map look-ups, which `specular_counts`
+reads back (only when asked: reading waits for the GPU).
 """
 from __future__ import annotations
 
 import moderngl
+import numpy as np
 
 from viewer.camera import ViewCamera
-from viewer.shader_source import compute_program, dispatch, set_uniforms
+from viewer.shader_source import LOCAL_SIZE, compute_program, dispatch, set_uniforms
 
 GBUFFER_UNITS = {"gb_diffuse": 0, "gb_normal": 1, "gb_tangent": 2, "gb_material": 3, "gb_depth": 4}
 SKY_UNIT = 5
+CUBE_FIRST_UNIT = 6  # cube-map classes on units 6, 7, ...
 IMAGE_UNIT = 0
+# Storage buffers 0-5: viewer/gpu_scene.py and viewer/cubemaps.py; 6-7: viewer/glsl_eval.py.
+SPECULAR_WORK_BINDING, SPECULAR_FLAGS_BINDING = 8, 9
+SPECULAR_MODES = {"SPECULAR_PATTERNS": 0, "SPECULAR_QMC": 1, "SPECULAR_FILTERED_IS": 2}
+WEIGHTS = ("eq4.25", "eq4.24")  # Eq. 4.25 (the thesis' choice) or Eq. 4.24 for the walkthrough estimate
+WORK_HEADER = 8  # uints before the tile list (shaders/specular.glsl SpecularWork)
 
 
 class ShadingPass:
     name = "shading"
 
-    def __init__(self, ctx: moderngl.Context, scene, defines: dict):
+    def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "eq4.25"):
+        if weights not in WEIGHTS:
+            raise ValueError(f"weights must be one of {WEIGHTS}, not {weights!r}")
         self.ctx = ctx
         self.scene = scene
-        self.program = compute_program(ctx, "shading.comp", defines)
-        set_uniforms(self.program, sky_map=SKY_UNIT, radiance_out=IMAGE_UNIT, **GBUFFER_UNITS)
+        extra = {**scene.cubemaps.defines(CUBE_FIRST_UNIT), **SPECULAR_MODES,
+                 "SPECULAR_WORK_BINDING": SPECULAR_WORK_BINDING, "SPECULAR_FLAGS_BINDING": SPECULAR_FLAGS_BINDING}
+        if weights == "eq4.24":
+            extra["WEIGHTS_EQ_4_24"] = 1
+        self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
+        self.specular = compute_program(ctx, "specular.comp", {**defines, **extra})
+        for program in (self.program, self.specular):
+            set_uniforms(program, sky_map=SKY_UNIT, radiance_out=IMAGE_UNIT, **GBUFFER_UNITS)
+        # Specular work is possible only where a material with lobes meets an object with a cube map.
+        self.has_specular = any(scene.cubemaps.has_cubemap(i) and scene.material_table[o.material]["info"][3] > 0
+                                for i, o in enumerate(scene.objects))
         self.radiance: moderngl.Texture | None = None
+        self.work: moderngl.Buffer | None = None
+        self.flags: moderngl.Buffer | None = None
+        self.tiles = (0, 0)
+        self.cube_maps_bound = 0
+        self.specular_ran = False
 
     def resize(self, size: tuple[int, int]) -> None:
         if self.radiance is not None and self.radiance.size == size:
             return
-        if self.radiance is not None:
-            self.radiance.release()
+        self._release_targets()
         self.radiance = self.ctx.texture(size, 4, dtype="f4")
         self.radiance.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.tiles = (-(-size[0] // LOCAL_SIZE), -(-size[1] // LOCAL_SIZE))
+        count = self.tiles[0] * self.tiles[1]
+        self.work = self.ctx.buffer(reserve=(WORK_HEADER + count) * 4)
+        self.flags = self.ctx.buffer(reserve=count * 4)
 
-    def run(self, gbuffer: dict, camera: ViewCamera, aspect: float) -> moderngl.Texture:
+    def _bind_common(self, program, gbuffer: dict, camera: ViewCamera, aspect: float) -> None:
         forward, right, up = camera.ray_basis(aspect)
         vec = lambda v: tuple(map(float, v))  # noqa: E731
-        set_uniforms(self.program, eye=vec(camera.eye), cam_forward=vec(forward), cam_right=vec(right),
+        set_uniforms(program, eye=vec(camera.eye), cam_forward=vec(forward), cam_right=vec(right),
                      cam_up=vec(up), znear=camera.znear, zfar=camera.zfar, **self.scene.sky_uniforms())
         for name, unit in GBUFFER_UNITS.items():
             gbuffer[name[3:]].use(unit)
-        self.scene.sky_map.use(SKY_UNIT)
         self.scene.bind_materials()
+        self.scene.bind_specular()
+        self.work.bind_to_storage_buffer(SPECULAR_WORK_BINDING)
+        self.flags.bind_to_storage_buffer(SPECULAR_FLAGS_BINDING)
+
+    def run(self, gbuffer: dict, camera: ViewCamera, aspect: float) -> moderngl.Texture:
+        """The view-independent part of every pixel; queues the tiles that need specular light."""
+        header = np.zeros(WORK_HEADER, np.uint32)
+        header[1:3] = 1  # the indirect dispatch's y and z sizes
+        header[5] = self.tiles[0]
+        self.work.write(header.tobytes())
+        self.flags.clear()
+        self._bind_common(self.program, gbuffer, camera, aspect)
+        self.scene.sky_map.use(SKY_UNIT)
         self.radiance.bind_to_image(IMAGE_UNIT, read=False, write=True)
         dispatch(self.program, *self.radiance.size)
-        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+                                | moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT)
+        self.specular_ran = False
+        self.cube_maps_bound = 0
         return self.radiance
 
+    def run_specular(self, gbuffer: dict, camera: ViewCamera, aspect: float, *, mode: str = "SPECULAR_PATTERNS",
+                     qmc_first: int = 0, qmc_count: int = 0) -> moderngl.Texture:
+        """Add the lobes' light over the queued tiles (after `run`). mode: a key of SPECULAR_MODES;
+        with SPECULAR_QMC, samples qmc_first .. qmc_first + qmc_count - 1 of the quasi-random
+        sequence per lobe and pixel."""
+        if not self.has_specular:
+            return self.radiance
+        program = self.specular
+        self._bind_common(program, gbuffer, camera, aspect)
+        set_uniforms(program, specular_mode=SPECULAR_MODES[mode], qmc_first=int(qmc_first), qmc_count=int(qmc_count))
+        self.cube_maps_bound = self.scene.cubemaps.bind(program, CUBE_FIRST_UNIT)
+        self.radiance.bind_to_image(IMAGE_UNIT, read=True, write=True)
+        program.run_indirect(self.work)
+        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
+                                | moderngl.BUFFER_UPDATE_BARRIER_BIT)
+        self.specular_ran = True
+        return self.radiance
+
+    def specular_counts(self) -> dict:
+        """What the last frame did: pixels with specular light, tiles with and without them,
+        cube-map look-ups."""
+        header = np.frombuffer(self.work.read(size=WORK_HEADER * 4), np.uint32) if self.work else np.zeros(WORK_HEADER)
+        total = self.tiles[0] * self.tiles[1]
+        queued = int(header[0]) if self.specular_ran else 0
+        pixels, lookups = (int(header[3]), int(header[4])) if self.specular_ran else (0, 0)
+        return {"pixels": pixels, "tiles": queued, "tiles_skipped": total - queued, "lookups": lookups}
+
+    def _release_targets(self) -> None:
+        for obj in (self.radiance, self.work, self.flags):
+            if obj is not None:
+                obj.release()
+        self.radiance = self.work = self.flags = None
+
     def release(self) -> None:
-        if self.radiance is not None:
-            self.radiance.release()
+        self._release_targets()
         self.program.release()
+        self.specular.release()

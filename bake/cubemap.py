@@ -1,0 +1,198 @@
+"""Cube maps of curved and transmissive objects: their incident light (section 4.4.1).
+
+One cubic environment map per object stands for the light arriving anywhere on it: the
+light-mapped scene rendered from the object's bounding-box centre without the object itself,
+six 90-degree faces, HDR, with the distance from the centre to the visible surface in alpha
+(for the bounding-plane and parallax look-ups). Only `curved` and `transmissive` objects get
+one; `diffuse` objects need none and `planar` ones use mirror passes (section 4.5).
+
+Rendering: the viewer's own renderer (viewer/renderer.py) on a headless EGL context, reading
+the bake directory written so far (meshes and light maps), so a cube map shows exactly what
+the viewer would. It renders the scene *diffuse*: kd/pi E (Eq. 4.1) plus emission, every lobe
+left out, as the thesis renders "the light-mapped scene". No cube map then depends on another
+(no order, no chains of re-renders). Left out of each map: the object itself, and every
+transmissive object (thin glass): rendered diffuse, clear glass (kd = 0) would be an opaque
+black sheet, whereas from most directions it shows what lies behind it.
+
+Faces follow the OpenGL cube-map convention, so `texture(samplerCube, dir)` returns the
+radiance seen along dir: face k = GL_TEXTURE_CUBE_MAP_POSITIVE_X + k, in the order
++X, -X, +Y, -Y, +Z, -Z, is rendered by a 90-degree camera looking along the face's axis with
+the up vector of `FACES`; its right (forward x up) is the direction of increasing s and its up
+that of increasing t (the spec's sc/tc table), and the frame read back bottom row first is the
+face in glTexImage2D's order (row 0 at t = 0).
+
+File: `cubemaps/<object index>.exr`, RGBA, width S, height 6 S: the six faces stacked
+vertically in the GL order above, each S x S with its first row at t = 0 and first column at
+s = 0 (viewer/cubemaps.py reads it). RGB is radiance W/(m^2 sr); A is the distance in metres
+from the centre along the texel's direction to the visible surface (the mean over its 2 x 2
+supersamples), `SKY_DISTANCE` where only sky shows. Half float unless a value does not fit,
+then float32 (glint.image_io); never Inf.
+
+Face size S (`automatic_size`), a power of two in `AUTO_SIZE_RANGE`, the smaller of two needs:
+- the narrowest lobe: Eq. 4.10 with xi1_border = 0.01 bounds the half vector within
+  theta_thresh of its centre, so the reflected lobe (Eq. 4.8 doubles angles) has an angular
+  radius of about 2 theta_thresh; a face spans pi/2 over S texels, and the lobe's radius
+  should cover `TEXELS_PER_LOBE_RADIUS` = 4 of them: S >= 4 (pi/2) / (2 theta_thresh)
+  = pi / theta_thresh. Sharper lobes show finer detail of the environment.
+- the object's size: a convex mirror shows a whole face within about a third of its diameter,
+  so bigger objects show each texel over more screen pixels. From 1 m away on a 1080-line
+  screen with a 50-degree field of view that is about 400 pixels per metre of diameter:
+  S >= `FACE_TEXELS_PER_METRE` (400) x the bounding-box diagonal.
+In the living-room: the 20 cm chrome sphere (m = 0.0025) gets 256, its size limits it; the
+1.9 m frosted-glass screen (m = 0.09) 32, its lobe does; the brushed side table (my = 0.0046,
+0.75 m) 512. The sidecar's `[objects."NAME"] cubemap_size` replaces the rule.
+
+A cube map's inputs hash (bake/hashing.py `cubemap_hash`) is the light maps' hash plus the
+object, its face size and centre, the hidden objects and the render settings here: a re-bake
+renders only the cube maps whose hash changed and carries the others over.
+
+The maps are rendered one after another on one GL context in the bake's own process, not on
+the executor's worker processes: a GL context does not survive fork, the GPU is one device
+anyway, and a map takes from a few hundredths of a second (32) to a few seconds (512) even on
+llvmpipe.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from bake import hashing
+from bake.bounding_planes import BoundingPlane, candidate_surfaces, choose_planes, override_planes
+from bake.bsdf import M_MIN
+from bake.scene import Material, Object, Scene
+
+CUBEMAP_ROLES = ("curved", "transmissive")
+# GL_TEXTURE_CUBE_MAP_POSITIVE_X + k: (name, camera forward, camera up)
+FACES = (("+x", (1, 0, 0), (0, -1, 0)), ("-x", (-1, 0, 0), (0, -1, 0)),
+         ("+y", (0, 1, 0), (0, 0, 1)), ("-y", (0, -1, 0), (0, 0, -1)),
+         ("+z", (0, 0, 1), (0, -1, 0)), ("-z", (0, 0, -1), (0, -1, 0)))
+AUTO_SIZE_RANGE = (32, 512)
+XI1_BORDER = 0.01  # Eq. 4.10
+TEXELS_PER_LOBE_RADIUS = 4
+FACE_TEXELS_PER_METRE = 400.0
+SUPERSAMPLE = 2  # per axis: a texel is the mean of 2 x 2 samples
+ZNEAR = 1e-3  # m: 24-bit depth then resolves distances to < 0.3 mm at 2 m, < 2 cm at 20 m
+SKY_DISTANCE = 65504.0  # alpha where only sky shows: the largest half float, far but finite
+
+
+def theta_thresh(m: float) -> float:
+    """Eq. 4.10 at xi1_border, where the lobe is narrowest: cos^2(phi)/mx^2 + sin^2(phi)/my^2
+    peaks at 1/m^2 with m = min(mx, my)."""
+    return math.atan(math.sqrt(-math.log(XI1_BORDER)) * m)
+
+
+def automatic_size(obj: Object, material: Material) -> int:
+    """Face size from the narrowest lobe and the object's size (see the module docstring)."""
+    lo, hi = AUTO_SIZE_RANGE
+    widths = [max(min(lobe.mx, lobe.my), M_MIN) for lobe in material.lobes]
+    by_lobe = math.pi / theta_thresh(min(widths)) if widths else math.inf  # 4 (pi/2) / (2 theta)
+    by_size = FACE_TEXELS_PER_METRE * float(np.linalg.norm(obj.bounds[1] - obj.bounds[0]))
+    need = min(by_lobe, by_size)
+    return int(min(max(2 ** math.ceil(math.log2(max(need, 1.0))), lo), hi))
+
+
+@dataclass
+class CubeMapPlan:
+    """One object's cube map: what to render and what the manifest says about it."""
+    index: int  # the object's index in the manifest
+    name: str
+    size: int
+    centre: np.ndarray
+    hidden: tuple[int, ...]  # objects left out (itself and thin glass)
+    planes: list[BoundingPlane] = field(default_factory=list)
+    hash: str = ""
+
+    @property
+    def file(self) -> str:
+        return f"cubemaps/{self.index}.exr"
+
+    def manifest_entry(self) -> dict:
+        return {"file": self.file, "size": self.size, "centre": [float(x) for x in self.centre],
+                "bounding_planes": [p.to_dict() for p in self.planes]}
+
+
+def plan_cubemaps(scene: Scene, transport: str) -> list[CubeMapPlan]:
+    """A plan per curved or transmissive object, none for any other. Sidecar settings come as
+    `scene.bake_settings["objects"]` (bake/sidecar.py)."""
+    options = scene.bake_settings.get("objects", {})
+    glass = [i for i, o in enumerate(scene.objects) if o.role == "transmissive"]
+    surfaces = None
+    plans = []
+    for i, obj in enumerate(scene.objects):
+        if obj.role not in CUBEMAP_ROLES:
+            continue
+        given = options.get(obj.name, {})
+        size = given.get("cubemap_size") or automatic_size(obj, scene.material_of(obj))
+        planes = override_planes(given.get("bounding_planes"))
+        if planes is None:
+            surfaces = candidate_surfaces(scene) if surfaces is None else surfaces
+            planes = choose_planes(obj, surfaces)
+        plan = CubeMapPlan(i, obj.name, int(size), obj.bounds.mean(axis=0), tuple(sorted({i, *glass})), planes)
+        plan.hash = hashing.cubemap_hash(transport, {
+            "object": [i, obj.name], "size": plan.size, "centre": plan.centre,
+            "hidden": [[k, scene.objects[k].name] for k in plan.hidden],
+            "render": {"supersample": SUPERSAMPLE, "znear": ZNEAR, "sky_distance": SKY_DISTANCE}})
+        plans.append(plan)
+    return plans
+
+
+def diffuse_view(manifest: dict) -> dict:
+    """The manifest as the cube-map renders see it: no lobes, no cube maps (module docstring)."""
+    return {**manifest, "materials": [{**m, "lobes": []} for m in manifest["materials"]],
+            "objects": [{**o, "cubemap": None} for o in manifest["objects"]]}
+
+
+def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
+                    progress: Callable[[], None] | None = None) -> dict:
+    """Render `plans` from the bake in `bake_dir` (manifest, meshes and light maps written) into
+    its cubemaps/ folder; returns statistics (seconds, device)."""
+    from bake.bake_dir import Bake
+    from viewer.context import describe, headless_context
+    from viewer.renderer import Renderer
+
+    t0 = time.perf_counter()
+    bake = Bake(bake_dir)
+    bake.manifest = diffuse_view(bake.manifest)
+    ctx = headless_context()
+    try:
+        with Renderer(ctx, bake, supersample=SUPERSAMPLE) as renderer:
+            lo, hi = renderer.scene.bounds
+            for plan in plans:
+                # far enough for the farthest corner of the scene, seen from the centre
+                far = float(np.linalg.norm(np.maximum(np.abs(lo - plan.centre), np.abs(hi - plan.centre))))
+                faces = render_faces(renderer, plan.centre, plan.size, plan.hidden, zfar=1.01 * far + 1.0)
+                write_cubemap(Path(bake_dir) / plan.file, faces)
+                if progress is not None:
+                    progress()
+        device = describe(ctx)
+    finally:
+        ctx.release()
+    return {"seconds": round(time.perf_counter() - t0, 3), "device": device}
+
+
+def render_faces(renderer, centre, size: int, hidden=(), *, zfar: float) -> np.ndarray:
+    """(6, S, S, 4) float32: radiance and distance of the six faces in GL order, row 0 at t = 0."""
+    from viewer.camera import ViewCamera
+
+    faces = np.zeros((6, size, size, 4), np.float32)
+    for k, (_, forward, up) in enumerate(FACES):
+        camera = ViewCamera(eye=centre, forward=forward, up=up, yfov=math.pi / 2, znear=ZNEAR, zfar=zfar)
+        renderer.render(camera, size, size, hidden_objects=hidden)
+        faces[k, ..., :3] = renderer.read_linear()[::-1]  # bottom row first: GL's t = 0
+        distance = renderer.read_distance()[::-1]
+        faces[k, ..., 3] = np.where(np.isfinite(distance), distance, SKY_DISTANCE)
+    return faces
+
+
+def write_cubemap(path: Path, faces: np.ndarray) -> str:
+    """The six faces stacked vertically into one RGBA OpenEXR; returns "half" or "float"."""
+    from glint.image_io import write_image
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    size = faces.shape[1]
+    return write_image(path, faces.reshape(6 * size, size, 4), channels=("R", "G", "B", "A"))

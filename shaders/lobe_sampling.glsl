@@ -1,0 +1,119 @@
+// Deterministic regular lobe sampling for walkthroughs (thesis section 4.4.3): pattern directions
+// (Eq. 4.10-4.13), the MIP level of each sample (Eq. 4.14-4.17, and Colbert-Krivanek's pdf-based
+// level for filtered importance sampling), and the normalised estimators of Eq. 4.24 / 4.25.
+// The pattern positions in (xi1, xi2) space come from viewer/lobe_patterns.py, which also holds
+// the numpy reference of every function here (tests/test_lobe_patterns.py holds them equal).
+// Directions are in the local frame (t, b, n) of bsdf.glsl.
+
+#include "bsdf.glsl"
+
+// Eq. 4.10: the lobe border is where the importance transformation (Eq. 4.6) is at xi1 = 0.01,
+// the thesis' empirical choice; about 99% of the importance-sampled half vectors lie inside.
+const float XI1_BORDER = 0.01;
+// Eq. 4.15 caps tan(alpha) here (alpha ~ 89.4 deg): a wider lobe has no tangent-plane ellipse,
+// and its samples are filtered at the coarsest MIP level anyway.
+const float LOBE_TAN_MAX = 100.0;
+
+// theta_thresh of Eq. 4.10 for the direction cs = (cos, sin)(phi_h):
+//   arctan(sqrt(-log(xi1_border) / (cos^2 ph/mx^2 + sin^2 ph/my^2))).
+float theta_thresh(vec2 cs, float mx, float my) {
+    return atan(sqrt(-log(XI1_BORDER) / lobe_phi_factor(cs, mx, my)));
+}
+
+// The pattern sample at (xi1, xi2) mapped into the lobe: phi_h by Eq. 4.12 (= Eq. 4.5),
+// theta_h = (1 - xi1) theta_thresh (Eq. 4.13), so xi1 = 1 is the lobe centre (the mirror or
+// straight-through direction) and xi1 = 0 its border; then h by Eq. 4.7 and wi by Eq. 4.8
+// (mirrored through the surface for a transmission lobe).
+vec3 pattern_direction(vec3 wo, vec2 xi, Lobe lobe) {
+    float mx = max(lobe.shape.x, M_MIN), my = max(lobe.shape.y, M_MIN);
+    vec2 cs = lobe_phi(xi.y, mx, my);                   // Eq. 4.12
+    float theta = (1.0 - xi.x) * theta_thresh(cs, mx, my);  // Eq. 4.13
+    return scatter_about(wo, half_vector_at(cs, theta), lobe);  // Eq. 4.7-4.8
+}
+
+// tan of the angle between the lobe centre c and a border direction w (Eq. 4.14-4.15:
+// u = tan(acos(c.w))), written as |c x w| / (c.w), which stays accurate for the tiny angles of
+// near-mirror lobes where acos of a float near 1 does not; capped at LOBE_TAN_MAX (also for
+// angles of 90 degrees and more, c.w <= 0).
+float lobe_border_tan(vec3 c, vec3 w) {
+    float cos_a = dot(c, w);
+    float sin_a = length(cross(c, w));
+    return cos_a * LOBE_TAN_MAX > sin_a ? sin_a / cos_a : LOBE_TAN_MAX;
+}
+
+// Area A = pi u v of the lobe's elliptical cross-section at unit distance (Eq. 4.14-4.15): the
+// ellipse's vertices U, V are the border directions (xi1 = 0) at phi_h = 0 and 90 degrees
+// (xi2 = 0, 0.25: along t and b), its centre C the lobe centre (xi1 = 1).
+float lobe_ellipse_area(vec3 wo, Lobe lobe) {
+    vec3 c = pattern_direction(wo, vec2(1.0, 0.0), lobe);
+    vec3 u = pattern_direction(wo, vec2(0.0, 0.0), lobe);
+    vec3 v = pattern_direction(wo, vec2(0.0, 0.25), lobe);
+    return PI * lobe_border_tan(c, u) * lobe_border_tan(c, v);
+}
+
+// MIP level of a cube-map sample of area `sample_area` (A' = A / n at unit distance) along
+// `dir_world` (any length), for faces of face_size^2 = N texels (Eq. 4.16-4.17):
+//   A'_cube = A' d^2 / cos(beta)   (Eq. 4.16), pixels = A'_cube N / 4   (Eq. 4.17), level = log4(pixels).
+// The cube is [-1, 1]^3 around the unit sphere; along the unit direction the face is reached at
+// d = 1 / max|component| and its normal is tilted by cos(beta) = max|component|.
+// Clamped to the levels that exist: 0 (a sample smaller than a texel) .. log2(face_size).
+float cube_mip_level(float sample_area, vec3 dir_world, float face_size) {
+    float len = length(dir_world);
+    vec3 a = abs(dir_world);
+    float m = max(max(a.x, a.y), a.z);
+    if (!(m > 0.0))
+        return 0.0;  // no direction: any level is as wrong as another
+    float cos_beta = m / len;
+    float d = 1.0 / cos_beta;
+    float area_cube = sample_area * d * d / cos_beta;          // Eq. 4.16
+    float pixels = area_cube * face_size * face_size / 4.0;    // Eq. 4.17
+    return clamp(0.5 * log2(max(pixels, 1.0)), 0.0, log2(face_size));  // log4
+}
+
+// Colbert and Krivanek's (2007) MIP level for n filtered importance samples, the comparison
+// method of issue 4: the sample's solid angle omega_s = 1 / (n pdf) over a texel's
+// omega_p = 4 pi / (6 N), N = face_size^2, level = 0.5 log2(omega_s / omega_p) (no bias term).
+// Written as a difference of logarithms so that neither a tiny nor a huge pdf overflows;
+// clamped to 0 .. log2(face_size) (a pdf of 0 gives the coarsest level).
+float importance_mip_level(float pdf, int n, float face_size) {
+    float n_pdf = max(float(n) * pdf, 1e-30);
+    float level = 0.5 * (log2(6.0 * face_size * face_size / (4.0 * PI)) - log2(n_pdf));
+    return clamp(level, 0.0, log2(face_size));
+}
+
+// The normalised estimators of the specular integral over a pattern (Eq. 4.24, 4.25). Both are a
+// weighted mean of each sample's radiance times its importance weight v = cos(theta_i) f / p:
+//   Eq. 4.24: sum L cos^2 f / sum p cos             = sum w v L / sum w, w = p cos
+//   Eq. 4.25: sum L cos^2 f^2 / p / sum f cos       = sum w v L / sum w, w = f cos   (the default)
+// `num` holds that mean, updated incrementally (West 1979), `den` the sum of the weights: no
+// product w v L is ever formed, because f reaches ~1e27 for near-mirror lobes seen at grazing
+// angles and cube-map radiance may be large, which together would overflow fp32.
+// Start from LobeSum(vec3(0.0), 0.0).
+struct LobeSum {
+    vec3 num;   // weighted mean of L v so far
+    float den;  // sum of the weights w
+};
+
+// Add one pattern sample: L its (filtered) incident radiance, f = lobe_value, pdf = lobe_pdf, and
+// cos_i the cosine of the sample direction on the lobe's side of the surface (wi.z for reflection,
+// -wi.z for transmission). Samples below that horizon (cos_i <= 0) or outside the lobe's support
+// (f or pdf 0) are dropped, as the thesis drops samples below the horizon.
+void add_pattern_sample(inout LobeSum s, vec3 L, float f, float pdf, float cos_i) {
+    if (!(f > 0.0 && pdf > 0.0 && cos_i > 0.0))
+        return;
+    float v = cos_i * (f / pdf);  // the importance weight of Eq. 4.4
+#ifdef WEIGHTS_EQ_4_24
+    float w = pdf * cos_i;        // Eq. 4.24
+#else
+    float w = f * cos_i;          // Eq. 4.25
+#endif
+    if (!(w > 0.0))
+        return;                   // underflowed: it would add nothing, and 0/0 on a first sample
+    s.den += w;
+    s.num += (w / s.den) * (L * v - s.num);
+}
+
+// The estimate of Eq. 4.24 / 4.25: the weighted mean, or 0 when no sample counted.
+vec3 lobe_sum_result(LobeSum s) {
+    return s.den > 0.0 ? s.num : vec3(0.0);
+}

@@ -1,0 +1,26 @@
+// Specular pass: adds the lobes' light (specular.glsl) to the pixels that need it, one work group
+// per tile that shading.comp queued (an indirect dispatch over specular_tiles).
+
+#include "common.glsl"
+#include "materials.glsl"
+#include "gbuffer_read.glsl"
+#include "specular.glsl"
+
+layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
+layout(rgba32f) uniform image2D radiance_out;  // read: the view-independent part; write: the sum
+
+void main() {
+    uint tile = specular_tiles[gl_WorkGroupID.x];
+    ivec2 p = ivec2(tile % specular_tiles_x, tile / specular_tiles_x) * LOCAL_SIZE + ivec2(gl_LocalInvocationID.xy);
+    ivec2 size = imageSize(radiance_out);
+    if (p.x >= size.x || p.y >= size.y || gbuffer_empty(p))
+        return;
+    Surface s = gbuffer_surface(p, view_ray(p, size));
+    Material m = materials[s.material];
+    if (!needs_specular(s, m))
+        return;
+    vec3 L = imageLoad(radiance_out, p).rgb + specular_radiance(s, m, p);
+    imageStore(radiance_out, p, vec4(clean_radiance(L), 1.0));
+    atomicAdd(specular_pixels, 1u);
+    atomicAdd(specular_lookups_total, uint(specular_lookups));
+}

@@ -1,0 +1,211 @@
+"""Regular lobe sampling patterns (thesis section 4.4.3) and the numpy reference of shaders/lobe_sampling.glsl.
+
+PLACEHOLDER DOCSTRING: measurement to come.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from bake import bsdf
+
+XI1_BORDER = 0.01      # Eq. 4.10, the thesis' empirical lobe border
+RING_RADIUS = 0.6      # xi1 of the ring: "radius = 0.6 (= 40% off-center)"
+LOBE_TAN_MAX = 100.0   # Eq. 4.15 cap, as lobe_sampling.glsl
+
+# The rules of choose_pattern and samples_for_lobe (measured: see the module doc).
+LINE_RATIO = 3.0       # anisotropy m_max / m_min from which the line patterns replace the ring
+MIRROR_M = 0.01        # below this roughness a lobe is sampled once, at its centre
+# (width limit, samples): the first row whose limit exceeds max(m_x, m_y)
+RING_SAMPLES = ((MIRROR_M, 1), (0.02, 3), (0.03, 5), (np.inf, 7))
+LINE_SAMPLES = ((MIRROR_M, 1), (0.02, 3), (0.03, 5), (0.05, 7), (0.1, 11), (0.15, 15), (np.inf, 19))
+
+KINDS = ("ring", "line_x", "line_y")
+LINE_XI2 = {"line_x": (0.0, 0.5), "line_y": (0.25, 0.75)}  # the two sides of the line: phi_h and phi_h + 180 deg
+
+
+# ----------------------------------------------------------------------------- patterns in (xi1, xi2)
+
+def pattern_xi(kind: str, n: int) -> np.ndarray:
+    """The n sample positions (xi1, xi2) of a pattern, (n, 2) float32, as section 4.4.3 lists them.
+
+    "ring" (isotropic lobes): one sample at the lobe centre (1, 0), the others
+    on the ring xi1 = 0.6 at xi2 = (k - 1)/(n - 1), k = 1 .. n-1.
+    "line_x" (m_x >> m_y) and "line_y" (m_x << m_y): samples equally spaced
+    along the lobe's long axis; k = 0 .. floor(n/2) at xi1 = (2k + 1)/n on the
+    first side (xi2 = 0, resp. 0.25), the rest at xi1 = 2 - (2k + 1)/n on the
+    other (xi2 = 0.5, resp. 0.75). A first-side xi1 >= 1 (the centre for odd
+    n, 1 + 1/n for even n) means theta_h = (1 - xi1) theta_thresh <= 0 in
+    Eq. 4.13, which is the direction at 2 - xi1 on the other side; it is
+    written that way, keeping xi1 in (0, 1] (for n = 5 this gives the thesis'
+    own example, (1/5, .25), (3/5, .25), (5/5, .75), (3/5, .75), (1/5, .75)).
+    """
+    n = int(n)
+    if n < 1:
+        raise ValueError(f"a pattern needs at least one sample, got n = {n}")
+    if kind == "ring":
+        xi = [(1.0, 0.0)] + [(RING_RADIUS, (k - 1) / (n - 1)) for k in range(1, n)]
+    elif kind in LINE_XI2:
+        first, other = LINE_XI2[kind]
+        xi = []
+        for k in range(n):
+            x1, x2 = ((2 * k + 1) / n, first) if k <= n // 2 else (2 - (2 * k + 1) / n, other)
+            xi.append((2 - x1, other) if x1 >= 1.0 else (x1, x2))
+    else:
+        raise ValueError(f"pattern kind must be one of {KINDS}, got {kind!r}")
+    return np.array(xi, dtype=np.float32).reshape(n, 2)
+
+
+def choose_pattern(mx: float, my: float) -> str:
+    """"ring" unless the lobe is LINE_RATIO times longer one way than the other (see the module doc).
+
+    "line_y" when m_y / m_x >= LINE_RATIO (m_x << m_y: the highlight is long along b),
+    "line_x" when m_x / m_y >= LINE_RATIO. Roughness is clamped to M_MIN as in the BSDF.
+    """
+    mx, my = (max(float(m), bsdf.M_MIN) for m in (mx, my))
+    if my >= LINE_RATIO * mx:
+        return "line_y"
+    if mx >= LINE_RATIO * my:
+        return "line_x"
+    return "ring"
+
+
+def samples_for_lobe(mx: float, my: float) -> int:
+    """The automatic sample count of a lobe: from its width, max(m_x, m_y), and its pattern (module doc).
+
+    1 for near-mirror lobes (m < MIRROR_M): the centre sample alone, i.e. the mirror (or
+    straight-through) direction with the Fresnel weight, since the normalised estimators
+    reduce to L cos(theta_i) f / p = L F cos(theta_i) / (cos(theta_h) ((wi.n)(wo.n))^alpha).
+    """
+    kind = choose_pattern(mx, my)
+    width = max(float(mx), float(my), bsdf.M_MIN)
+    for limit, n in (RING_SAMPLES if kind == "ring" else LINE_SAMPLES):
+        if width < limit:
+            return n
+    raise AssertionError("the sample tables end at infinity")
+
+
+# ----------------------------------------------------------------------------- Eq. 4.10-4.13
+
+def _roughness(mx, my):
+    return np.maximum(np.asarray(mx, dtype=float), bsdf.M_MIN), np.maximum(np.asarray(my, dtype=float), bsdf.M_MIN)
+
+
+def pattern_phi(xi2, mx, my):
+    """phi_h = arctan(my/mx tan(2 pi xi2)) (Eq. 4.12), quadrant-correct as bake.bsdf.sample_half_vector."""
+    mx, my = _roughness(mx, my)
+    a = 2.0 * np.pi * np.asarray(xi2, dtype=float)
+    return np.arctan2(my * np.sin(a), mx * np.cos(a))
+
+
+def theta_thresh(phi_h, mx, my):
+    """theta_thresh = arctan(sqrt(-log(xi1_border) / (cos^2 phi_h / mx^2 + sin^2 phi_h / my^2))) (Eq. 4.10)."""
+    mx, my = _roughness(mx, my)
+    phi_h = np.asarray(phi_h, dtype=float)
+    return np.arctan(np.sqrt(-np.log(XI1_BORDER) / (np.cos(phi_h) ** 2 / mx ** 2 + np.sin(phi_h) ** 2 / my ** 2)))
+
+
+def pattern_direction(wo, xi1, xi2, mx, my, kind):
+    """The pattern sample (xi1, xi2) as an incident direction, shape (..., 3).
+
+    phi_h by Eq. 4.12, theta_h = (1 - xi1) theta_thresh (Eq. 4.13), h by Eq. 4.7,
+    wi = 2 (wo.h) h - wo (Eq. 4.8), mirrored through the surface plane for kind "transmit".
+    """
+    bsdf._check_kind(kind)
+    wo = np.asarray(wo, dtype=float)
+    phi = pattern_phi(xi2, mx, my)
+    theta = (1.0 - np.asarray(xi1, dtype=float)) * theta_thresh(phi, mx, my)
+    h = np.stack(np.broadcast_arrays(np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)), -1)
+    wi = 2.0 * np.sum(wo * h, axis=-1, keepdims=True) * h - wo
+    return bsdf.mirror(wi) if kind == "transmit" else wi
+
+
+# ----------------------------------------------------------------------------- Eq. 4.14-4.17, filtered importance sampling
+
+def lobe_ellipse_area(wo, mx, my, kind):
+    """A = pi u v, the lobe's cross-section at unit distance (Eq. 4.14-4.15).
+
+    alpha_U, alpha_V = acos(omega_C . omega_U), acos(omega_C . omega_V), with omega_C the
+    lobe centre (xi1 = 1) and omega_U, omega_V its border (xi1 = 0) at phi_h = 0 and 90
+    degrees; u, v = tan(alpha_U), tan(alpha_V), each capped at LOBE_TAN_MAX (also for
+    alpha >= 90 degrees).
+    """
+    c = pattern_direction(wo, 1.0, 0.0, mx, my, kind)
+    axes = []
+    for xi2 in (0.0, 0.25):
+        w = pattern_direction(wo, 0.0, xi2, mx, my, kind)
+        cos_a = np.sum(c * w, axis=-1) / (np.linalg.norm(c, axis=-1) * np.linalg.norm(w, axis=-1))
+        alpha = np.arccos(np.clip(cos_a, -1.0, 1.0))  # Eq. 4.14
+        axes.append(np.tan(np.minimum(alpha, np.arctan(LOBE_TAN_MAX))))  # Eq. 4.15
+    return np.pi * axes[0] * axes[1]
+
+
+def cube_mip_level(sample_area, direction, face_size):
+    """log4 of the cube-map texels under one sample (Eq. 4.16-4.17), clamped to 0 .. log2(face_size).
+
+    A'_cube = A' d^2 / cos(beta) with d the distance from the unit sphere's centre to the
+    cube [-1, 1]^3 along `direction` and beta the angle between it and the face normal;
+    pixels = A'_cube N / 4, N = face_size^2.
+    """
+    direction = np.asarray(direction, dtype=float)
+    u = direction / np.linalg.norm(direction, axis=-1, keepdims=True)
+    axis = np.argmax(np.abs(u), axis=-1)
+    cos_beta = np.abs(np.take_along_axis(u, axis[..., None], -1)[..., 0])
+    d = 1.0 / cos_beta  # where the ray leaves the unit cube: the face axis component reaches 1
+    area_cube = np.asarray(sample_area, dtype=float) * d ** 2 / cos_beta       # Eq. 4.16
+    pixels = area_cube * face_size ** 2 / 4.0                                   # Eq. 4.17
+    return np.clip(np.log(np.maximum(pixels, 1.0)) / np.log(4.0), 0.0, np.log2(face_size))
+
+
+def importance_mip_level(pdf, n, face_size):
+    """Colbert and Krivanek's MIP level 0.5 log2(omega_s / omega_p), clamped to 0 .. log2(face_size).
+
+    omega_s = 1 / (n pdf), the solid angle of one of n importance samples;
+    omega_p = 4 pi / (6 face_size^2), that of a cube-map texel.
+    """
+    omega_s = 1.0 / np.maximum(n * np.asarray(pdf, dtype=float), 1e-30)
+    omega_p = 4.0 * np.pi / (6.0 * face_size ** 2)
+    return np.clip(0.5 * np.log2(omega_s / omega_p), 0.0, np.log2(face_size))
+
+
+# ----------------------------------------------------------------------------- Eq. 4.23-4.25
+
+def pattern_estimate(L, f, pdf, cos_i, weights="4.25"):
+    """The normalised estimate of the specular integral from one pattern, shape (..., 3).
+
+    L (..., n, 3): the samples' incident radiance; f, pdf, cos_i (..., n): lobe value,
+    importance pdf and cosine on the lobe's side of the surface. Samples with f, pdf or
+    cos_i <= 0 are dropped (below the horizon). 0 where no sample counts.
+      "4.23": sum L cos f / sum p
+      "4.24": sum L cos^2 f / sum p cos
+      "4.25": sum L cos^2 f^2 / p / sum f cos
+    """
+    L = np.asarray(L, dtype=float)
+    f, pdf, cos_i = (np.asarray(a, dtype=float) for a in (f, pdf, cos_i))
+    keep = (f > 0) & (pdf > 0) & (cos_i > 0)
+    f, pdf, cos_i = (np.where(keep, a, 0.0) for a in (f, pdf, cos_i))
+    safe_pdf = np.where(keep, pdf, 1.0)
+    if weights == "4.23":
+        num, den = cos_i * f, pdf
+    elif weights == "4.24":
+        num, den = cos_i ** 2 * f, pdf * cos_i
+    elif weights == "4.25":
+        num, den = cos_i ** 2 * f ** 2 / safe_pdf, f * cos_i
+    else:
+        raise ValueError(f"weights must be '4.23', '4.24' or '4.25', got {weights!r}")
+    total = den.sum(axis=-1)
+    out = np.sum(num[..., None] * L, axis=-2) / np.where(total > 0, total, 1.0)[..., None]
+    return np.where((total > 0)[..., None], out, 0.0)
+
+
+def pattern_samples(wo, xi, mx, my, r0, alpha, kind):
+    """Directions wi, lobe values f, pdf and lobe-side cosines of a pattern xi (n, 2) at views wo (..., 3).
+
+    Shapes (..., n, 3) and (..., n): what the shader computes per sample before its look-up.
+    """
+    wo = np.asarray(wo, dtype=float)[..., None, :]
+    xi = np.asarray(xi, dtype=float)
+    wi = pattern_direction(wo, xi[:, 0], xi[:, 1], mx, my, kind)
+    f = bsdf.lobe_value(wi, wo, mx, my, r0, alpha, kind)
+    pdf = bsdf.lobe_pdf(wi, wo, mx, my, kind)
+    cos_i = -wi[..., 2] if kind == "transmit" else wi[..., 2]
+    return wi, f, pdf, cos_i
