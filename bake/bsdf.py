@@ -50,7 +50,7 @@ M_MIN = 1e-4
 HZ_MIN = 1e-7
 DOT_MIN = 1e-12
 COS_MIN = 1e-4
-XI_MIN = 1e-38
+XI_MIN = 2.0**-126  # smallest normal float32: the GLSL uses the same clamp (a subnormal may flush to 0)
 HALF_MIN = 1e-30  # |wi + wo| below this: no half vector
 
 KINDS = ("reflect", "transmit")

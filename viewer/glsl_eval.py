@@ -31,7 +31,7 @@ GROUP_SIZE = 64
 
 _NAME = re.compile(r"[A-Za-z_]\w*")
 _context: moderngl.Context | None = None
-_programs: dict[tuple[int, str], moderngl.ComputeShader] = {}
+_programs: dict[tuple[moderngl.Context, str], moderngl.ComputeShader] = {}  # keeps its contexts alive
 
 
 def context() -> moderngl.Context:
@@ -112,7 +112,7 @@ def program(include: str, main: str, defines: dict | None = None,
     ctx = ctx or context()
     text, files = shader_source.preprocess(include, {**shader_defines(), **(defines or {})})
     text += f"#line 1 {len(files)}\n" + main
-    key = (id(ctx), text)
+    key = (ctx, text)
     if key not in _programs:
         try:
             _programs[key] = ctx.compute_shader(text)
