@@ -117,16 +117,15 @@ class CubeMapPlan:
 
 
 def plan_cubemaps(scene: Scene, transport: str) -> list[CubeMapPlan]:
-    """A plan per curved or transmissive object, none for any other. Sidecar settings come as
-    `scene.bake_settings["objects"]` (bake/sidecar.py)."""
-    options = scene.bake_settings.get("objects", {})
+    """A plan per curved or transmissive object, none for any other; `Object.options` holds the
+    sidecar's per-object settings (bake/sidecar.py)."""
     glass = [i for i, o in enumerate(scene.objects) if o.role == "transmissive"]
     surfaces = None
     plans = []
     for i, obj in enumerate(scene.objects):
         if obj.role not in CUBEMAP_ROLES:
             continue
-        given = options.get(obj.name, {})
+        given = obj.options
         size = given.get("cubemap_size") or automatic_size(obj, scene.material_of(obj))
         planes = override_planes(given.get("bounding_planes"))
         if planes is None:

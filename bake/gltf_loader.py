@@ -287,8 +287,8 @@ class _SceneBuilder:
         self._check_material_names()
         assign_roles(scene, self._role_overrides(scene, aliases))
         options = self._object_options(scene, aliases)
-        if options:
-            scene.bake_settings["objects"] = options
+        for obj in scene.objects:
+            obj.options = options.get(obj.name, {})
         scene.warnings = list(side.warnings) + self.warnings
         validate_scene(scene)
         return scene

@@ -82,6 +82,7 @@ class Object:
     uvs: np.ndarray | None = None
     role: str = "diffuse"
     role_overridden: bool = False
+    options: dict = field(default_factory=dict)  # sidecar [objects."NAME"]: cubemap_size, bounding_planes
 
     @property
     def triangle_areas(self) -> np.ndarray:

@@ -34,9 +34,9 @@ is keyed by material name (a material could be called "diffuse_roughness").
 Wrong types and unknown values are errors naming the file and key; unknown
 keys are warnings (a typo should not silently do nothing, nor stop the work).
 
-The per-object cube-map settings reach the bake as `Scene.bake_settings["objects"]`
-(object name -> {"cubemap_size": int, "bounding_planes": bool | [{point, normal}]}), present
-only when the sidecar gives any; bake/gltf_loader.py resolves the names.
+The per-object cube-map settings reach the bake as `Object.options`
+({"cubemap_size": int, "bounding_planes": bool | [{point, normal}]}, empty when the sidecar
+gives none); bake/gltf_loader.py resolves the names.
 """
 from __future__ import annotations
 
