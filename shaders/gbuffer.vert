@@ -1,6 +1,18 @@
-// G-buffer pass, vertices: bake meshes are already in world space.
+// Raster passes over the bake's meshes, vertices: the G-buffer (gbuffer.frag), the mirror passes of
+// planar reflectors (mirror.frag, with MIRROR_CLIP defined) and their occlusion queries
+// (occlusion.frag). Bake meshes are already in world space.
 
 uniform mat4 view_proj;
+#ifdef MIRROR_CLIP
+// The mirror plane, (a, b, c, d) in world space with the real eye's side positive
+// (viewer/mirror_camera.py `clip_plane`): geometry behind the mirror is clipped away.
+uniform vec4 clip_plane;
+out float gl_ClipDistance[1];
+#endif
+
+// The occlusion queries redraw G-buffer geometry and test it against the G-buffer's depth with
+// "<=": the same positions must give the same depth in both programs.
+invariant gl_Position;
 
 in vec3 in_position;
 in vec3 in_normal;
@@ -27,4 +39,7 @@ void main() {
     v_lm_page = in_lm_page;
     v_object = in_object;
     gl_Position = view_proj * vec4(in_position, 1.0);
+#ifdef MIRROR_CLIP
+    gl_ClipDistance[0] = dot(clip_plane, vec4(in_position, 1.0));
+#endif
 }

@@ -23,4 +23,5 @@ void main() {
     imageStore(radiance_out, p, vec4(clean_radiance(L), 1.0));
     atomicAdd(specular_pixels, 1u);
     atomicAdd(specular_lookups_total, uint(specular_lookups));
+    atomicAdd(specular_mirror_lookups_total, uint(mirror_lookups));
 }

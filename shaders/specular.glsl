@@ -1,6 +1,7 @@
-// View-dependent light of a material's lobes at one surface point, for objects with a cube map
-// (curved and transmissive ones, section 4.4): specular.comp calls `specular_radiance` for the
-// pixels that shading.comp found to need it (`needs_specular`) and queued by tile.
+// View-dependent light of a material's lobes at one surface point: for objects with a cube map
+// (curved and transmissive ones, section 4.4) and for planar reflectors whose plane got a mirror
+// pass this frame (section 4.5). specular.comp calls `specular_radiance` for the pixels that
+// shading.comp found to need it (`needs_specular`) and queued by tile.
 //
 // Per lobe the specular integral (Eq. 4.3) over the object's cube map is estimated in one of three
 // ways, chosen by the uniform `specular_mode` (one program serves the moving and the still camera):
@@ -16,12 +17,33 @@
 //   MIP level of its pdf; Eq. 4.4 weights.
 // Samples on the wrong side of the surface (below the horizon; for transmission above it) are
 // dropped (section 4.4.3); each look-up goes through the object's bounding planes (4.4.1).
+//
+// Planar reflectors (section 4.5) read their plane's mirror buffer instead (mirror_buffer.glsl):
+// each sample direction is mapped to a buffer position by the two-step tangent-plane projection
+// (4.5.2), starting from the plane of P_R, the point the mirror direction sees.
+// - SPECULAR_PATTERNS: the lobe's planar pattern (multi-ring for isotropic lobes, the lines for
+//   anisotropic ones; viewer/lobe_patterns.py), every sample at the pixel's MIP level: the lobe's
+//   four extreme directions projected the same way span an ellipse in the buffer, whose area over
+//   the sample count is the texels per sample (4.5.3); Eq. 4.25 weights.
+// - SPECULAR_QMC: importance samples as for cube maps, unfiltered; step 1 intersects the running
+//   mean of the planes that this pixel's samples were found in so far (all frames of the still
+//   camera; kept in two images) instead of P_R's own plane, so the first projection no longer
+//   jumps with P_R at the depth edges of the mirror image.
+// - SPECULAR_FILTERED_IS: importance samples at the pattern's MIP level (the ellipse over n).
+// The mirror buffer holds the sky where nothing was drawn; a sample that leaves the buffer reads
+// its edge (clamp to edge): the nearest known radiance, better indoors than the sky. Transmission
+// lobes have no mirror image: a planar object's transmit lobes use its cube map if it has one
+// and are dropped otherwise. A planar object whose plane got no pass this frame (over the budget,
+// or the other skips of viewer/reflectors.py) falls back to its cube map if it has one; else it
+// gets no specular light this frame (renderer.stats["mirror"] lists it). So do the faces of a
+// planar object that are not in its plane (`mirror_slot_at`: the sides of a slab).
 
 #include "common.glsl"
 #include "materials.glsl"
 #include "gbuffer_read.glsl"
 #include "lobe_sampling.glsl"
 #include "cubemaps.glsl"
+#include "mirror_buffer.glsl"
 
 // The regular patterns in (xi1, xi2) space (viewer/lobe_patterns.py), all lobes' in one buffer;
 // per lobe x: first position, y: count, z: pattern kind (viewer/gpu_scene.py PATTERN_KINDS).
@@ -40,7 +62,8 @@ layout(std430, binding = SPECULAR_WORK_BINDING) buffer SpecularWork {
     uint specular_pixels;         // pixels that got specular light
     uint specular_lookups_total;  // cube-map look-ups
     uint specular_tiles_x;        // tiles per row of the image
-    uint specular_unused[2];
+    uint specular_mirror_lookups_total;  // mirror-buffer look-ups
+    uint specular_unused;
     uint specular_tiles[];        // the queued tiles, y * specular_tiles_x + x
 };
 layout(std430, binding = SPECULAR_FLAGS_BINDING) buffer SpecularTileFlags { uint specular_tile_queued[]; };
@@ -52,8 +75,15 @@ void queue_specular_tile(uvec2 t) {
         specular_tiles[atomicAdd(specular_groups[0], 1u)] = tile;
 }
 
-// Cube-map look-ups this invocation made (the pass's statistics).
+// Cube-map and mirror-buffer look-ups this invocation made (the pass's statistics).
 int specular_lookups = 0;
+int mirror_lookups = 0;
+
+// Still camera on planar reflectors: per pixel the sums of the planes (position, normal turned
+// towards the pixel's point) that its samples were found in, over all frames so far; w of the
+// first holds their count. Reset by the first frame of a still camera (qmc_first = 0).
+layout(rgba32f, binding = MIRROR_PLANE_POSITION_IMAGE) uniform image2D mirror_plane_positions;
+layout(rgba32f, binding = MIRROR_PLANE_NORMAL_IMAGE) uniform image2D mirror_plane_normals;
 
 // What every lobe at one point shares: the shading frame (columns t, b, n; local (x, y, z) ->
 // world), the view direction in it, the point and the object's cube map.
@@ -63,6 +93,10 @@ struct SpecularPoint {
     vec3 position;
     CubeObject cube;
     uvec3 seed;     // pixel and lobe: the per-pixel scramble of SPECULAR_QMC
+    int mirror;     // slot of the object's mirror pass this frame, or -1 (look-ups in the cube map)
+    MirrorCentre centre;  // the point's own look-up in that mirror buffer: P_R and its plane
+    vec4 plane_sum_p;     // still camera: sum of the planes' positions so far, w: their count
+    vec3 plane_sum_n;     // ... and of their normals
 };
 
 // Any orthonormal (t, b) for a unit n (Duff et al. 2017, branchless and continuous except at n.z = 0).
@@ -145,12 +179,98 @@ vec3 lobe_importance_estimate(SpecularPoint sp, Lobe lobe, uint first, int count
     return sum / float(max(count, 1));
 }
 
+// -- planar reflectors: look-ups in the mirror buffer (section 4.5) ------------------------------
+
+// The MIP level of a planar lobe sampled n times (section 4.5.3): the lobe's border directions at
+// phi_h = 0, 180 deg (along t) and 90, 270 deg (along b), projected by the two steps.
+float planar_lobe_lod(SpecularPoint sp, Lobe lobe, int n) {
+    MirrorSlot slot = mirror_slots[sp.mirror];
+    vec3 e0 = sp.frame * pattern_direction(sp.wo, vec2(0.0, 0.0), lobe);
+    vec3 e1 = sp.frame * pattern_direction(sp.wo, vec2(0.0, 0.5), lobe);
+    vec3 e2 = sp.frame * pattern_direction(sp.wo, vec2(0.0, 0.25), lobe);
+    vec3 e3 = sp.frame * pattern_direction(sp.wo, vec2(0.0, 0.75), lobe);
+    return mirror_lobe_mip_level(sp.position, e0, e1, e2, e3, n, slot.view_proj, sp.mirror, sp.centre,
+                                 slot.info.yz, slot.info.x);
+}
+
+// The radiance a sample direction wi (local frame) reads in the mirror buffer: projected by the
+// two steps, step 1 in the plane (plane_p, plane_n).
+vec3 planar_lookup(SpecularPoint sp, vec3 wi, vec3 plane_p, vec3 plane_n, float lod, out MirrorSample ms) {
+    MirrorSlot slot = mirror_slots[sp.mirror];
+    ms = mirror_project_sample(sp.position, sp.frame * wi, slot.view_proj, sp.mirror, sp.centre, plane_p,
+                               plane_n, true);
+    mirror_lookups += 1;
+    return mirror_radiance_at(sp.mirror, ms.uv, lod);
+}
+
+// Walkthrough: the lobe's planar pattern, every sample at the lobe's MIP level, Eq. 4.25 (4.24).
+vec3 planar_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
+    float lod = planar_lobe_lod(sp, lobe, max(pattern.y, 1));
+    LobeSum sum = LobeSum(vec3(0.0), 0.0);
+    MirrorSample ms;
+    for (int k = 0; k < pattern.y; ++k) {
+        vec3 wi = pattern_direction(sp.wo, pattern_xi[pattern.x + k], lobe);
+        if (!on_lobe_side(wi, lobe))
+            continue;  // below the horizon: cannot contribute (section 4.4.3)
+        vec3 L = planar_lookup(sp, wi, sp.centre.position, sp.centre.normal, lod, ms);
+        add_pattern_sample(sum, L, lobe_value(wi, sp.wo, lobe), lobe_pdf(wi, sp.wo, lobe), abs(wi.z));
+    }
+    return lobe_sum_result(sum);
+}
+
+// Still camera (average_planes: step 1 in the running mean of the planes found so far) and
+// filtered importance sampling (lod_n > 0: every sample at the MIP level of the lobe over lod_n
+// samples): Eq. 4.4 over `count` importance samples.
+vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, int count, uvec2 rotation,
+                                bool average_planes, int lod_n) {
+    float lod = lod_n > 0 ? planar_lobe_lod(sp, lobe, lod_n) : 0.0;  // unfiltered: unbiased
+    vec3 sum = vec3(0.0);
+    MirrorSample ms;
+    for (int k = 0; k < count; ++k) {
+        vec3 wi = sample_lobe(sp.wo, r2_point(first + uint(k), rotation), lobe);
+        if (!on_lobe_side(wi, lobe))
+            continue;  // a zero sample: the pdf covers these directions too
+        float pdf = lobe_pdf(wi, sp.wo, lobe);
+        float weight = lobe_value(wi, sp.wo, lobe) / pdf * abs(wi.z);  // f cos(theta_i) / p (Eq. 4.4)
+        if (!(pdf > 0.0) || isinf(weight) || isnan(weight))
+            continue;
+        vec3 plane_p = sp.centre.position, plane_n = sp.centre.normal;
+        if (average_planes && sp.plane_sum_p.w > 0.0) {
+            plane_p = sp.plane_sum_p.xyz / sp.plane_sum_p.w;
+            plane_n = safe_normalize(sp.plane_sum_n, sp.centre.normal);
+        }
+        vec3 L = planar_lookup(sp, wi, plane_p, plane_n, lod, ms);
+        if (average_planes && length(ms.plane_n) >= MIRROR_BACKGROUND_NORMAL) {
+            vec3 n = safe_normalize(ms.plane_n, vec3(0.0));
+            sp.plane_sum_p += vec4(ms.plane_p, 1.0);
+            sp.plane_sum_n += dot(n, sp.position - ms.plane_p) < 0.0 ? -n : n;  // turned towards P
+        }
+        sum += weight * L;
+    }
+    return sum / float(max(count, 1));
+}
+
+// -------------------------------------------------------------------------------------------------
+
 // One lobe's reflected (or transmitted) radiance towards the eye, times its ks.
-vec3 lobe_radiance(SpecularPoint sp, Lobe lobe, int lobe_index) {
-    ivec4 pattern = lobe_patterns[lobe_index];
+vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
+    bool planar = sp.mirror >= 0;
+    if (planar && lobe_is_transmit(lobe)) {  // no mirror image of the far side
+        if (!has_cube_map(sp.cube))
+            return vec3(0.0);
+        planar = false;
+    }
+    ivec4 pattern = lobe_patterns[planar ? lobe_patterns[lobe_index].w : lobe_index];
+    uvec2 rotation = pcg3d(sp.seed + uvec3(0u, 0u, uint(lobe_index))).xy;
     vec3 L;
-    if (specular_mode == SPECULAR_QMC) {
-        uvec2 rotation = pcg3d(sp.seed + uvec3(0u, 0u, uint(lobe_index))).xy;
+    if (planar) {
+        if (specular_mode == SPECULAR_QMC)
+            L = planar_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, true, 0);
+        else if (specular_mode == SPECULAR_FILTERED_IS)
+            L = planar_importance_estimate(sp, lobe, 0u, pattern.y, uvec2(0u), false, pattern.y);
+        else
+            L = planar_pattern_estimate(sp, lobe, pattern);
+    } else if (specular_mode == SPECULAR_QMC) {
         L = lobe_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, false);
     } else if (specular_mode == SPECULAR_FILTERED_IS) {
         L = lobe_importance_estimate(sp, lobe, 0u, pattern.y, uvec2(0u), true);
@@ -160,9 +280,21 @@ vec3 lobe_radiance(SpecularPoint sp, Lobe lobe, int lobe_index) {
     return lobe.ks.rgb * L;
 }
 
-// Whether the point gets specular light at all: a lobe, an object with a cube map, a lit side.
+// A planar object's surface reads its plane's mirror buffer where it lies in that plane: its normal
+// within MIRROR_PLANE_COS of the plane's (facing the same way). Elsewhere -- the sides of a slab
+// made planar by the sidecar -- the mirror image is not the light it receives: -1 there, as for
+// objects whose plane got no pass this frame.
+const float MIRROR_PLANE_COS = 0.985;  // 10 degrees
+
+int mirror_slot_at(Surface s) {
+    int slot = mirror_slot_of(s.object);
+    return slot >= 0 && dot(s.normal, mirror_slots[slot].plane.xyz) >= MIRROR_PLANE_COS ? slot : -1;
+}
+
+// Whether the point gets specular light at all: a lobe, a lit side, and incident light to read --
+// the object's cube map, or its plane's mirror buffer this frame.
 bool needs_specular(Surface s, Material m) {
-    return !s.dark && has_flag(m, MAT_SPECULAR) && has_cube_map(cube_objects[s.object]);
+    return !s.dark && has_flag(m, MAT_SPECULAR) && (has_cube_map(cube_objects[s.object]) || mirror_slot_at(s) >= 0);
 }
 
 // The sum over the material's lobes (Eq. 3.6 without kd) at pixel `pixel` of the shaded image.
@@ -176,8 +308,22 @@ vec3 specular_radiance(Surface s, Material m, ivec2 pixel) {
     sp.position = s.position;
     sp.cube = cube_objects[s.object];
     sp.seed = uvec3(uvec2(pixel), 0u);
+    sp.mirror = mirror_slot_at(s);
+    sp.plane_sum_p = vec4(0.0);
+    sp.plane_sum_n = vec3(0.0);
+    bool planes = sp.mirror >= 0 && specular_mode == SPECULAR_QMC;
+    if (sp.mirror >= 0)
+        sp.centre = mirror_centre(s.position, mirror_slots[sp.mirror].view_proj, sp.mirror);
+    if (planes && qmc_first > 0) {  // frame 0 of a still camera starts the sums afresh
+        sp.plane_sum_p = imageLoad(mirror_plane_positions, pixel);
+        sp.plane_sum_n = imageLoad(mirror_plane_normals, pixel).xyz;
+    }
     vec3 sum = vec3(0.0);
     for (int i = 0; i < m.info.w; ++i)
         sum += lobe_radiance(sp, lobes[m.info.z + i], m.info.z + i);
+    if (planes) {
+        imageStore(mirror_plane_positions, pixel, sp.plane_sum_p);
+        imageStore(mirror_plane_normals, pixel, vec4(sp.plane_sum_n, 0.0));
+    }
     return sum;
 }

@@ -63,6 +63,30 @@ def test_ring_pattern():
     assert P.pattern_xi("ring", 3).dtype == np.float32
 
 
+def test_multi_ring_pattern():
+    """Planar reflectors (section 4.5.3, viewer/lobe_patterns.py "Planar reflectors"): the centre,
+    then rings at theta_h = 0.4 and 0.8 theta_thresh, the outer one turned by half its spacing."""
+    want = ([(1, 0)] + [(0.6, k / 5) for k in range(5)] + [(0.2, (k + 0.5) / 4) for k in range(4)])
+    np.testing.assert_allclose(P.pattern_xi("multi_ring", 10), want, atol=1e-7)
+    np.testing.assert_allclose(P.pattern_xi("multi_ring", 5), [(1, 0), (0.6, 0), (0.6, 0.5), (0.2, 0.25), (0.2, 0.75)],
+                               atol=1e-7)
+    for n in range(1, 5):  # up to 3 ring samples: one ring, the curved ring itself
+        np.testing.assert_array_equal(P.pattern_xi("multi_ring", n), P.pattern_xi("ring", n))
+    for n in range(5, 20):
+        xi = P.pattern_xi("multi_ring", n).astype(float)
+        assert xi.shape == (n, 2) and np.all((xi >= 0) & (xi <= 1))
+        outer, inner = np.sum(np.isclose(xi[:, 0], 0.2)), np.sum(np.isclose(xi[:, 0], 0.6))
+        assert inner + outer == n - 1 and inner - outer in (0, 1)
+
+
+def test_planar_lobes_get_the_multi_ring_when_isotropic():
+    assert P.choose_pattern(0.1, 0.1, planar=True) == "multi_ring"
+    assert P.choose_pattern(0.1, 0.1 * P.LINE_RATIO, planar=True) == "line_y"  # lines stay lines
+    assert P.choose_pattern(0.1, 0.1) == "ring"                                # cube maps keep the ring
+    assert [P.samples_for_lobe(m, m, planar=True) for m in (0.005, 0.015, 0.03, 0.06, 0.5)] == [1, 3, 5, 10, 10]
+    assert P.samples_for_lobe(0.01, 0.1, planar=True) == P.samples_for_lobe(0.01, 0.1)
+
+
 def test_bad_patterns_are_refused():
     with pytest.raises(ValueError, match="kind"):
         P.pattern_xi("spiral", 5)
@@ -149,7 +173,7 @@ def numpy_by_kind(fn, kind, *args):
 
 def test_pattern_direction_matches_numpy():
     table = np.concatenate([P.pattern_xi("ring", 7), P.pattern_xi("line_x", 5), P.pattern_xi("line_y", 4),
-                            [[0.0, 0.0], [0.0, 0.25], [0.3, 0.9]]])
+                            P.pattern_xi("multi_ring", 10), [[0.0, 0.0], [0.0, 0.25], [0.3, 0.9]]])
     xi, wo, shape, ks, kind = lobe_rows(table)
     got = run("wi = pattern_direction(wo, xi, Lobe(ks, shape));", {"wi": 3}, xi=xi, wo=wo, ks=ks, shape=shape)["wi"]
     want = numpy_by_kind(lambda x, w, s, k: P.pattern_direction(w, x[:, 0], x[:, 1], s[:, 0], s[:, 1], k),

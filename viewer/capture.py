@@ -38,12 +38,14 @@ DEFAULT_FRAMES = 30
 STATS_REPEATS = 5  # a single capture with --stats is timed over this many renders (medians)
 MAX_CONVERGE = 100_000
 MAX_LOBE_SAMPLES = 256
+MAX_MIRROR_BUDGET = 64
 _VECTOR_ARG = re.compile(r"^-[\d.]")  # "-1,2,3" is a value, not an option
 
 
 def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
     from glint.cli import SCENE_HELP, add_bake_options
     from viewer.progressive import DEFAULT_SAMPLES_PER_FRAME
+    from viewer.reflectors import DEFAULT_BUDGET
 
     p = subparsers.add_parser(
         "capture", parents=[common_parent], help="render images headless (PNG or EXR), no window needed",
@@ -90,6 +92,9 @@ def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> ar
     specular.add_argument("--walkthrough-method", choices=("patterns", "filtered-importance"), default="patterns",
                           help="regular patterns (default), or Colbert-Krivanek filtered importance sampling with "
                                "as many samples, for comparisons")
+    specular.add_argument("--mirror-budget", metavar="N",
+                          help=f"mirror passes per frame at most, for planar reflectors (section 4.5; default "
+                               f"{DEFAULT_BUDGET}; 0: none, planar objects show their diffuse part)")
     image.add_argument("--stats", type=Path, metavar="FILE.json",
                        help="write time per pass and what was drawn and skipped as JSON")
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
@@ -172,6 +177,8 @@ def check_arguments(args) -> dict:
         "converge": _number(args.converge, "--converge", whole=True, lo=0, hi=MAX_CONVERGE),
         "lobe_samples": (_number(args.lobe_samples, "--lobe-samples", whole=True, lo=1, hi=MAX_LOBE_SAMPLES)
                          if args.lobe_samples is not None else None),
+        "mirror_budget": (_number(args.mirror_budget, "--mirror-budget", whole=True, lo=0, hi=MAX_MIRROR_BUDGET)
+                          if getattr(args, "mirror_budget", None) is not None else None),
     }
     if args.eye is not None:
         parsed["eye"] = parse_vector(args.eye, "--eye")
@@ -274,9 +281,10 @@ def cmd_capture(args) -> int:
     ctx = headless_context()
     try:
         converge = parsed["converge"]
+        budget = {} if parsed["mirror_budget"] is None else {"mirror_budget": parsed["mirror_budget"]}
         renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
                             lobe_samples=parsed["lobe_samples"], weights=args.weights,
-                            walkthrough=args.walkthrough_method, max_frames=max(converge, 1))
+                            walkthrough=args.walkthrough_method, max_frames=max(converge, 1), **budget)
         renderer.check_size(width, height)
         mode = "converge" if converge else "walkthrough"
         started = time.perf_counter()
@@ -292,7 +300,7 @@ def cmd_capture(args) -> int:
                 s = renderer.stats
                 frames.append({"file": str(path), "camera": _camera_json(camera), "gpu_ms": s["gpu_ms"],
                                "objects_drawn": s["objects_drawn"], "triangles": s["triangles"],
-                               "skipped": s["skipped"], "specular": s["specular"]})
+                               "skipped": s["skipped"], "specular": s["specular"], "mirror": s["mirror"]})
         seconds = time.perf_counter() - started
         if args.stats is not None:
             if len(views) == 1 and not converge:  # time a few more renders of the same view: medians, warm caches

@@ -81,21 +81,29 @@ def read_cubemap(path: str | Path) -> np.ndarray:
     return np.clip(np.nan_to_num(faces, nan=0.0, posinf=0.0, neginf=0.0), 0.0, None)
 
 
+def gl_functions(ctx: moderngl.Context):
+    """fn(name, restype, *argtypes) -> a ctypes function for a GL entry point moderngl does not
+    wrap, from the context's own loader (EGL or GLX)."""
+    loader = getattr(getattr(ctx.mglo, "_context", None), "load_opengl_function", None)
+    if loader is None:  # a context moderngl did not create through glcontext
+        lib = ctypes.CDLL(ctypes.util.find_library("GL") or "libGL.so.1")
+        loader = lambda name: ctypes.cast(getattr(lib, name), ctypes.c_void_p).value  # noqa: E731
+
+    def fn(name, restype, *args):
+        address = loader(name)
+        if not address:
+            raise GlintError(f"OpenGL function {name} is missing; glint needs OpenGL 4.3")
+        return ctypes.CFUNCTYPE(restype, *args)(address)
+
+    return fn
+
+
 class _GL:
-    """The GL entry points moderngl does not wrap, from the context's own loader (EGL or GLX)."""
+    """The GL entry points moderngl does not wrap that the cube maps need."""
 
     def __init__(self, ctx: moderngl.Context):
-        loader = getattr(getattr(ctx.mglo, "_context", None), "load_opengl_function", None)
-        if loader is None:  # a context moderngl did not create through glcontext
-            lib = ctypes.CDLL(ctypes.util.find_library("GL") or "libGL.so.1")
-            loader = lambda name: ctypes.cast(getattr(lib, name), ctypes.c_void_p).value  # noqa: E731
+        fn = gl_functions(ctx)
         u, i, p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
-
-        def fn(name, restype, *args):
-            address = loader(name)
-            if not address:
-                raise GlintError(f"OpenGL function {name} is missing; glint needs OpenGL 4.3")
-            return ctypes.CFUNCTYPE(restype, *args)(address)
 
         self.GenTextures = fn("glGenTextures", None, i, ctypes.POINTER(u))
         self.DeleteTextures = fn("glDeleteTextures", None, i, ctypes.POINTER(u))

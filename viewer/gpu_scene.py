@@ -13,9 +13,11 @@ Everything here is read-only after upload; passes bind what they need.
   vertex also carries its object's index, which the G-buffer stores beside the
   material (an object picks its cube map).
 - Lobe sampling patterns (section 4.4.3): the (xi1, xi2) positions of every
-  lobe's regular pattern (viewer/lobe_patterns.py) in one storage buffer, and
-  per lobe (offset, count) in another (`PATTERN_DTYPE`); the sample count is
-  chosen per lobe from its width, or set for all lobes by `set_lobe_samples`.
+  lobe's regular patterns (viewer/lobe_patterns.py) in one storage buffer, and
+  per lobe (offset, count) in another (`PATTERN_DTYPE`): one pattern for cube-map
+  look-ups and one for mirror-buffer look-ups of planar reflectors (section
+  4.5.3); the sample count is chosen per lobe from its width, or set for all
+  lobes by `set_lobe_samples`.
 - Cube maps of curved and transmissive objects and their bounding planes:
   viewer/cubemaps.py.
 - Light maps: one texture array, a layer per page, RGBA16F, or RGBA32F when a
@@ -57,7 +59,9 @@ SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
 
 MATERIAL_DTYPE = np.dtype([("kd", "<f4", 4), ("emission", "<f4", 4), ("info", "<i4", 4)])
 LOBE_DTYPE = np.dtype([("ks", "<f4", 4), ("shape", "<f4", 4)])
-# Per lobe: first pattern sample, sample count, pattern kind (PATTERN_KINDS), unused (ivec4, std430).
+# Per lobe: first pattern sample, sample count, pattern kind (PATTERN_KINDS), row of the lobe's
+# pattern for planar reflectors (ivec4, std430). Rows 0 .. L-1 are the lobes' patterns for cube
+# maps, rows L .. 2L-1 those for mirror buffers (section 4.5.3: multi-ring for isotropic lobes).
 PATTERN_DTYPE = np.dtype([("info", "<i4", 4)])
 PATTERN_KINDS = {"ring": 0, "line_x": 1, "line_y": 2, "multi_ring": 3}
 VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent", "<f4", 4),
@@ -212,18 +216,23 @@ class GpuScene:
         (viewer/lobe_patterns.py) when None."""
         if samples is not None and not (isinstance(samples, (int, np.integer)) and samples >= 1):
             raise GlintError(f"samples per lobe must be a whole number of at least 1 (got {samples!r})")
-        table = np.zeros(max(self.lobe_count, 1), PATTERN_DTYPE)
+        count = self.lobe_count
+        table = np.zeros(max(2 * count, 1), PATTERN_DTYPE)
         points, self.lobe_patterns = [], []
         first = 0
-        for k in range(self.lobe_count):
+        for k in range(count):
             mx, my = (float(x) for x in self.lobe_table[k]["shape"][:2])
-            kind = choose_pattern(mx, my)
-            n = int(samples) if samples is not None else int(samples_for_lobe(mx, my))
-            xi = np.asarray(pattern_xi(kind, n), np.float32).reshape(-1, 2)
-            table[k]["info"] = (first, len(xi), PATTERN_KINDS.get(kind, -1), 0)
-            points.append(xi)
-            self.lobe_patterns.append({"pattern": kind, "samples": len(xi)})
-            first += len(xi)
+            entry = {}
+            for row, planar in ((k, False), (count + k, True)):
+                kind = choose_pattern(mx, my, planar)
+                n = int(samples) if samples is not None else int(samples_for_lobe(mx, my, planar))
+                xi = np.asarray(pattern_xi(kind, n), np.float32).reshape(-1, 2)
+                table[row]["info"] = (first, len(xi), PATTERN_KINDS.get(kind, -1), count + k)
+                points.append(xi)
+                entry.update({"planar_pattern": kind, "planar_samples": len(xi)} if planar else
+                             {"pattern": kind, "samples": len(xi)})
+                first += len(xi)
+            self.lobe_patterns.append(entry)
         xi = np.concatenate(points) if points else np.zeros((1, 2), np.float32)
         for buf in (self.pattern_buffer, self.lobe_pattern_buffer):
             if buf is not None:

@@ -12,10 +12,14 @@ It draws into its own textures and never touches the default framebuffer, so it
 does not care whether a window or nothing at all is on the other side; the
 framebuffer bound before `render` is bound again after it.
 
-Per frame (DESIGN.md "Viewer"): G-buffer raster pass at N times the output size
-(N = supersample) -> shading in compute -> resolve (N x N box mean; skipped for
-N = 1) -> tone map. `read_linear` is the resolved radiance before exposure and
-tone mapping: physical radiance, comparable with a path tracer's image.
+Per frame (DESIGN.md "Viewer"): mirror passes of the planar reflectors in view
+(section 4.5.1, viewer/passes/mirror.py: at most `mirror_budget` per frame, at
+the render size) -> G-buffer raster pass at N times the output size (N =
+supersample) -> occlusion queries of the reflectors (read by a later frame) ->
+shading in compute -> resolve (N x N box mean; skipped for N = 1) -> tone map.
+`read_linear` is the resolved radiance before exposure and tone mapping:
+physical radiance, comparable with a path tracer's image. `stats["mirror"]` says
+which reflectors got a pass and why the others did not.
 
 Specular light (section 4.4) depends on the frame's mode:
 
@@ -38,10 +42,12 @@ from viewer.camera import ViewCamera
 from viewer.context import check_context, describe
 from viewer.gpu_scene import GpuScene, shader_defines
 from viewer.passes.gbuffer import GBufferPass
+from viewer.passes.mirror import MirrorPasses, mirror_defines
 from viewer.passes.resolve import ResolvePass
-from viewer.passes.shading import ShadingPass
+from viewer.passes.shading import SKY_UNIT, ShadingPass, mirror_first_unit
 from viewer.passes.tonemap import TonemapPass
 from viewer.progressive import DEFAULT_MAX_FRAMES, DEFAULT_SAMPLES_PER_FRAME, Progressive
+from viewer.reflectors import DEFAULT_BUDGET
 from viewer.timing import PassTimer
 
 MAX_SUPERSAMPLE = 8
@@ -55,11 +61,12 @@ class Renderer:
     def __init__(self, ctx: moderngl.Context, bake, supersample: int = 1, exposure: float = 0.0, *,
                  lobe_samples: int | None = None, weights: str = "eq4.25", walkthrough: str = "patterns",
                  samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
-                 blend_frames: int = 0):
+                 blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "eq4.25" or "eq4.24" (walkthrough); walkthrough: a key of
         WALKTHROUGH_METHODS; samples_per_frame, max_frames, blend_frames: the still camera's
-        (viewer/progressive.py)."""
+        (viewer/progressive.py); mirror_budget: mirror passes per frame at most (planar
+        reflectors, viewer/reflectors.py; 0: none, planar objects show their diffuse part)."""
         check_context(ctx)
         if walkthrough not in WALKTHROUGH_METHODS:
             raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
@@ -70,9 +77,14 @@ class Renderer:
         self.scene = GpuScene(ctx, bake)
         if lobe_samples is not None:
             self.scene.set_lobe_samples(lobe_samples)
-        defines = shader_defines()
+        if not (isinstance(mirror_budget, (int, np.integer)) and mirror_budget >= 0):
+            raise GlintError(f"the mirror-pass budget must be a whole number of at least 0 (got {mirror_budget!r})")
+        mirror_unit = mirror_first_unit(self.scene)
+        defines = {**shader_defines(), **mirror_defines(mirror_unit)}
         self.gbuffer = GBufferPass(ctx, self.scene, defines)
-        self.shading = ShadingPass(ctx, self.scene, defines, weights=weights)
+        self.mirror = MirrorPasses(ctx, self.scene, bake, defines, budget=int(mirror_budget))
+        self.mirror.set_units(mirror_unit, SKY_UNIT)
+        self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror)
         self.resolve = ResolvePass(ctx, defines)
         self.tonemap = TonemapPass(ctx, defines)
         self.progressive = Progressive(ctx, defines, samples_per_frame=samples_per_frame, max_frames=max_frames,
@@ -155,11 +167,20 @@ class Renderer:
         full = (width * n, height * n)
         self.gbuffer.resize(full)
         self.shading.resize(full)
+        self.mirror.resize(full)
         previous = ctx.fbo  # after resizing, which may have deleted our own bound framebuffer
         timer.start_frame()
         if blend is None or key != self._gbuffer_key:
+            # A still camera keeps the mirror buffers with the G-buffer: both depend on the view only.
+            mirror = self.mirror
+            if mirror.active:
+                plan = mirror.plan(camera, aspect, hidden)
+                mirror.run(plan, camera, aspect, hidden, timer)
             with timer("gbuffer"):
                 self._drawn = self.gbuffer.run(camera, aspect, hidden)
+            if mirror.active and plan.queries:
+                with timer("occlusion_queries"):
+                    mirror.query_occlusion(plan, self.gbuffer.fbo, camera, aspect)
             self._gbuffer_key = key
         with timer("shading"):
             linear = self.shading.run(self.gbuffer.targets, camera, aspect)
@@ -252,8 +273,14 @@ class Renderer:
                                          "have no view-dependent pixels and skipped the specular code")
         if specular["objects_without_cube_map"]:
             skipped["lobes_without_cube_map"] = (
-                "objects with lobes but no cube map show their diffuse part only (planar mirrors: "
-                "issue 5): " + ", ".join(specular["objects_without_cube_map"]))
+                "objects with lobes but neither a cube map nor a planar reflector's mirror pass show "
+                "their diffuse part only: " + ", ".join(specular["objects_without_cube_map"]))
+        mirror = self._mirror_stats()
+        planar_off = mirror.get("planar_without_pass", {})
+        if planar_off.get("no_specular"):
+            skipped["planar_specular"] = ("planar reflectors whose plane got no mirror pass this frame "
+                                          "(see mirror.skipped_reflectors) show their diffuse part only: "
+                                          + ", ".join(planar_off["no_specular"]))
         size = list(self.size) if self.size else None
         median = self.timer.median_ms  # reads the last frame's queries first
         return {
@@ -273,7 +300,16 @@ class Renderer:
             "lightmap_format": "RGBA16F" if self.scene.lightmap_dtype == "f2" else "RGBA32F",
             "skipped": skipped,
             "specular": specular,
+            "mirror": mirror,
         }
+
+    def _mirror_stats(self) -> dict:
+        """The planar reflectors' mirror passes of the last frame (viewer/passes/mirror.py)."""
+        manifest, scene = self.bake.manifest, self.scene
+        lobed = {i: o["name"] for i, o in enumerate(manifest["objects"])
+                 if manifest["materials"][o["material"]].get("lobes")}
+        cube_mapped = {i for i in lobed if scene.cubemaps.has_cubemap(i)}
+        return self.mirror.stats(lobed, cube_mapped)
 
     def _specular_stats(self) -> dict:
         """The specular work of the last frame (reads the shading pass's counters: waits for the GPU)."""
@@ -281,7 +317,8 @@ class Renderer:
         materials = manifest["materials"]
         lobed = [i for i, m in enumerate(materials) if m.get("lobes")]
         counts = (self.shading.specular_counts() if self.size else
-                  {"pixels": 0, "tiles": 0, "tiles_skipped": 0, "lookups": 0})
+                  {"pixels": 0, "tiles": 0, "tiles_skipped": 0, "lookups": 0, "mirror_lookups": 0})
+        planar = {i for i, _ in self.mirror.objects} if self.mirror.active else set()
         lobes, k = [], 0
         for m in materials:
             for j, _ in enumerate(m.get("lobes") or []):
@@ -296,12 +333,15 @@ class Renderer:
             "weights": self.weights,
             "materials_with_lobes": len(lobed),
             "objects_without_cube_map": [o["name"] for i, o in enumerate(manifest["objects"])
-                                         if o["material"] in lobed and not scene.cubemaps.has_cubemap(i)],
+                                         if o["material"] in lobed and not scene.cubemaps.has_cubemap(i)
+                                         and i not in planar],
             "pixels_with_lobes": counts["pixels"],
             "tiles_with_lobes": counts["tiles"],
             "tiles_skipped": counts["tiles_skipped"],
             "cube_map_lookups": counts["lookups"],
-            "lookups_per_pixel_with_lobes": counts["lookups"] / counts["pixels"] if counts["pixels"] else 0.0,
+            "mirror_buffer_lookups": counts.get("mirror_lookups", 0),
+            "lookups_per_pixel_with_lobes": ((counts["lookups"] + counts.get("mirror_lookups", 0)) / counts["pixels"]
+                                             if counts["pixels"] else 0.0),
             "samples_per_lobe": lobes,
             "cube_maps_bound": self.shading.cube_maps_bound,
             "cube_map_classes": scene.cubemaps.describe(),
@@ -309,7 +349,8 @@ class Renderer:
         }
 
     def release(self) -> None:
-        for part in (self.gbuffer, self.shading, self.resolve, self.tonemap, self.progressive, self.scene):
+        for part in (self.gbuffer, self.mirror, self.shading, self.resolve, self.tonemap, self.progressive,
+                     self.scene):
             part.release()
         self._linear = self._display = None
 

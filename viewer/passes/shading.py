@@ -4,7 +4,9 @@ Per pixel (shaders/shading.comp): sky along the view ray where nothing was drawn
 else light-mapped diffuse + emission; black for back faces of single-sided materials.
 
 Specular light (section 4.4) is a second dispatch (shaders/specular.comp), for
-pixels whose material has lobes and whose object has a cube map: shading.comp
+pixels whose material has lobes and whose object has a cube map, or is a planar
+reflector whose plane got a mirror pass this frame (section 4.5, viewer/passes/
+mirror.py, bound by `mirror.bind()`): shading.comp
 queues the 8 x 8 tiles holding such pixels, and specular.comp runs one work group
 per queued tile (glDispatchComputeIndirect), adding the lobes' light in one of
 the modes of specular.glsl (`SPECULAR_MODES`): the walkthrough's regular
@@ -13,8 +15,10 @@ viewer/progressive.py), or filtered importance sampling for comparisons. Tiles
 without such pixels cost nothing there (a branch inside a work group would still
 cost its masked lanes on a SIMD machine, and on llvmpipe it cost ten times the
 diffuse shading); a scene without lobes on cube-mapped objects skips the dispatch.
-The work buffer also counts pixels and cube-map look-ups, which `specular_counts`
-reads back (only when asked: reading waits for the GPU).
+The work buffer also counts pixels and cube-map and mirror-buffer look-ups, which
+`specular_counts` reads back (only when asked: reading waits for the GPU). The still
+camera's planar look-ups keep per-pixel sums of the planes their samples met in two
+rgba32f images (shaders/specular.glsl), allocated only for scenes with reflectors.
 """
 from __future__ import annotations
 
@@ -22,6 +26,7 @@ import moderngl
 import numpy as np
 
 from viewer.camera import ViewCamera
+from viewer.passes.mirror import PLANE_NORMAL_IMAGE, PLANE_POSITION_IMAGE
 from viewer.shader_source import LOCAL_SIZE, compute_program, dispatch, set_uniforms
 
 GBUFFER_UNITS = {"gb_diffuse": 0, "gb_normal": 1, "gb_tangent": 2, "gb_material": 3, "gb_depth": 4}
@@ -35,14 +40,22 @@ WEIGHTS = ("eq4.25", "eq4.24")  # Eq. 4.25 (the thesis' choice) or Eq. 4.24 for 
 WORK_HEADER = 8  # uints before the tile list (shaders/specular.glsl SpecularWork)
 
 
+def mirror_first_unit(scene) -> int:
+    """Texture unit of the mirror buffers' first array (after the cube-map classes)."""
+    return CUBE_FIRST_UNIT + scene.cubemaps.defines(CUBE_FIRST_UNIT)["CUBE_CLASSES"]
+
+
 class ShadingPass:
     name = "shading"
 
-    def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "eq4.25"):
+    def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "eq4.25", mirror=None):
+        """defines: shader_defines() with mirror_defines(mirror_first_unit(scene)); mirror: the
+        frame's MirrorPasses (None: no planar reflectors are shaded)."""
         if weights not in WEIGHTS:
             raise ValueError(f"weights must be one of {WEIGHTS}, not {weights!r}")
         self.ctx = ctx
         self.scene = scene
+        self.mirror = mirror
         extra = {**scene.cubemaps.defines(CUBE_FIRST_UNIT), **SPECULAR_MODES,
                  "SPECULAR_WORK_BINDING": SPECULAR_WORK_BINDING, "SPECULAR_FLAGS_BINDING": SPECULAR_FLAGS_BINDING}
         if weights == "eq4.24":
@@ -51,9 +64,14 @@ class ShadingPass:
         self.specular = compute_program(ctx, "specular.comp", {**defines, **extra})
         for program in (self.program, self.specular):
             set_uniforms(program, sky_map=SKY_UNIT, radiance_out=IMAGE_UNIT, **GBUFFER_UNITS)
-        # Specular work is possible only where a material with lobes meets an object with a cube map.
-        self.has_specular = any(scene.cubemaps.has_cubemap(i) and scene.material_table[o.material]["info"][3] > 0
+        # Specular work is possible only where a material with lobes meets an object with a cube map
+        # or a planar reflector that can get a mirror pass.
+        planar = {i for i, _ in mirror.objects} if mirror is not None and mirror.active else set()
+        self.has_specular = any((scene.cubemaps.has_cubemap(i) or i in planar)
+                                and scene.material_table[o.material]["info"][3] > 0
                                 for i, o in enumerate(scene.objects))
+        self.has_planar = bool(planar)
+        self.planes: tuple[moderngl.Texture, moderngl.Texture] | None = None
         self.radiance: moderngl.Texture | None = None
         self.work: moderngl.Buffer | None = None
         self.flags: moderngl.Buffer | None = None
@@ -71,6 +89,8 @@ class ShadingPass:
         count = self.tiles[0] * self.tiles[1]
         self.work = self.ctx.buffer(reserve=(WORK_HEADER + count) * 4)
         self.flags = self.ctx.buffer(reserve=count * 4)
+        plane_size = size if self.has_planar else (1, 1)
+        self.planes = tuple(self.ctx.texture(plane_size, 4, dtype="f4") for _ in range(2))
 
     def _bind_common(self, program, gbuffer: dict, camera: ViewCamera, aspect: float) -> None:
         forward, right, up = camera.ray_basis(aspect)
@@ -81,6 +101,8 @@ class ShadingPass:
             gbuffer[name[3:]].use(unit)
         self.scene.bind_materials()
         self.scene.bind_specular()
+        if self.mirror is not None:
+            self.mirror.bind()
         self.work.bind_to_storage_buffer(SPECULAR_WORK_BINDING)
         self.flags.bind_to_storage_buffer(SPECULAR_FLAGS_BINDING)
 
@@ -113,6 +135,8 @@ class ShadingPass:
         set_uniforms(program, specular_mode=SPECULAR_MODES[mode], qmc_first=int(qmc_first), qmc_count=int(qmc_count))
         self.cube_maps_bound = self.scene.cubemaps.bind(program, CUBE_FIRST_UNIT)
         self.radiance.bind_to_image(IMAGE_UNIT, read=True, write=True)
+        self.planes[0].bind_to_image(PLANE_POSITION_IMAGE, read=True, write=True)
+        self.planes[1].bind_to_image(PLANE_NORMAL_IMAGE, read=True, write=True)
         program.run_indirect(self.work)
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
                                 | moderngl.BUFFER_UPDATE_BARRIER_BIT)
@@ -121,18 +145,20 @@ class ShadingPass:
 
     def specular_counts(self) -> dict:
         """What the last frame did: pixels with specular light, tiles with and without them,
-        cube-map look-ups."""
+        cube-map and mirror-buffer look-ups."""
         header = np.frombuffer(self.work.read(size=WORK_HEADER * 4), np.uint32) if self.work else np.zeros(WORK_HEADER)
         total = self.tiles[0] * self.tiles[1]
         queued = int(header[0]) if self.specular_ran else 0
-        pixels, lookups = (int(header[3]), int(header[4])) if self.specular_ran else (0, 0)
-        return {"pixels": pixels, "tiles": queued, "tiles_skipped": total - queued, "lookups": lookups}
+        pixels, lookups, mirror = ((int(header[3]), int(header[4]), int(header[6])) if self.specular_ran
+                                   else (0, 0, 0))
+        return {"pixels": pixels, "tiles": queued, "tiles_skipped": total - queued, "lookups": lookups,
+                "mirror_lookups": mirror}
 
     def _release_targets(self) -> None:
-        for obj in (self.radiance, self.work, self.flags):
+        for obj in (self.radiance, self.work, self.flags, *(self.planes or ())):
             if obj is not None:
                 obj.release()
-        self.radiance = self.work = self.flags = None
+        self.radiance = self.work = self.flags = self.planes = None
 
     def release(self) -> None:
         self._release_targets()

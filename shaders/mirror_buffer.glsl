@@ -1,0 +1,165 @@
+// Mirror buffers of planar reflectors (section 4.5) as the shading passes read them: the two-step
+// sample projection of section 4.5.2 and the per-pixel MIP level of section 4.5.3. This is the
+// GLSL port of viewer/mirror_projection.py, the float64 numpy reference (tests/test_mirror_pass.py
+// holds the two equal); its docstring states the conventions, in short:
+// - a reflector's mirror buffer was rendered with the mirrored camera's view-projection
+//   VP_m = P V R; world points of the unmirrored scene are projected with VP_m as they are;
+// - uv = ndc * 0.5 + 0.5, texel row 0 = the bottom (GL); the buffer lines up pixel for pixel
+//   with the main view (same size), so P's own pixel holds the mirror direction's radiance;
+// - position / normal look-ups are nearest texel, clamped to the edge; a normal shorter than
+//   MIRROR_BACKGROUND_NORMAL marks a texel where nothing was drawn (its radiance is the sky);
+// - no hit of a tangent plane (parallel, or behind P): the direction itself is projected (w = 0),
+//   i.e. the scene is taken to be infinitely far that way; a point or direction behind the
+//   mirror camera (clip w <= MIRROR_W_EPS) is not valid and falls back to the centre sample's uv.
+// Layers, slots and bindings: viewer/passes/mirror.py.
+
+#include "common.glsl"
+
+const float MIRROR_BACKGROUND_NORMAL = 0.5;
+const float MIRROR_PARALLEL_EPS = 1e-8;
+const float MIRROR_W_EPS = 1e-9;
+
+// One mirror pass of this frame (a "slot": layer `slot` of the three texture arrays).
+struct MirrorSlot {
+    mat4 view_proj;  // world -> clip of the mirrored camera (P V R)
+    vec4 plane;      // xyz: unit plane normal towards the eye, w: -dot(normal, point)
+    vec4 info;       // x: the last MIP level of the radiance chain; y, z: buffer width, height
+};
+
+layout(std430, binding = MIRROR_SLOT_BINDING) readonly buffer MirrorSlotBuffer { MirrorSlot mirror_slots[]; };
+// Per object of the bake manifest: the slot of its plane's pass this frame, or -1 (not planar,
+// or its plane got no pass: outside the view, seen from behind, occluded, over the budget).
+layout(std430, binding = MIRROR_OBJECT_BINDING) readonly buffer MirrorObjectBuffer { int mirror_object_slot[]; };
+
+// Fixed units (defines), as cubemaps.glsl: llvmpipe ignored sampler uniforms of array textures.
+layout(binding = MIRROR_RADIANCE_UNIT) uniform sampler2DArray mirror_radiance;  // MIP-mapped, trilinear
+layout(binding = MIRROR_POSITION_UNIT) uniform sampler2DArray mirror_position;  // texelFetch only
+layout(binding = MIRROR_NORMAL_UNIT) uniform sampler2DArray mirror_normal;      // texelFetch only
+
+int mirror_slot_of(int object) {
+    return object >= 0 && object < mirror_object_slot.length() ? mirror_object_slot[object] : -1;
+}
+
+// A world point (hw = 1) or direction (hw = 0) -> uv; `ok` false where it lies behind the camera
+// (clip w <= MIRROR_W_EPS), and uv is then (0.5, 0.5). mirror_projection.project.
+vec2 mirror_project(mat4 vp, vec3 x, float hw, out bool ok) {
+    vec4 clip = vp * vec4(x, hw);
+    ok = clip.w > MIRROR_W_EPS;
+    vec2 ndc = ok ? clip.xy / clip.w : vec2(0.0);
+    return ndc * 0.5 + 0.5;
+}
+
+// The texel nearest to uv, clamped to the image (mirror_projection.texel_index).
+ivec3 mirror_texel(vec2 uv, int layer) {
+    ivec2 size = textureSize(mirror_position, 0).xy;
+    vec2 t = clamp(floor(uv * vec2(size)), vec2(0.0), vec2(size - 1));  // floor of +-inf / NaN: clamped
+    return ivec3(ivec2(t), layer);
+}
+
+// World position and normal the mirror camera saw at uv (a normal of ~0: nothing drawn).
+void mirror_fetch_plane(int layer, vec2 uv, out vec3 position, out vec3 normal) {
+    ivec3 t = mirror_texel(uv, layer);
+    position = texelFetch(mirror_position, t, 0).xyz;
+    normal = texelFetch(mirror_normal, t, 0).xyz;
+}
+
+// Ray o + t d against the plane through p with normal n (any length; < MIRROR_BACKGROUND_NORMAL:
+// background, no plane): t, and whether it hits (t > 0). mirror_projection.intersect_plane.
+float mirror_intersect(vec3 o, vec3 d, vec3 p, vec3 n, out bool hit) {
+    float nn = length(n);
+    float denom = dot(d, n);
+    bool usable = nn >= MIRROR_BACKGROUND_NORMAL && abs(denom) > MIRROR_PARALLEL_EPS * max(nn, 1.0);
+    float t = usable ? dot(p - o, n) / denom : 0.0;
+    hit = usable && t > 0.0 && !isinf(t) && !isnan(t);
+    return hit ? t : 0.0;
+}
+
+// One step of the scheme: intersect P + t w with a plane, project the hit, or the direction
+// where there is none (mirror_projection._step).
+vec2 mirror_step(vec3 P, vec3 w, vec3 plane_p, vec3 plane_n, mat4 vp, out bool ok, out bool hit) {
+    float t = mirror_intersect(P, w, plane_p, plane_n, hit);
+    return hit ? mirror_project(vp, P + t * w, 1.0, ok) : mirror_project(vp, w, 0.0, ok);
+}
+
+// Where the reflector point P (world) reads its mirror direction: P's projection (uv_c) and the
+// scene point P_R and normal seen there. ok_c false: P is behind the mirror camera.
+struct MirrorCentre {
+    vec2 uv;
+    bool ok;
+    vec3 position;   // P_R
+    vec3 normal;     // its normal (~0: background)
+};
+
+MirrorCentre mirror_centre(vec3 P, mat4 vp, int layer) {
+    MirrorCentre c;
+    c.uv = mirror_project(vp, P, 1.0, c.ok);
+    mirror_fetch_plane(layer, c.uv, c.position, c.normal);
+    return c;
+}
+
+// The look-up of one sample direction w (world, unit) at P (mirror_projection.project_sample):
+// step 1 in the tangent plane (plane_p, plane_n) -- P_R's, or the still camera's averaged one --
+// then, with `second_step`, step 2 in the plane the mirror camera saw at step 1's uv.
+struct MirrorSample {
+    vec2 uv;           // the look-up position
+    bool valid;        // in front of the mirror camera (else uv is the centre's)
+    bool at_infinity;  // uv is the projected direction: no plane was hit
+    bool hit_second;   // step 2 hit the plane seen at step 1's uv
+    vec3 plane_p;      // that plane (the still camera averages them): position ...
+    vec3 plane_n;      // ... and normal (~0 where step 1's uv showed background)
+};
+
+MirrorSample mirror_project_sample(vec3 P, vec3 w, mat4 vp, int layer, MirrorCentre c, vec3 plane_p,
+                                   vec3 plane_n, bool second_step) {
+    MirrorSample s;
+    bool ok1, hit1;
+    vec2 uv1 = mirror_step(P, w, plane_p, plane_n, vp, ok1, hit1);
+    vec2 uv = uv1;
+    bool ok = ok1;
+    s.at_infinity = !hit1;
+    s.hit_second = false;
+    s.plane_p = vec3(0.0);
+    s.plane_n = vec3(0.0);
+    if (second_step) {
+        mirror_fetch_plane(layer, uv1, s.plane_p, s.plane_n);
+        bool ok2, hit2;
+        vec2 uv2 = mirror_step(P, w, s.plane_p, s.plane_n, vp, ok2, hit2);
+        bool background = length(s.plane_n) < MIRROR_BACKGROUND_NORMAL;
+        if (hit2 || background) {  // a missed (parallel / behind) plane keeps step 1
+            uv = uv2;
+            ok = ok2;
+            s.at_infinity = !hit2;
+        }
+        s.hit_second = hit2;
+    }
+    s.valid = ok && c.ok;
+    s.uv = s.valid ? uv : c.uv;
+    return s;
+}
+
+// MIP level from the lobe's four extreme directions projected into the buffer, in the order
+// (+a, -a, +b, -b): the ends of two conjugate diameters of an ellipse of area pi |a x b| pixels,
+// over `n` samples, log4, clamped to the chain (mirror_projection.ellipse_mip_level, conjugate).
+float mirror_ellipse_mip_level(vec2 uv0, vec2 uv1, vec2 uv2, vec2 uv3, int n, vec2 size, float max_level) {
+    vec2 a = (uv0 - uv1) * size * 0.5;
+    vec2 b = (uv2 - uv3) * size * 0.5;
+    float area = PI * abs(a.x * b.y - a.y * b.x);
+    float per_sample = (isinf(area) || isnan(area) ? 0.0 : area) / float(max(n, 1));
+    return clamp(0.5 * log2(max(per_sample, 1.0)), 0.0, max_level);
+}
+
+// The same for four world directions at P (mirror_projection.lobe_mip_level).
+float mirror_lobe_mip_level(vec3 P, vec3 e0, vec3 e1, vec3 e2, vec3 e3, int n, mat4 vp, int layer,
+                            MirrorCentre c, vec2 size, float max_level) {
+    vec2 uv0 = mirror_project_sample(P, e0, vp, layer, c, c.position, c.normal, true).uv;
+    vec2 uv1 = mirror_project_sample(P, e1, vp, layer, c, c.position, c.normal, true).uv;
+    vec2 uv2 = mirror_project_sample(P, e2, vp, layer, c, c.position, c.normal, true).uv;
+    vec2 uv3 = mirror_project_sample(P, e3, vp, layer, c, c.position, c.normal, true).uv;
+    return mirror_ellipse_mip_level(uv0, uv1, uv2, uv3, n, size, max_level);
+}
+
+// Radiance the mirror buffer holds at uv (clamped to its edge: a sample leaving the buffer reads
+// the nearest edge texel), filtered at MIP level `lod`.
+vec3 mirror_radiance_at(int layer, vec2 uv, float lod) {
+    return textureLod(mirror_radiance, vec3(uv, float(layer)), lod).rgb;
+}

@@ -1,0 +1,62 @@
+// The surface under a fragment of the raster passes that draw the bake's meshes (the G-buffer,
+// gbuffer.frag, and the planar reflectors' mirror passes, mirror.frag): shading normal on the seen
+// side, tangent frame, and light-mapped diffuse radiance (Eq. 4.1). Vertex side: gbuffer.vert.
+
+#include "common.glsl"
+#include "materials.glsl"
+
+uniform int material_index;
+uniform sampler2D kd_texture;       // the material's base colour (1x1 white when it has none)
+uniform sampler2DArray lightmaps;   // irradiance E (rgb), one layer per page
+uniform vec3 eye;                   // the eye the pass looks from (a mirror pass: the mirrored eye)
+
+in vec3 v_position;
+in vec3 v_normal;
+in vec4 v_tangent;
+in vec2 v_uv;
+in vec2 v_lm_uv;
+flat in int v_lm_page;
+flat in int v_object;
+
+struct RasterSurface {
+    vec3 normal;          // unit, on the side the eye sees
+    vec3 tangent;         // unit, orthogonal to the normal, or 0 (no tangent frame)
+    float bitangent_sign;
+    vec3 diffuse;         // kd/pi * E; 0 on dark back faces
+    bool dark;            // back face of a single-sided material: sends no light
+};
+
+RasterSurface raster_surface() {
+    RasterSurface s;
+    Material m = materials[material_index];
+    vec3 to_eye = safe_normalize(eye - v_position, vec3(0.0, 0.0, 1.0));
+
+    // Geometric normal from screen-space derivatives, towards the viewer: the fallback for
+    // zero-length vertex normals.
+    vec3 ng = safe_normalize(cross(dFdx(v_position), dFdy(v_position)), to_eye);
+    ng = dot(ng, to_eye) < 0.0 ? -ng : ng;
+    vec3 n = safe_normalize(v_normal, gl_FrontFacing ? ng : -ng);
+
+    // Back faces (clockwise on screen; counter-clockwise in a mirror pass, which flips the winding
+    // and says so with glFrontFace) of one-sided materials are black, as in Mitsuba: neither
+    // their BSDF nor their emission acts on that side. Seen from the back, the shading frame of a
+    // double-sided material flips.
+    bool back = !gl_FrontFacing;
+    s.dark = back && !has_flag(m, MAT_TWO_SIDED);
+    if (back)
+        n = -n;
+    s.normal = n;
+
+    // Light-mapped diffuse radiance, Eq. 4.1: L = kd / pi * E (times the base-colour texture).
+    vec3 kd = m.kd.rgb;
+    if (has_flag(m, MAT_KD_TEXTURE))
+        kd *= texture(kd_texture, v_uv).rgb;
+    vec3 E = clean_radiance(texture(lightmaps, vec3(v_lm_uv, float(v_lm_page))).rgb);
+    s.diffuse = s.dark ? vec3(0.0) : clean_radiance(max(kd, 0.0) * INV_PI * E);
+
+    // Tangent frame for anisotropic lobes: Gram-Schmidt against n; zero if none.
+    s.tangent = safe_normalize(v_tangent.xyz - n * dot(v_tangent.xyz, n), vec3(0.0));
+    float sign_b = v_tangent.w < 0.0 ? -1.0 : 1.0;
+    s.bitangent_sign = back ? -sign_b : sign_b;
+    return s;
+}

@@ -1,0 +1,482 @@
+"""Mirror passes of planar reflectors (section 4.5.1; DESIGN.md "Viewer", step 1).
+
+Per frame, before the G-buffer:
+
+1. `plan(camera, aspect)`: which reflectors get a pass (viewer/reflectors.py: outside the
+   frustum, seen from behind, occluded by last frame's query, over the budget; reflectors
+   sharing a plane share a pass), after reading the occlusion queries of earlier frames
+   that have finished (never waiting for one).
+2. `run(plan)`: per pass the scene from the mirrored camera (viewer/mirror_camera.py: view
+   V R, winding flipped, clipped at the plane with gl_ClipDistance), without that pass's
+   reflectors and without objects wholly behind the plane, diffuse only (light map +
+   emission: shaders/mirror.frag), and the sky behind it -- the clear colour for a constant
+   sky, else shaders/mirror_sky.frag, one triangle at the far plane, which on llvmpipe costs
+   ~4.6 ms at 640 x 360 even where the scene covers everything -- into layer k ("slot" k) of
+   three texture arrays:
+
+       radiance   RGBA16F  light towards the mirrored eye, or the sky's; a full MIP chain
+                           (2 x 2 box per level, shaders/mirror_mips.comp, only over the
+                           slots used this frame)
+       position   RGBA32F  xyz world position of the unmirrored scene point (w = 1; 0 = nothing)
+       normal     RGBA16F  xyz its unit normal, on the side the mirrored eye sees (0 = nothing)
+
+   at the render size (supersampled), so the buffer lines up pixel for pixel with the main
+   view (viewer/mirror_projection.py states the conventions: texel row 0 = the bottom).
+   The PassTimer sections are "mirror_passes" (the raster passes and their sky) and
+   "mirror_mips" (the MIP chains).
+3. After the G-buffer, `query_occlusion(...)`: one GL_ANY_SAMPLES_PASSED_CONSERVATIVE query
+   per reflector of `plan.queries`, its triangles drawn against the G-buffer's depth ("<=",
+   colour and depth writes off); results are read by a later frame's `plan`.
+4. `bind()` for the shading passes: the arrays on fixed texture units, per slot its mirrored
+   view-projection and plane, per object its slot this frame or -1 (shaders/mirror_buffer.glsl).
+
+The arrays have as many layers as the budget allows and the scene can use (its reflectors'
+distinct planes); 4 passes at 2560 x 1440 would be ~0.5 GB, so a scene with one floor pays
+for one. Each layer has its own framebuffer (glFramebufferTextureLayer through ctypes, which
+moderngl lacks) sharing one depth buffer.
+"""
+from __future__ import annotations
+
+import ctypes
+
+import moderngl
+import numpy as np
+
+from viewer.camera import ViewCamera, gl_bytes
+from viewer.cubemaps import gl_functions
+from viewer.gpu_scene import SKY_MODES
+from viewer.mirror_camera import group_coplanar
+from viewer.passes.gbuffer import KD_TEXTURE_UNIT, LIGHTMAP_UNIT, in_frustum
+from viewer.reflectors import (DEFAULT_BUDGET, MirrorPlan, OcclusionResults, Reflector,
+                               plan_mirror_passes)
+from viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
+
+# Storage buffers 0-5: viewer/gpu_scene.py and cubemaps.py; 6-7: glsl_eval.py; 8-9: shading.py.
+MIRROR_SLOT_BINDING, MIRROR_OBJECT_BINDING = 10, 11
+# specular.comp's image units (0 is the radiance it adds to): the still camera's plane sums.
+PLANE_POSITION_IMAGE, PLANE_NORMAL_IMAGE = 1, 2
+SLOT_DTYPE = np.dtype([("view_proj", "<f4", (4, 4)), ("plane", "<f4", 4), ("info", "<f4", 4)])
+
+GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER = 0x8D40, 0x8CE0, 0x8D00, 0x8D41
+GL_FRAMEBUFFER_COMPLETE = 0x8CD5
+GL_COLOR, GL_DEPTH = 0x1800, 0x1801
+GL_CLIP_DISTANCE0 = 0x3000
+GL_ANY_SAMPLES_PASSED_CONSERVATIVE = 0x8D6A
+GL_QUERY_RESULT, GL_QUERY_RESULT_AVAILABLE = 0x8866, 0x8867
+TARGETS = ("radiance", "position", "normal")
+
+
+def mirror_defines(first_unit: int) -> dict:
+    """The constants shaders/mirror_buffer.glsl takes: its three array textures on units
+    first_unit .. first_unit + 2, its buffers' bindings, specular.comp's plane images."""
+    return {"MIRROR_RADIANCE_UNIT": first_unit, "MIRROR_POSITION_UNIT": first_unit + 1,
+            "MIRROR_NORMAL_UNIT": first_unit + 2, "MIRROR_SLOT_BINDING": MIRROR_SLOT_BINDING,
+            "MIRROR_OBJECT_BINDING": MIRROR_OBJECT_BINDING,
+            "MIRROR_PLANE_POSITION_IMAGE": PLANE_POSITION_IMAGE, "MIRROR_PLANE_NORMAL_IMAGE": PLANE_NORMAL_IMAGE}
+
+
+def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
+    """(object index, Reflector) of every `planar` object of the bake with a reflection lobe (the
+    others have nothing to read a mirror buffer for: the cube-map bake renders without lobes):
+    its `plane` entry (bake/pipeline.py), or the best-fit plane of its mesh for a manifest
+    without one. Names are made unique (the occlusion results are kept by name)."""
+    from bake.roles import fit_plane
+
+    out, seen = [], set()
+    materials = bake.manifest["materials"]
+    for i, entry in enumerate(bake.manifest["objects"]):
+        if entry.get("role") != "planar" or not entry.get("triangles", 1):
+            continue
+        lobes = materials[int(entry["material"])].get("lobes") or []
+        if not any(lobe.get("kind", "reflect") == "reflect" for lobe in lobes):
+            continue
+        plane = entry.get("plane")
+        if plane:
+            point, normal = np.asarray(plane["point"], np.float64), np.asarray(plane["normal"], np.float64)
+        else:
+            mesh = bake.meshes[i]
+            point, normal = fit_plane(np.asarray(mesh["positions"], np.float64).reshape(-1, 3),
+                                      np.asarray(mesh["indices"], np.int64).reshape(-1, 3))
+        if not (np.all(np.isfinite(point)) and np.all(np.isfinite(normal)) and np.linalg.norm(normal) > 1e-12):
+            continue
+        name = entry["name"] if entry["name"] not in seen else f"{entry['name']} #{i}"
+        seen.add(name)
+        out.append((i, Reflector(name, point, normal, np.asarray(entry["bounds"], np.float64))))
+    return out
+
+
+class _MirrorGL:
+    """The GL calls moderngl does not offer: framebuffers on array layers, clip distances,
+    occlusion queries whose availability can be asked without waiting."""
+
+    def __init__(self, ctx: moderngl.Context):
+        fn = gl_functions(ctx)
+        u, i = ctypes.c_uint, ctypes.c_int
+        self.GenFramebuffers = fn("glGenFramebuffers", None, i, ctypes.POINTER(u))
+        self.DeleteFramebuffers = fn("glDeleteFramebuffers", None, i, ctypes.POINTER(u))
+        self.BindFramebuffer = fn("glBindFramebuffer", None, u, u)
+        self.FramebufferTextureLayer = fn("glFramebufferTextureLayer", None, u, u, u, i, i)
+        self.FramebufferRenderbuffer = fn("glFramebufferRenderbuffer", None, u, u, u, u)
+        self.CheckFramebufferStatus = fn("glCheckFramebufferStatus", u, u)
+        self.DrawBuffers = fn("glDrawBuffers", None, i, ctypes.POINTER(u))
+        self.ClearBufferfv = fn("glClearBufferfv", None, u, i, ctypes.POINTER(ctypes.c_float))
+        self.Enable = fn("glEnable", None, u)
+        self.Disable = fn("glDisable", None, u)
+        self.ColorMask = fn("glColorMask", None, ctypes.c_ubyte, ctypes.c_ubyte, ctypes.c_ubyte, ctypes.c_ubyte)
+        self.DepthMask = fn("glDepthMask", None, ctypes.c_ubyte)
+        self.GenQueries = fn("glGenQueries", None, i, ctypes.POINTER(u))
+        self.DeleteQueries = fn("glDeleteQueries", None, i, ctypes.POINTER(u))
+        self.BeginQuery = fn("glBeginQuery", None, u, u)
+        self.EndQuery = fn("glEndQuery", None, u)
+        self.GetQueryObjectuiv = fn("glGetQueryObjectuiv", None, u, u, ctypes.POINTER(u))
+
+
+class MirrorPasses:
+    name = "mirror"
+
+    def __init__(self, ctx: moderngl.Context, scene, bake, defines: dict, budget: int = DEFAULT_BUDGET):
+        if not (isinstance(budget, (int, np.integer)) and budget >= 0):
+            raise ValueError(f"the mirror-pass budget must be a whole number of at least 0 (got {budget!r})")
+        self.ctx = ctx
+        self.scene = scene
+        self.budget = int(budget)
+        self.objects = manifest_reflectors(bake)  # (object index, Reflector)
+        self.reflectors = [r for _, r in self.objects]
+        self.object_of = {r.name: i for i, r in self.objects}
+        planes = group_coplanar([(r.name, r.point, r.normal) for r in self.reflectors]) if self.reflectors else []
+        self.layers = min(self.budget, len(planes))  # passes one frame can ever need
+        self.occlusion = OcclusionResults()
+        self.frame = 0
+        self.plan_: MirrorPlan | None = None
+        self.size: tuple[int, int] | None = None
+        self.targets: dict[str, moderngl.TextureArray] = {}
+        self.depth: moderngl.Renderbuffer | None = None
+        self._fbos: list[tuple[int, moderngl.Framebuffer]] = []
+        self._queries: dict[str, int] = {}   # reflector name -> GL query object
+        self._pending: set[str] = set()      # queries issued and not yet read
+        self._drawn: list[dict] = []
+        self._gl = _MirrorGL(ctx)
+        self.raster = raster_program(ctx, "gbuffer.vert", "mirror.frag", {**defines, "MIRROR_CLIP": 1})
+        set_uniforms(self.raster, lightmaps=LIGHTMAP_UNIT, kd_texture=KD_TEXTURE_UNIT)
+        self.occluder = raster_program(ctx, "gbuffer.vert", "occlusion.frag", defines)
+        self.sky = raster_program(ctx, "blit.vert", "mirror_sky.frag", {**defines, "FAR_PLANE": 1})
+        self.sky_vao = ctx.vertex_array(self.sky, [])
+        self.mips = compute_program(ctx, "mirror_mips.comp", defines)
+        self.slot_buffer = ctx.buffer(reserve=max(self.layers, 1) * SLOT_DTYPE.itemsize)
+        self.object_slots = np.full(max(len(scene.objects), 1), -1, np.int32)
+        self.object_buffer = ctx.buffer(self.object_slots.tobytes())
+        self._dummy = self._arrays((1, 1), 1)  # bound while there are no real ones
+
+    @property
+    def active(self) -> bool:
+        """Whether the scene has planar reflectors that can get a pass at all."""
+        return self.layers > 0
+
+    # -- targets -----------------------------------------------------------------------------------
+    def _arrays(self, size: tuple[int, int], layers: int) -> dict:
+        ctx = self.ctx
+        t = {"radiance": ctx.texture_array((*size, layers), 4, dtype="f2"),
+             "position": ctx.texture_array((*size, layers), 4, dtype="f4"),
+             "normal": ctx.texture_array((*size, layers), 4, dtype="f2")}
+        t["radiance"].build_mipmaps()  # allocates the chain; mirror_mips.comp fills it
+        t["radiance"].filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        for name in ("position", "normal"):
+            t[name].filter = (moderngl.NEAREST, moderngl.NEAREST)
+        for tex in t.values():
+            tex.repeat_x = tex.repeat_y = False  # clamp to edge: a sample leaving the buffer reads its edge
+        return t
+
+    def resize(self, size: tuple[int, int]) -> None:
+        if size == self.size or not self.active:
+            return
+        self._release_targets()
+        gl = self._gl
+        self.targets = self._arrays(size, self.layers)
+        self.depth = self.ctx.depth_renderbuffer(size)
+        for layer in range(self.layers):
+            name = ctypes.c_uint(0)
+            gl.GenFramebuffers(1, ctypes.byref(name))
+            gl.BindFramebuffer(GL_FRAMEBUFFER, name.value)
+            for k, target in enumerate(TARGETS):
+                gl.FramebufferTextureLayer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + k, self.targets[target].glo, 0, layer)
+            gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, self.depth.glo)
+            buffers = (ctypes.c_uint * 3)(*(GL_COLOR_ATTACHMENT0 + k for k in range(3)))
+            gl.DrawBuffers(3, buffers)
+            status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
+            if status != GL_FRAMEBUFFER_COMPLETE:
+                raise RuntimeError(f"mirror-buffer framebuffer incomplete (status 0x{status:x})")
+            fbo = self.ctx.detect_framebuffer(name.value)  # moderngl's handle, for use() and viewport
+            fbo.viewport = (0, 0, *size)
+            self._fbos.append((name.value, fbo))
+        self.size = size
+
+    # -- per frame ---------------------------------------------------------------------------------
+    def plan(self, camera: ViewCamera, aspect: float, hidden=()) -> MirrorPlan:
+        """This frame's passes; reads the occlusion queries that have finished."""
+        self.frame += 1
+        self._collect_queries()
+        hidden = set(hidden)
+        reflectors = [r for i, r in self.objects if i not in hidden]
+        plan = plan_mirror_passes(reflectors, camera, aspect, budget=self.layers, occlusion=self.occlusion,
+                                  frame=self.frame)
+        self.plan_ = plan
+        return plan
+
+    def run(self, plan: MirrorPlan, camera: ViewCamera, aspect: float, hidden=(), timer=None) -> None:
+        """Render the passes of `plan` (slot k = pass k), then the sky and the MIP chains; writes
+        the slot and object tables. `timer` (a PassTimer) times "mirror" and "mirror_mips"."""
+        self.object_slots[:] = -1
+        slots = np.zeros(max(self.layers, 1), SLOT_DTYPE)
+        self._drawn = []
+        if not plan.passes or not self.active:
+            self._upload(slots)
+            return
+        levels = max_level(self.size)
+        for k, p in enumerate(plan.passes):
+            for r in p.members:
+                self.object_slots[self.object_of[r.name]] = k
+            slots[k]["view_proj"] = p.camera.view_projection(aspect).astype(np.float32).T  # column-major
+            n = np.asarray(p.camera.normal, np.float64)
+            slots[k]["plane"] = (*n, -float(n @ p.camera.point))
+            slots[k]["info"] = (levels, *self.size, 0.0)
+        self._upload(slots)
+        with _timed(timer, "mirror_passes"):
+            for k, p in enumerate(plan.passes):
+                self._drawn.append(self._draw_pass(k, p, camera, aspect, set(hidden)))
+        with _timed(timer, "mirror_mips"):
+            self._build_mips(len(plan.passes))
+
+    def _upload(self, slots: np.ndarray) -> None:
+        self.slot_buffer.write(slots.tobytes())
+        self.object_buffer.write(self.object_slots.tobytes())
+
+    def _draw_pass(self, k: int, p, camera: ViewCamera, aspect: float, hidden: set) -> dict:
+        ctx, gl, scene = self.ctx, self._gl, self.scene
+        glo, fbo = self._fbos[k]
+        fbo.use()
+        gl.BindFramebuffer(GL_FRAMEBUFFER, glo)
+        zero = (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0)
+        sky_map = self.scene.sky_mode == SKY_MODES["SKY_MAP"]
+        # A constant sky (or none) is the clear colour; a sky map is drawn after the scene.
+        sky = (0.0, 0.0, 0.0) if sky_map else tuple(map(float, self.scene.sky_uniforms()["sky_scale"]))
+        if self.scene.sky_mode == SKY_MODES["SKY_NONE"]:
+            sky = (0.0, 0.0, 0.0)
+        gl.ClearBufferfv(GL_COLOR, 0, (ctypes.c_float * 4)(*sky, 1.0))
+        for attachment in (1, 2):
+            gl.ClearBufferfv(GL_COLOR, attachment, zero)
+        gl.ClearBufferfv(GL_DEPTH, 0, (ctypes.c_float * 1)(1.0))
+        ctx.enable_only(moderngl.DEPTH_TEST)
+        ctx.depth_func = "<"
+        ctx.front_face = p.camera.front_face  # V R mirrors: counter-clockwise faces come out clockwise
+        gl.Enable(GL_CLIP_DISTANCE0)
+        mirror = p.camera
+        view_proj = mirror.view_projection(aspect)
+        self.raster["view_proj"].write(gl_bytes(view_proj))
+        set_uniforms(self.raster, eye=tuple(map(float, mirror.eye)),
+                     clip_plane=tuple(map(float, mirror.clip_plane())))
+        scene.bind_materials()
+        scene.lightmaps.use(LIGHTMAP_UNIT)
+        members = {self.object_of[r.name] for r in p.members}
+        point, normal = np.asarray(mirror.point), np.asarray(mirror.normal)
+        drawn = triangles = 0
+        behind = culled = 0
+        try:
+            for index, obj in enumerate(scene.objects):
+                if index in members or index in hidden or not obj.triangles:
+                    continue
+                corners = np.array([[x, y, z] for x in obj.bounds[:, 0] for y in obj.bounds[:, 1]
+                                    for z in obj.bounds[:, 2]])
+                if np.all((corners - point) @ normal < 0.0):
+                    behind += 1  # wholly behind the mirror: clipped anyway
+                    continue
+                if not in_frustum(obj.bounds, view_proj):
+                    culled += 1
+                    continue
+                self.raster["material_index"] = obj.material
+                scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
+                obj.vertex_array(self.raster).render(moderngl.TRIANGLES)
+                drawn += 1
+                triangles += obj.triangles
+        finally:
+            gl.Disable(GL_CLIP_DISTANCE0)
+            ctx.front_face = "ccw"
+        if sky_map:
+            self._draw_sky(mirror, camera, aspect)
+        return {"reflectors": p.names, "objects_drawn": drawn, "triangles": triangles,
+                "objects_behind_plane": behind, "objects_outside_view": culled}
+
+    def _draw_sky(self, mirror, camera: ViewCamera, aspect: float) -> None:
+        """The sky on the texels the scene left at the clear depth (the pass's framebuffer is bound)."""
+        ctx, gl = self.ctx, self._gl
+        forward, right, up = camera.ray_basis(aspect)
+        vec = lambda v: tuple(map(float, v))  # noqa: E731
+        set_uniforms(self.sky, eye=vec(camera.eye), cam_forward=vec(forward), cam_right=vec(right),
+                     cam_up=vec(up), mirror_normal_world=vec(mirror.normal), buffer_size=tuple(self.size),
+                     **self.scene.sky_uniforms())
+        self.scene.sky_map.use(self._sky_unit)
+        ctx.depth_func = "<="
+        gl.DepthMask(0)
+        try:
+            self.sky_vao.render(moderngl.TRIANGLES, vertices=3)
+        finally:
+            gl.DepthMask(1)
+            ctx.depth_func = "<"
+
+    def _build_mips(self, count: int) -> None:
+        """The radiance MIP chain of slots 0 .. count - 1, level by level."""
+        ctx = self.ctx
+        radiance = self.targets["radiance"]
+        w, h = self.size
+        for level in range(1, max_level(self.size) + 1):
+            lw, lh = max(w >> level, 1), max(h >> level, 1)
+            radiance.bind_to_image(0, read=True, write=False, level=level - 1)
+            radiance.bind_to_image(1, read=False, write=True, level=level)
+            self.mips.run(-(-lw // LOCAL_SIZE), -(-lh // LOCAL_SIZE), count)
+            ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT)
+
+    def query_occlusion(self, plan: MirrorPlan, gbuffer_fbo: moderngl.Framebuffer, camera: ViewCamera,
+                        aspect: float) -> int:
+        """Issue this frame's occlusion queries against the G-buffer's depth (bound fbo); returns
+        how many. A reflector whose last query is still running is not asked again."""
+        ctx, gl = self.ctx, self._gl
+        todo = [r for r in plan.queries if r.name not in self._pending]
+        if not todo:
+            return 0
+        gbuffer_fbo.use()
+        ctx.enable_only(moderngl.DEPTH_TEST)
+        ctx.depth_func = "<="
+        gl.ColorMask(0, 0, 0, 0)
+        gl.DepthMask(0)
+        self.occluder["view_proj"].write(gl_bytes(camera.view_projection(aspect)))
+        try:
+            for r in todo:
+                query = self._queries.get(r.name)
+                if query is None:
+                    name = ctypes.c_uint(0)
+                    gl.GenQueries(1, ctypes.byref(name))
+                    query = self._queries[r.name] = name.value
+                gl.BeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, query)
+                self.scene.objects[self.object_of[r.name]].vertex_array(self.occluder).render(moderngl.TRIANGLES)
+                gl.EndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE)
+                self._pending.add(r.name)
+        finally:
+            gl.ColorMask(1, 1, 1, 1)
+            gl.DepthMask(1)
+            ctx.depth_func = "<"
+        return len(todo)
+
+    def _collect_queries(self) -> None:
+        gl = self._gl
+        for name in sorted(self._pending):
+            query = self._queries[name]
+            available = ctypes.c_uint(0)
+            gl.GetQueryObjectuiv(query, GL_QUERY_RESULT_AVAILABLE, ctypes.byref(available))
+            if not available.value:
+                continue  # never wait: the older result stands
+            result = ctypes.c_uint(0)
+            gl.GetQueryObjectuiv(query, GL_QUERY_RESULT, ctypes.byref(result))
+            self.occlusion.record(name, int(result.value), self.frame - 1)
+            self._pending.discard(name)
+
+    # -- for the shading passes --------------------------------------------------------------------
+    def set_units(self, first_unit: int, sky_unit: int) -> None:
+        """Texture units of the arrays (as `mirror_defines(first_unit)` told the shaders)."""
+        self._units = (first_unit, first_unit + 1, first_unit + 2)
+        self._sky_unit = sky_unit
+        set_uniforms(self.sky, sky_map=sky_unit)
+
+    def bind_buffers(self) -> None:
+        self.slot_buffer.bind_to_storage_buffer(MIRROR_SLOT_BINDING)
+        self.object_buffer.bind_to_storage_buffer(MIRROR_OBJECT_BINDING)
+
+    def bind(self) -> None:
+        """The arrays on their units and the slot and object tables (before a shading dispatch)."""
+        targets = self.targets or self._dummy
+        for unit, name in zip(self._units, TARGETS):
+            targets[name].use(unit)
+        self.bind_buffers()
+
+    def slot_of(self, name: str) -> int | None:
+        return None if self.plan_ is None else self.plan_.pass_for(name)
+
+    def read(self, slot: int, target: str = "radiance") -> np.ndarray:
+        """(H, W, 4) float32 of one slot's target at level 0, GL orientation (row 0 = bottom),
+        as viewer/mirror_projection.py indexes images. For tests and debugging (waits for the GPU)."""
+        tex = self.targets[target]
+        w, h, layers = tex.width, tex.height, tex.layers
+        dtype = np.float32 if target == "position" else np.float16
+        data = np.frombuffer(tex.read(), dtype).reshape(layers, h, w, 4)
+        return data[slot].astype(np.float32)
+
+    def stats(self, lobed_objects: dict[int, str] | None = None, cube_mapped=()) -> dict:
+        """Passes run and skipped (viewer/reflectors.py `MirrorPlan.stats`) with names, and the
+        planar objects with lobes that got no pass this frame and what they show instead."""
+        plan = self.plan_ if self.active else None
+        out = {"budget": self.budget, "layers": self.layers, "reflectors": len(self.reflectors)}
+        if plan is None:
+            plan = MirrorPlan(passes=[], skipped=[], queries=[], budget=self.budget)
+            self._drawn = []
+        out.update({**plan.stats(), "budget": self.budget})
+        out["passes"] = [{**d, "screen_area": round(p.screen_area, 4), "distance_m": round(p.distance, 3)}
+                         for d, p in zip(self._drawn, plan.passes)]
+        out["skipped_reflectors"] = {reason.value: names for reason, names in plan.skipped_by_reason().items()
+                                     if names}
+        out["occlusion_queries_pending"] = len(self._pending)
+        lobed = lobed_objects or {}
+        in_pass = {self.object_of[name] for p in plan.passes for name in p.names}
+        missing = {i: name for i, name in lobed.items() if i in dict(self.objects) and i not in in_pass}
+        out["planar_without_pass"] = {
+            "cube_map": [name for i, name in missing.items() if i in cube_mapped],
+            "no_specular": [name for i, name in missing.items() if i not in cube_mapped],
+        }
+        return out
+
+    # -- cleaning up -------------------------------------------------------------------------------
+    def _release_targets(self) -> None:
+        gl = self._gl
+        for glo, fbo in self._fbos:
+            if self.ctx.fbo is fbo:
+                self.ctx.fbo = None
+            gl.DeleteFramebuffers(1, ctypes.byref(ctypes.c_uint(glo)))
+        self._fbos = []
+        for tex in self.targets.values():
+            tex.release()
+        self.targets = {}
+        if self.depth is not None:
+            self.depth.release()
+            self.depth = None
+        self.size = None
+
+    def release(self) -> None:
+        self._release_targets()
+        gl = self._gl
+        for query in self._queries.values():
+            gl.DeleteQueries(1, ctypes.byref(ctypes.c_uint(query)))
+        self._queries.clear()
+        for tex in self._dummy.values():
+            tex.release()
+        for obj in (self.sky_vao, self.raster, self.occluder, self.sky, self.mips, self.slot_buffer,
+                    self.object_buffer):
+            obj.release()
+
+
+def max_level(size: tuple[int, int]) -> int:
+    """The last level of the radiance chain (viewer/mirror_projection.max_mip_level)."""
+    return int(np.floor(np.log2(max(int(size[0]), int(size[1]), 1))))
+
+
+class _timed:
+    """`with _timed(timer, name)`: a PassTimer section, or nothing without a timer."""
+
+    def __init__(self, timer, name: str):
+        self.cm = timer(name) if timer is not None else None
+
+    def __enter__(self):
+        if self.cm is not None:
+            self.cm.__enter__()
+
+    def __exit__(self, *exc):
+        if self.cm is not None:
+            return self.cm.__exit__(*exc)
+        return False
