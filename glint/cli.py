@@ -72,6 +72,8 @@ def build_parser() -> argparse.ArgumentParser:
     add_view_parser(sub, common)
     from viewer.capture import add_capture_parser
     add_capture_parser(sub, common)
+    from viewer.bench import add_bench_parser
+    add_bench_parser(sub, common)
     return parser
 
 

@@ -9,6 +9,8 @@ from glint.errors import GlintError
 BUILTIN = {
     "cornell-box": ("cornell-box.glb", "Mitsuba 3's mitsuba.cornell_box(), for pixel-by-pixel comparison"),
     "living-room": ("living-room.glb", "lit interior: glossy floor and table, metal, brushed metal, frosted glass"),
+    "material-classes": ("material-classes.glb", "one sphere per material class of the thesis (glossy ceramic, "
+                                                 "chrome, brushed aluminium, frosted glass) in a small lit room"),
 }
 
 

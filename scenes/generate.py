@@ -1,6 +1,6 @@
 """Generate the built-in scenes: `python3 -m scenes.generate [OUTDIR]` (default: this package).
 
-Writes cornell-box.glb, living-room.glb and living-room.glint.toml. The output
+Writes cornell-box.glb, living-room.glb, material-classes.glb and their sidecars. The output
 is deterministic (vertex data rounded to 1e-6 before it becomes float32, PNGs
 stored uncompressed), and tests/test_scenes.py checks that the committed files
 are exactly what this script writes.
@@ -331,16 +331,18 @@ WINDOW_X, WINDOW_Y = (-0.5, 1.1), (0.9, 2.2)  # opening in the north wall
 WALL_DEPTH = 0.2  # depth of the window reveal (the wall's thickness)
 
 
-def wall_with_window() -> Mesh:
-    """North wall (z = -2, facing +z) with a real hole, and the opening's four reveals."""
-    xs = [-ROOM_X, WINDOW_X[0], WINDOW_X[1], ROOM_X]
-    ys = [0.0, WINDOW_Y[0], WINDOW_Y[1], ROOM_H]
-    z = -ROOM_Z
+def wall_with_window(room_x: float = ROOM_X, room_z: float = ROOM_Z, room_h: float = ROOM_H,
+                     window_x=WINDOW_X, window_y=WINDOW_Y, depth: float = WALL_DEPTH) -> Mesh:
+    """North wall (z = -room_z, facing +z) with a real hole, and the opening's four reveals
+    (the defaults: living-room's)."""
+    xs = [-room_x, window_x[0], window_x[1], room_x]
+    ys = [0.0, window_y[0], window_y[1], room_h]
+    z = -room_z
     # A 3x3 grid of panels without the centre one: no T-junctions for rays to slip through.
     panels = [quad((xs[i], ys[j], z), (xs[i + 1], ys[j], z), (xs[i + 1], ys[j + 1], z),
                    (xs[i], ys[j + 1], z), uv_size=(xs[i + 1] - xs[i], ys[j + 1] - ys[j]))
               for j in range(3) for i in range(3) if (i, j) != (1, 1)]
-    (x0, x1), (y0, y1), zo = WINDOW_X, WINDOW_Y, z - WALL_DEPTH
+    (x0, x1), (y0, y1), zo = window_x, window_y, z - depth
     reveals = [
         quad((x0, y0, z), (x1, y0, z), (x1, y0, zo), (x0, y0, zo)),  # sill, faces up
         quad((x0, y1, zo), (x1, y1, zo), (x1, y1, z), (x0, y1, z)),  # head, faces down
@@ -350,12 +352,14 @@ def wall_with_window() -> Mesh:
     return merge(*panels, *reveals)
 
 
-def room_shell() -> dict[str, Mesh]:
-    X, Z, H = ROOM_X, ROOM_Z, ROOM_H
+def room_shell(X: float = ROOM_X, Z: float = ROOM_Z, H: float = ROOM_H, window_x=WINDOW_X,
+               window_y=WINDOW_Y) -> dict[str, Mesh]:
+    """Floor, ceiling and four walls of a room x in [-X, X], z in [-Z, Z], y in [0, H], all facing
+    inwards, the window in the north wall (the defaults: living-room's)."""
     return {
         "Floor": quad((-X, 0, Z), (X, 0, Z), (X, 0, -Z), (-X, 0, -Z), uv_size=(2 * X, 2 * Z)),
         "Ceiling": quad((-X, H, -Z), (X, H, -Z), (X, H, Z), (-X, H, Z), uv_size=(2 * X, 2 * Z)),
-        "Wall north": wall_with_window(),
+        "Wall north": wall_with_window(X, Z, H, window_x, window_y),
         "Wall south": quad((X, 0, Z), (-X, 0, Z), (-X, H, Z), (X, H, Z), uv_size=(2 * X, H)),
         "Wall east": quad((X, 0, -Z), (X, 0, Z), (X, H, Z), (X, H, -Z), uv_size=(2 * Z, H)),
         "Wall west": quad((-X, 0, Z), (-X, 0, -Z), (-X, H, -Z), (-X, H, Z), uv_size=(2 * Z, H)),
@@ -657,15 +661,142 @@ def living_room() -> GltfWriter:
     return w
 
 
+# -- material-classes ------------------------------------------------------------------------
+# One sphere per material class of the thesis (sharp insulator, chrome-like glossy metal,
+# anisotropic brushed aluminium, frosted glass) on diffuse plinths in a small closed room with
+# structure to reflect: coloured walls, a striped wall behind the camera, a chequered floor, a
+# window onto the sky behind the glass, a ceiling light. For the accuracy and speed tables of
+# `glint bench` (docs/BENCHMARKS.md); one camera sees all four.
+MC_X, MC_Z, MC_H = 2.0, 1.7, 2.6  # room half-width (x), half-depth (z), height, metres
+MC_WINDOW_X, MC_WINDOW_Y = (0.3, 1.85), (0.3, 2.0)  # in the north wall: seen through the glass sphere
+MC_RADIUS, MC_PLINTH = 0.22, 0.55  # sphere radius, plinth height
+MC_SPHERES = (  # (object name, material, x); all at z = MC_SPHERE_Z
+    ("Ceramic sphere", "Glazed ceramic", -1.05),
+    ("Chrome sphere", "Chrome", -0.35),
+    ("Brushed sphere", "Brushed aluminium", 0.35),
+    ("Frosted sphere", "Frosted glass", 1.05),
+)
+MC_SPHERE_Z = -0.4
+MC_CAMERA = ("front", (0.0, 1.2, 1.45), (0.0, 0.72, MC_SPHERE_Z), 50.0)  # name, eye, target, yfov
+MC_SIDECAR = """\
+# Sidecar for material-classes.glb, written by scenes/generate.py (do not edit by hand).
+# One sphere per material class of the thesis; the lobes here are the exact BSDF (section 3.3),
+# the glTF's metallic-roughness values only approximate them.
+
+[bake]
+quality = "draft"
+
+[sky]
+radiance = [2.5, 3.0, 4.0]  # W/(m^2 sr): daylight through the window
+strength = 1.0
+
+# Sharp insulator: red glazed ceramic, one narrow dielectric lobe.
+[materials."Glazed ceramic"]
+kd = [0.55, 0.07, 0.05]
+lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.04, my = 0.04, r0 = 0.04, alpha = 0.0 } ]
+
+# Chrome-like glossy metal.
+[materials."Chrome"]
+kd = [0.0, 0.0, 0.0]
+lobes = [ { kind = "reflect", ks = [0.95, 0.95, 0.95], mx = 0.03, my = 0.03, r0 = 0.9, alpha = 0.0 } ]
+
+# Anisotropic brushed aluminium: the thesis' two-lobe fit to Miro 5 (its Table 3.3), as
+# living-room's side table; brushed around the sphere's vertical axis (the tangent).
+[materials."Brushed aluminium"]
+kd = [0.003, 0.003, 0.003]
+lobes = [
+  { kind = "reflect", ks = [0.57, 0.57, 0.57], mx = 0.0046, my = 0.0267, r0 = 0.94, alpha = 0.5 },
+  { kind = "reflect", ks = [0.54, 0.54, 0.54], mx = 0.013, my = 0.1199, r0 = 0.84, alpha = 0.38 },
+]
+
+# Frosted glass (thin): a rough transmission lobe and a weak reflection lobe.
+[materials."Frosted glass"]
+kd = [0.0, 0.0, 0.0]
+lobes = [
+  { kind = "transmit", ks = [0.9, 0.92, 0.92], mx = 0.1, my = 0.1, r0 = 0.04, alpha = 0.0 },
+  { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.1, my = 0.1, r0 = 0.04, alpha = 0.0 },
+]
+"""
+
+
+def checker_texture(size: int = 64, squares: int = 2) -> np.ndarray:
+    """squares x squares light and dark tiles with thin grout lines (sRGB uint8)."""
+    v, u = np.mgrid[0:size, 0:size] / size
+    tile = (np.floor(u * squares) + np.floor(v * squares)) % 2
+    img = np.where(tile[..., None] > 0, [[[70, 72, 80]]], [[[215, 212, 200]]]).astype(float)
+    grout = (np.abs(u * squares - np.round(u * squares)) < 0.02) | (np.abs(v * squares - np.round(v * squares)) < 0.02)
+    img[grout] = (120, 118, 112)
+    return img.astype(np.uint8)
+
+
+def stripes_texture(size: int = 64) -> np.ndarray:
+    """Vertical bands of four colours with white gaps (sRGB uint8): structure to reflect."""
+    u = np.arange(size) / size
+    band = np.floor(u * 8).astype(int)
+    colours = np.array([(230, 190, 40), (240, 240, 235), (40, 80, 170), (240, 240, 235),
+                        (200, 60, 40), (240, 240, 235), (40, 140, 90), (240, 240, 235)], float)
+    row = colours[band]
+    return np.repeat(row[None], size, axis=0).astype(np.uint8)
+
+
+def material_classes() -> GltfWriter:
+    w = GltfWriter(GENERATOR, png_level=0)
+    M = {}
+    M["Floor tiles"] = w.add_material("Floor tiles", base_color=(1, 1, 1, 1), roughness=0.9,
+                                      base_color_texture=checker_texture())
+    M["Red paint"] = w.add_material("Red paint", base_color=(0.62, 0.12, 0.09, 1), roughness=0.9)
+    M["Green paint"] = w.add_material("Green paint", base_color=(0.12, 0.45, 0.16, 1), roughness=0.9)
+    M["Grey paint"] = w.add_material("Grey paint", base_color=(0.6, 0.62, 0.66, 1), roughness=0.9)
+    M["Striped paper"] = w.add_material("Striped paper", base_color=(1, 1, 1, 1), roughness=0.9,
+                                        base_color_texture=stripes_texture())
+    M["Ceiling paint"] = w.add_material("Ceiling paint", base_color=(0.85, 0.85, 0.84, 1), roughness=0.95)
+    M["Light diffuser"] = w.add_material("Light diffuser", base_color=(0.9, 0.9, 0.9, 1), roughness=1.0,
+                                         emissive=LIGHT_COLOUR, emissive_strength=12.0)
+    M["Plinth"] = w.add_material("Plinth", base_color=(0.25, 0.25, 0.27, 1), roughness=0.8)
+    # The four classes; exact lobes in the sidecar (MC_SIDECAR), these are the glTF fallbacks.
+    M["Glazed ceramic"] = w.add_material("Glazed ceramic", base_color=(0.55, 0.07, 0.05, 1), roughness=0.2)
+    M["Chrome"] = w.add_material("Chrome", base_color=(0.95, 0.95, 0.95, 1), metallic=1.0, roughness=0.17)
+    M["Brushed aluminium"] = w.add_material(
+        "Brushed aluminium", base_color=(0.91, 0.92, 0.92, 1), metallic=1.0, roughness=0.3,
+        extensions={"KHR_materials_anisotropy": {"anisotropyStrength": 0.8, "anisotropyRotation": 0.0}})
+    M["Frosted glass"] = w.add_material(
+        "Frosted glass", base_color=(0.96, 0.98, 0.98, 1), metallic=0.0, roughness=0.32, double_sided=True,
+        extensions={"KHR_materials_transmission": {"transmissionFactor": 0.9}})
+
+    def node(name, mesh, material, **kw):
+        return w.add_node(name, mesh=add_mesh(w, name, mesh, M[material]), **kw)
+
+    walls = {"Floor": "Floor tiles", "Ceiling": "Ceiling paint", "Wall north": "Grey paint",
+             "Wall south": "Striped paper", "Wall east": "Green paint", "Wall west": "Red paint"}
+    for name, mesh in room_shell(MC_X, MC_Z, MC_H, MC_WINDOW_X, MC_WINDOW_Y).items():
+        if name == "Wall south":  # (the floor: one texture tile, 2 x 2 squares, per metre)
+            mesh.uvs = mesh.uvs / (2 * MC_X)  # the stripes once across the wall
+        node(name, mesh, walls[name])
+    node("Ceiling light", quad((-0.5, 0, -0.25), (0.5, 0, -0.25), (0.5, 0, 0.25), (-0.5, 0, 0.25)),  # faces down
+         "Light diffuser", translation=(0.0, MC_H - 0.01, -0.1))
+    for name, material, x in MC_SPHERES:
+        node(f"{name.split()[0]} plinth", box((0.36, MC_PLINTH, 0.36), (0, MC_PLINTH / 2, 0)), "Plinth",
+             translation=(x, 0.0, MC_SPHERE_Z))
+        node(name, uv_sphere(MC_RADIUS, 48, 24), material, translation=(x, MC_PLINTH + MC_RADIUS, MC_SPHERE_Z))
+    name, eye, target, fov = MC_CAMERA
+    cam = w.add_camera(name, yfov=math.radians(fov), znear=0.05, zfar=50.0, aspect_ratio=16 / 9)
+    w.add_node(name, camera=cam, translation=eye, rotation=look_at_quat(eye, target))
+    return w
+
+
 def generate(out_dir: Path | str = HERE) -> list[Path]:
     """Write all built-in scene files into out_dir; returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = [cornell_box().write(out / "cornell-box.glb"),
-               living_room().write(out / "living-room.glb")]
-    sidecar = out / "living-room.glint.toml"
-    sidecar.write_text(SIDECAR)
-    return written + [sidecar]
+               living_room().write(out / "living-room.glb"),
+               material_classes().write(out / "material-classes.glb")]
+    sidecars = []
+    for name, text in (("living-room", SIDECAR), ("material-classes", MC_SIDECAR)):
+        sidecar = out / f"{name}.glint.toml"
+        sidecar.write_text(text)
+        sidecars.append(sidecar)
+    return written + sidecars
 
 
 def main(argv: list[str] | None = None) -> int:

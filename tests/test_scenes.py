@@ -373,3 +373,33 @@ def test_committed_scenes_are_reproduced_by_the_generator(tmp_path):
         assert committed.exists(), f"{path.name} not committed: run python3 -m scenes.generate"
         assert committed.read_bytes() == path.read_bytes(), (
             f"scenes/{path.name} is out of date: run python3 -m scenes.generate")
+
+
+# -- material-classes ------------------------------------------------------------------------
+def test_material_classes_has_one_sphere_per_class_and_a_camera_on_all_four():
+    path = builtin_path("material-classes")
+    doc, meshes = glb_json(path), world_meshes(path)
+    cfg = tomllib.loads((SCENES / "material-classes.glint.toml").read_text())
+    spheres = {"Ceramic sphere": "Glazed ceramic", "Chrome sphere": "Chrome",
+               "Brushed sphere": "Brushed aluminium", "Frosted sphere": "Frosted glass"}
+    for node, material in spheres.items():
+        assert material_of(doc, node)["name"] == material
+        lo, hi = meshes[node].bounds
+        np.testing.assert_allclose(hi - lo, 0.44, atol=1e-3)  # curved: a sphere, 22 cm radius
+    lobes = {name: cfg["materials"][name]["lobes"] for name in spheres.values()}
+    (ceramic,) = lobes["Glazed ceramic"]  # sharp insulator
+    assert ceramic["mx"] == ceramic["my"] <= 0.05 and ceramic["r0"] == 0.04
+    (chrome,) = lobes["Chrome"]  # chrome-like glossy metal
+    assert chrome["mx"] == chrome["my"] <= 0.05 and chrome["r0"] >= 0.9 and min(chrome["ks"]) >= 0.9
+    assert all(lobe["my"] >= 5 * lobe["mx"] for lobe in lobes["Brushed aluminium"])  # anisotropic
+    assert [lobe["kind"] for lobe in lobes["Frosted glass"]] == ["transmit", "reflect"]
+    # The one camera sees every sphere's centre inside its frustum (16:9).
+    world = node_world_matrices(doc)
+    (cam_node,) = [n for n in doc["nodes"] if "camera" in n]
+    m = world[cam_node["name"]]
+    yfov = doc["cameras"][cam_node["camera"]]["perspective"]["yfov"]
+    for node in spheres:
+        local = np.linalg.inv(m) @ np.r_[meshes[node].bounds.mean(axis=0), 1.0]
+        assert local[2] < 0
+        assert abs(local[1] / -local[2]) < math.tan(yfov / 2) * 0.9
+        assert abs(local[0] / -local[2]) < math.tan(yfov / 2) * 16 / 9 * 0.9
