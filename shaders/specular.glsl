@@ -126,6 +126,11 @@ uvec3 pcg3d(uvec3 v) {
     return v;
 }
 
+// R2 as Roberts defines it starts at 0.5 (x_i = frac(0.5 + i alpha)): the shift every pixel shares
+// when the same points serve the whole image (filtered importance sampling); point 0 then sits
+// mid-lobe instead of at xi1 ~ 0, far out in the lobe's tail.
+const uvec2 R2_CENTRED = uvec2(2147483648u);
+
 // Point i of the R2 sequence (Roberts 2018: i (1/g, 1/g^2) mod 1, g the plastic number) in 32-bit
 // fixed point, so it stays exact for any i; `rotation` adds a per-pixel Cranley-Patterson shift.
 // The result lies in (0, 1): xi1 = 0 never reaches Eq. 4.6's -log(xi1).
@@ -267,13 +272,13 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
         if (specular_mode == SPECULAR_QMC)
             L = planar_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, true, 0);
         else if (specular_mode == SPECULAR_FILTERED_IS)
-            L = planar_importance_estimate(sp, lobe, 0u, pattern.y, uvec2(0u), false, pattern.y);
+            L = planar_importance_estimate(sp, lobe, 0u, pattern.y, R2_CENTRED, false, pattern.y);
         else
             L = planar_pattern_estimate(sp, lobe, pattern);
     } else if (specular_mode == SPECULAR_QMC) {
         L = lobe_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, false);
     } else if (specular_mode == SPECULAR_FILTERED_IS) {
-        L = lobe_importance_estimate(sp, lobe, 0u, pattern.y, uvec2(0u), true);
+        L = lobe_importance_estimate(sp, lobe, 0u, pattern.y, R2_CENTRED, true);
     } else {
         L = lobe_pattern_estimate(sp, lobe, pattern);
     }
