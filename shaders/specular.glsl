@@ -163,18 +163,30 @@ vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
     return lobe_sum_result(sum);
 }
 
+// Importance sample `index` of the lobe (Eq. 4.5-4.8) with its pdf (Eq. 4.9) and Eq. 4.4 weight
+// f cos(theta_i) / p; false for a sample that contributes nothing (the wrong side of the surface --
+// the pdf covers those directions too -- or a degenerate pdf).
+bool importance_sample(SpecularPoint sp, Lobe lobe, uint index, uvec2 rotation,
+                       out vec3 wi, out float pdf, out float weight) {
+    wi = sample_lobe(sp.wo, r2_point(index, rotation), lobe);
+    pdf = 0.0;
+    weight = 0.0;
+    if (!on_lobe_side(wi, lobe))
+        return false;
+    pdf = lobe_pdf(wi, sp.wo, lobe);
+    weight = lobe_value(wi, sp.wo, lobe) / pdf * abs(wi.z);
+    return pdf > 0.0 && !isinf(weight) && !isnan(weight);
+}
+
 // Still camera and filtered importance sampling: Eq. 4.4 over `count` importance samples.
 vec3 lobe_importance_estimate(SpecularPoint sp, Lobe lobe, uint first, int count, uvec2 rotation,
                               bool filtered) {
     float face = cube_map_face_size(sp.cube);
     vec3 sum = vec3(0.0);
     for (int k = 0; k < count; ++k) {
-        vec3 wi = sample_lobe(sp.wo, r2_point(first + uint(k), rotation), lobe);
-        if (!on_lobe_side(wi, lobe))
-            continue;  // a zero sample: the pdf covers these directions too
-        float pdf = lobe_pdf(wi, sp.wo, lobe);
-        float weight = lobe_value(wi, sp.wo, lobe) / pdf * abs(wi.z);  // f cos(theta_i) / p (Eq. 4.4)
-        if (!(pdf > 0.0) || isinf(weight) || isnan(weight))
+        vec3 wi;
+        float pdf, weight;
+        if (!importance_sample(sp, lobe, first + uint(k), rotation, wi, pdf, weight))
             continue;
         vec3 look = bounding_plane_direction(sp.cube, sp.position, sp.frame * wi);
         float lod = filtered ? importance_mip_level(pdf, count, face) : 0.0;  // unfiltered: unbiased
@@ -232,12 +244,9 @@ vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, i
     vec3 sum = vec3(0.0);
     MirrorSample ms;
     for (int k = 0; k < count; ++k) {
-        vec3 wi = sample_lobe(sp.wo, r2_point(first + uint(k), rotation), lobe);
-        if (!on_lobe_side(wi, lobe))
-            continue;  // a zero sample: the pdf covers these directions too
-        float pdf = lobe_pdf(wi, sp.wo, lobe);
-        float weight = lobe_value(wi, sp.wo, lobe) / pdf * abs(wi.z);  // f cos(theta_i) / p (Eq. 4.4)
-        if (!(pdf > 0.0) || isinf(weight) || isnan(weight))
+        vec3 wi;
+        float pdf, weight;
+        if (!importance_sample(sp, lobe, first + uint(k), rotation, wi, pdf, weight))
             continue;
         vec3 plane_p = sp.centre.position, plane_n = sp.centre.normal;
         if (average_planes && sp.plane_sum_p.w > 0.0) {
