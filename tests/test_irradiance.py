@@ -349,7 +349,7 @@ def test_chunking_does_not_change_result_and_no_nan():
 def _mitsuba_irradiance(scene_dict, points, normals, spp):
     """E at surface points in a Mitsuba scene: pi x the radiance of a tiny white Lambertian disk
     lying 0.5 mm above the point, seen by a radiancemeter (as tests/mitsuba_reference.py does)."""
-    mi = pytest.importorskip("mitsuba")
+    import mitsuba as mi
     mi.set_variant("scalar_rgb")
     T = mi.ScalarTransform4f
     d = dict(scene_dict)
@@ -375,7 +375,7 @@ def test_sky_map_against_mitsuba_envmap():
     """A floor and a box under a sky map with a sun-like blob: Mitsuba's envmap with
     to_world = rotate(Y, 90 deg) is the documented equivalent of our mapping (the wrong
     rotation moves the sun and fails by 40-80%)."""
-    mi = pytest.importorskip("mitsuba")
+    import mitsuba as mi
     mi.set_variant("scalar_rgb")
     H, W = 64, 128
     vv, uu = np.meshgrid((np.arange(H) + 0.5) / H, (np.arange(W) + 0.5) / W, indexing="ij")
@@ -432,7 +432,7 @@ def _cornell_from_mitsuba(mi):
 
 
 def test_cornell_box_against_mitsuba():
-    mi = pytest.importorskip("mitsuba")
+    import mitsuba as mi
     mi.set_variant("scalar_rgb")
     sc = _cornell_from_mitsuba(mi)
     # points on the walls, ceiling and floor and on the two boxes' tops, away from edges
