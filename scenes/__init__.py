@@ -11,6 +11,8 @@ BUILTIN = {
     "living-room": ("living-room.glb", "lit interior: glossy floor and table, metal, brushed metal, frosted glass"),
     "material-classes": ("material-classes.glb", "one sphere per material class of the thesis (glossy ceramic, "
                                                  "chrome, brushed aluminium, frosted glass) in a small lit room"),
+    "planar-classes": ("planar-classes.glb", "one planar reflector per planar material class (polished stone, "
+                                             "varnished wood, glossy tiles, blurry aluminium), each its own plane"),
 }
 
 

@@ -1,6 +1,6 @@
 """Generate the built-in scenes: `python3 -m scenes.generate [OUTDIR]` (default: this package).
 
-Writes cornell-box.glb, living-room.glb, material-classes.glb and their sidecars. The output
+Writes cornell-box.glb, living-room.glb, material-classes.glb, planar-classes.glb and their sidecars. The output
 is deterministic (vertex data rounded to 1e-6 before it becomes float32, PNGs
 stored uncompressed), and tests/test_scenes.py checks that the committed files
 are exactly what this script writes.
@@ -784,15 +784,132 @@ def material_classes() -> GltfWriter:
     return w
 
 
+# -- planar-classes --------------------------------------------------------------------------
+# Issue 5's planar counterpart of material-classes: four planar reflectors, each in its own plane
+# (so each gets a mirror pass within the default budget of 4), one per planar material class --
+# polished stone (the floor), varnished wood (a platform top), glossy tiles and blurry aluminium
+# (panels on the west and east walls) -- in the material-classes room with coloured blocks, a
+# window and a ceiling light to reflect. One camera sees all four at moderate angles.
+PC_PLATFORM = ((-0.55, 0.55), 0.45, (-1.15, -0.45))  # x range, top height, z range
+PC_PANEL_Y, PC_PANEL_Z = (0.35, 1.75), (-1.4, 0.2)  # wall panels: height and depth range
+PC_PANEL_GAP = 0.02  # the panels stand this far off their walls
+PC_CAMERA = ("front", (0.0, 1.55, 1.55), (0.0, 0.45, -0.6), 62.0)  # name, eye, target, yfov
+PC_SIDECAR = """\
+# Sidecar for planar-classes.glb, written by scenes/generate.py (do not edit by hand).
+# One planar reflector per planar material class (issue 5); the lobes are the exact BSDF,
+# the glTF's metallic-roughness values only approximate them.
+
+[bake]
+quality = "draft"
+
+[sky]
+radiance = [2.5, 3.0, 4.0]  # W/(m^2 sr): daylight through the window
+strength = 1.0
+
+# Polished stone: a grey floor with one very sharp dielectric lobe.
+[materials."Polished stone"]
+kd = [0.42, 0.40, 0.37]
+lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.02, my = 0.02, r0 = 0.05, alpha = 0.0 } ]
+
+# Varnished wood: the wood texture under a glossy varnish.
+[materials."Varnished wood"]
+lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.05, my = 0.05, r0 = 0.05, alpha = 0.0 } ]
+
+# Glossy tiles: pale glazed tiles (texture), a wider dielectric lobe.
+[materials."Glossy tiles"]
+lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.1, my = 0.1, r0 = 0.04, alpha = 0.0 } ]
+
+# Blurry aluminium: a rough metal.
+[materials."Blurry aluminium"]
+kd = [0.0, 0.0, 0.0]
+lobes = [ { kind = "reflect", ks = [0.92, 0.92, 0.92], mx = 0.2, my = 0.2, r0 = 0.9, alpha = 0.0 } ]
+
+[objects."Stone floor"]
+role = "planar"
+
+[objects."Wood platform top"]
+role = "planar"
+
+[objects."Tile panel"]
+role = "planar"
+
+[objects."Aluminium panel"]
+role = "planar"
+"""
+PC_ROLES = {"Stone floor": "Polished stone", "Wood platform top": "Varnished wood",
+            "Tile panel": "Glossy tiles", "Aluminium panel": "Blurry aluminium"}
+
+
+def planar_classes() -> GltfWriter:
+    w = GltfWriter(GENERATOR, png_level=0)
+    M = {}
+    M["Red paint"] = w.add_material("Red paint", base_color=(0.62, 0.12, 0.09, 1), roughness=0.9)
+    M["Green paint"] = w.add_material("Green paint", base_color=(0.12, 0.45, 0.16, 1), roughness=0.9)
+    M["Blue paint"] = w.add_material("Blue paint", base_color=(0.10, 0.20, 0.55, 1), roughness=0.9)
+    M["Yellow paint"] = w.add_material("Yellow paint", base_color=(0.75, 0.60, 0.10, 1), roughness=0.9)
+    M["Grey paint"] = w.add_material("Grey paint", base_color=(0.6, 0.62, 0.66, 1), roughness=0.9)
+    M["Striped paper"] = w.add_material("Striped paper", base_color=(1, 1, 1, 1), roughness=0.9,
+                                        base_color_texture=stripes_texture())
+    M["Ceiling paint"] = w.add_material("Ceiling paint", base_color=(0.85, 0.85, 0.84, 1), roughness=0.95)
+    M["Light diffuser"] = w.add_material("Light diffuser", base_color=(0.9, 0.9, 0.9, 1), roughness=1.0,
+                                         emissive=LIGHT_COLOUR, emissive_strength=12.0)
+    M["Plinth"] = w.add_material("Plinth", base_color=(0.25, 0.25, 0.27, 1), roughness=0.8)
+    # The four planar classes; exact lobes in the sidecar (PC_SIDECAR), these are the glTF fallbacks.
+    M["Polished stone"] = w.add_material("Polished stone", base_color=(0.42, 0.40, 0.37, 1), roughness=0.12)
+    M["Varnished wood"] = w.add_material("Varnished wood", base_color=(1, 1, 1, 1), roughness=0.2,
+                                         base_color_texture=wood_texture())
+    M["Glossy tiles"] = w.add_material("Glossy tiles", base_color=(1, 1, 1, 1), roughness=0.3,
+                                       base_color_texture=checker_texture())
+    M["Blurry aluminium"] = w.add_material("Blurry aluminium", base_color=(0.91, 0.92, 0.92, 1), metallic=1.0,
+                                           roughness=0.45)
+
+    def node(name, mesh, material, **kw):
+        return w.add_node(name, mesh=add_mesh(w, name, mesh, M[material]), **kw)
+
+    walls = {"Ceiling": "Ceiling paint", "Wall north": "Grey paint", "Wall south": "Striped paper",
+             "Wall east": "Green paint", "Wall west": "Red paint"}
+    for name, mesh in room_shell(MC_X, MC_Z, MC_H, MC_WINDOW_X, MC_WINDOW_Y).items():
+        if name == "Wall south":
+            mesh.uvs = mesh.uvs / (2 * MC_X)  # the stripes once across the wall
+        node("Stone floor" if name == "Floor" else name, mesh,
+             "Polished stone" if name == "Floor" else walls[name])
+    node("Ceiling light", quad((-0.5, 0, -0.25), (0.5, 0, -0.25), (0.5, 0, 0.25), (-0.5, 0, 0.25)),  # faces down
+         "Light diffuser", translation=(0.0, MC_H - 0.01, -0.1))
+    # Varnished wood: the top of a low platform (the base is diffuse, just below the top).
+    (x0, x1), h, (z0, z1) = PC_PLATFORM
+    node("Wood platform top", quad((x0, h, z1), (x1, h, z1), (x1, h, z0), (x0, h, z0), uv_size=(x1 - x0, z1 - z0)),
+         "Varnished wood")
+    node("Platform base", box((x1 - x0, h - 0.005, z1 - z0), ((x0 + x1) / 2, (h - 0.005) / 2, (z0 + z1) / 2)),
+         "Plinth")
+    # Glossy tiles on the west wall (facing +x), blurry aluminium on the east wall (facing -x).
+    (ya, yb), (za, zb) = PC_PANEL_Y, PC_PANEL_Z
+    x = -MC_X + PC_PANEL_GAP
+    node("Tile panel", quad((x, ya, zb), (x, ya, za), (x, yb, za), (x, yb, zb), uv_size=(zb - za, yb - ya)),
+         "Glossy tiles")
+    x = MC_X - PC_PANEL_GAP
+    node("Aluminium panel", quad((x, ya, za), (x, ya, zb), (x, yb, zb), (x, yb, za)), "Blurry aluminium")
+    # Coloured things to reflect: blocks on the floor and the platform, a ball.
+    node("Blue block", box((0.3, 0.5, 0.3), (0, 0.25, 0)), "Blue paint", translation=(-1.2, 0.0, 0.5))
+    node("Yellow block", box((0.25, 0.7, 0.25), (0, 0.35, 0)), "Yellow paint", translation=(1.25, 0.0, -0.9))
+    node("Red block", box((0.2, 0.3, 0.2), (0, 0.15, 0)), "Red paint", translation=(-0.25, h, -0.8))
+    node("Green ball", uv_sphere(0.14, 32, 16), "Green paint", translation=(0.25, h + 0.14, -0.75))
+    name, eye, target, fov = PC_CAMERA
+    cam = w.add_camera(name, yfov=math.radians(fov), znear=0.05, zfar=50.0, aspect_ratio=16 / 9)
+    w.add_node(name, camera=cam, translation=eye, rotation=look_at_quat(eye, target))
+    return w
+
+
 def generate(out_dir: Path | str = HERE) -> list[Path]:
     """Write all built-in scene files into out_dir; returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = [cornell_box().write(out / "cornell-box.glb"),
                living_room().write(out / "living-room.glb"),
-               material_classes().write(out / "material-classes.glb")]
+               material_classes().write(out / "material-classes.glb"),
+               planar_classes().write(out / "planar-classes.glb")]
     sidecars = []
-    for name, text in (("living-room", SIDECAR), ("material-classes", MC_SIDECAR)):
+    for name, text in (("living-room", SIDECAR), ("material-classes", MC_SIDECAR),
+                       ("planar-classes", PC_SIDECAR)):
         sidecar = out / f"{name}.glint.toml"
         sidecar.write_text(text)
         sidecars.append(sidecar)

@@ -43,13 +43,13 @@ def test_files_have_the_expected_rows_and_columns(run):
     regions = {"image", "view-dependent", *(f"material:{c}" for c in CLASSES)}
     assert {r["region"] for r in rows} == regions
     keys = {(r["camera"], r["method"], r["n"], r["region"]) for r in rows}
-    assert len(keys) == len(rows) == 1 * len(bench.METHODS) * 2 * len(regions)
-    assert {r["method"] for r in rows} == set(bench.METHODS) and {r["n"] for r in rows} == {"1", "19"}
+    assert len(keys) == len(rows) == 1 * len(bench.DEFAULT_METHODS) * 2 * len(regions)
+    assert {r["method"] for r in rows} == set(bench.DEFAULT_METHODS) and {r["n"] for r in rows} == {"1", "19"}
     data = json.loads((out / "bench.json").read_text())
     assert data["scene"] == "material-classes" and data["size"] == [128, 72]
     assert data["reference"]["samples_per_lobe_and_pixel"] == 256
-    assert set(data["methods"]) == set(bench.METHODS)
-    assert len(data["results"]) == len(bench.METHODS) * 2
+    assert set(data["methods"]) == set(bench.DEFAULT_METHODS)
+    assert len(data["results"]) == len(bench.DEFAULT_METHODS) * 2
     for r in data["results"]:
         assert set(r["regions"]) == regions
         assert r["gpu_ms"]["specular"] > 0 and r["gpu_ms"]["frame"] >= r["gpu_ms"]["specular"]

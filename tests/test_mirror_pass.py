@@ -16,6 +16,7 @@ import pytest
 
 from bake import bsdf
 from bake.bake_dir import Bake, write_json
+from glint.errors import GlintError
 from test_mirror_projection import SCENE, SIZE, mirror_buffer, mirror_dir
 from test_renderer import constant_page, make_bake, material, quad
 from viewer import glsl_eval
@@ -694,3 +695,29 @@ def test_capture_mirror_budget_and_stats(tmp_path, capsys):
     capsys.readouterr()
     assert main(["capture", str(scene), "-o", str(tmp_path / "x.png"), *opts, "--mirror-budget", "-1"]) == 2
     assert "--mirror-budget" in capsys.readouterr().err
+
+
+def test_planar_pattern_can_be_forced_to_the_single_ring(ctx, tmp_path):
+    """Renderer(planar_pattern=...) (`glint bench --methods patterns-ring`, issue 5): "ring" puts the
+    curved objects' single ring on an isotropic planar lobe instead of the multi-ring; "auto" is the
+    multi-ring. Both images are finite and differ where the floor reflects the lamp's edge."""
+    meshes = [quad((0, 0, 0), (5, 0, 0), (0, 0, -5)), quad((0, 1.1, -1.5), (0.5, 0, 0), (0, 0.5, 0))]
+    mats = [material("floor", kd=(0.1, 0.1, 0.1), lobes=[glossy(0.05, r0=0.5, alpha=0.0)]),
+            material("lamp", kd=BLACK, emission=(20.0, 15.0, 10.0))]
+    bake = planar_bake(tmp_path / "b", meshes, mats, [0, 1], {0: ((0, 0, 0), (0, 1, 0))},
+                       sky={"radiance": [0.2, 0.3, 0.5], "map": None})
+    camera = ViewCamera(eye=(0.0, 0.8, 2.0), forward=(0.0, -0.5, -2.0), yfov=math.radians(60))
+    images = {}
+    for kind in ("auto", "ring", "multi_ring"):
+        r = Renderer(ctx, bake, lobe_samples=10, planar_pattern=kind)
+        assert r.scene.lobe_patterns[0]["planar_pattern"] == ("multi_ring" if kind == "auto" else kind)
+        assert r.scene.lobe_patterns[0]["pattern"] == "ring"  # cube-map lookups are untouched
+        r.render(camera, 64, 48)
+        assert r.stats["specular"]["mirror_buffer_lookups"] > 0
+        images[kind] = r.read_linear()
+        assert np.all(np.isfinite(images[kind])), kind
+        r.release()
+    np.testing.assert_array_equal(images["auto"], images["multi_ring"])
+    assert np.abs(images["ring"] - images["multi_ring"]).max() > 1e-3
+    with pytest.raises(GlintError, match="planar pattern"):
+        Renderer(ctx, bake, planar_pattern="line_x")

@@ -403,3 +403,35 @@ def test_material_classes_has_one_sphere_per_class_and_a_camera_on_all_four():
         assert local[2] < 0
         assert abs(local[1] / -local[2]) < math.tan(yfov / 2) * 0.9
         assert abs(local[0] / -local[2]) < math.tan(yfov / 2) * 16 / 9 * 0.9
+
+
+# -- planar-classes --------------------------------------------------------------------------
+def test_planar_classes_has_four_planar_reflectors_in_four_planes_and_a_camera_on_all():
+    path = builtin_path("planar-classes")
+    doc, meshes = glb_json(path), world_meshes(path)
+    cfg = tomllib.loads((SCENES / "planar-classes.glint.toml").read_text())
+    reflectors = {"Stone floor": "Polished stone", "Wood platform top": "Varnished wood",
+                  "Tile panel": "Glossy tiles", "Aluminium panel": "Blurry aluminium"}
+    assert {name: o["role"] for name, o in cfg["objects"].items()} == dict.fromkeys(reflectors, "planar")
+    planes = set()
+    for node, material in reflectors.items():
+        assert material_of(doc, node)["name"] == material
+        mesh = meshes[node]
+        normal = mesh.face_normals[0]
+        assert np.allclose(mesh.face_normals, normal, atol=1e-6)  # flat: one plane per reflector
+        assert np.ptp(mesh.vertices @ normal) < 1e-5
+        planes.add((*np.round(normal, 3), round(float(mesh.vertices[0] @ normal), 3)))
+    assert len(planes) == 4  # each its own mirror pass (the default budget is 4)
+    lobes = {m: cfg["materials"][m]["lobes"] for m in reflectors.values()}
+    assert all(len(v) == 1 and v[0]["mx"] == v[0]["my"] for v in lobes.values())  # isotropic: multi-ring
+    assert [lobes[m][0]["mx"] for m in reflectors.values()] == [0.02, 0.05, 0.1, 0.2]
+    assert lobes["Blurry aluminium"][0]["r0"] >= 0.9 and lobes["Polished stone"][0]["r0"] == 0.05
+    world = node_world_matrices(doc)
+    (cam_node,) = [n for n in doc["nodes"] if "camera" in n]
+    m = world[cam_node["name"]]
+    yfov = doc["cameras"][cam_node["camera"]]["perspective"]["yfov"]
+    for node in reflectors:
+        local = np.linalg.inv(m) @ np.r_[meshes[node].bounds.mean(axis=0), 1.0]
+        assert local[2] < 0
+        assert abs(local[1] / -local[2]) < math.tan(yfov / 2)
+        assert abs(local[0] / -local[2]) < math.tan(yfov / 2) * 16 / 9

@@ -80,6 +80,7 @@ class Method:
     label: str
     walkthrough: str | None   # Renderer(walkthrough=...) for a walkthrough frame; None: still camera
     weights: str = "eq4.25"
+    planar_pattern: str = "auto"  # Renderer(planar_pattern=...): "ring" forces the single ring on planar lobes
 
     def renderer(self, ctx, bake, n: int, supersample: int, exposure: float):
         from viewer.renderer import Renderer
@@ -88,7 +89,7 @@ class Method:
             return Renderer(ctx, bake, supersample=supersample, exposure=exposure, samples_per_frame=n,
                             max_frames=1)
         return Renderer(ctx, bake, supersample=supersample, exposure=exposure, lobe_samples=n,
-                        weights=self.weights, walkthrough=self.walkthrough)
+                        weights=self.weights, walkthrough=self.walkthrough, planar_pattern=self.planar_pattern)
 
     def frame(self, renderer, camera, width: int, height: int) -> None:
         if self.walkthrough is None:
@@ -101,12 +102,16 @@ class Method:
 METHODS = {m.key: m for m in (
     Method("patterns", "ours: regular patterns + MIP, Eq. 4.25", "patterns", "eq4.25"),
     Method("patterns-eq4.24", "ours with Eq. 4.24 weights", "patterns", "eq4.24"),
+    # Planar reflectors (issue 5): the single ring of curved objects instead of the multi-ring
+    # (section 4.5.3); the same as "patterns" on curved objects. Not in the default sweep.
+    Method("patterns-ring", "ours with the single ring on planar reflectors", "patterns", "eq4.25", "ring"),
     Method("filtered-is", "Colbert-Krivanek filtered importance sampling", "filtered-importance"),
     Method("qmc", "unfiltered per-pixel QMC (still camera, one frame)", None),
     # Issue 6 adds "split-sum": a prefiltered split-sum cube map (what game engines and glTF
     # viewers use). It needs its own shader path; a Method whose renderer() builds it and whose
     # frame() renders one frame fits here unchanged, and n is then ignored (or the MIP count).
 )}
+DEFAULT_METHODS = ("patterns", "patterns-eq4.24", "filtered-is", "qmc")
 PLANNED = {"split-sum": "the prefiltered split-sum cube map is not implemented yet (issue 6)"}
 
 
@@ -133,8 +138,9 @@ def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argp
     p.add_argument("--lobe-samples", default=",".join(map(str, DEFAULT_SAMPLES)), metavar="N,N,...",
                    help=f"samples per lobe and pixel to sweep, n (default {','.join(map(str, DEFAULT_SAMPLES))}; "
                         "--samples is the bake's paths per texel, as everywhere)")
-    p.add_argument("--methods", default=",".join(METHODS), metavar="M,M,...",
-                   help=f"methods to sweep (default: all: {','.join(METHODS)})")
+    p.add_argument("--methods", default=",".join(DEFAULT_METHODS), metavar="M,M,...",
+                   help=f"methods to sweep (default: {','.join(DEFAULT_METHODS)}; also: "
+                        f"{','.join(k for k in METHODS if k not in DEFAULT_METHODS)})")
     p.add_argument("--reference-samples", default=str(DEFAULT_REFERENCE_SAMPLES), metavar="N",
                    help=f"quasi-random samples per lobe and pixel of the converged reference "
                         f"(default {DEFAULT_REFERENCE_SAMPLES})")

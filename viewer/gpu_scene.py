@@ -64,6 +64,7 @@ LOBE_DTYPE = np.dtype([("ks", "<f4", 4), ("shape", "<f4", 4)])
 # maps, rows L .. 2L-1 those for mirror buffers (section 4.5.3: multi-ring for isotropic lobes).
 PATTERN_DTYPE = np.dtype([("info", "<i4", 4)])
 PATTERN_KINDS = {"ring": 0, "line_x": 1, "line_y": 2, "multi_ring": 3}
+PLANAR_PATTERNS = ("auto", "ring", "multi_ring")  # GpuScene(planar_pattern=...)
 VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent", "<f4", 4),
                          ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4"), ("object", "<i4")])
 VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i"
@@ -114,7 +115,13 @@ class GpuObject:
 
 
 class GpuScene:
-    def __init__(self, ctx: moderngl.Context, bake):
+    def __init__(self, ctx: moderngl.Context, bake, planar_pattern: str = "auto"):
+        """planar_pattern: the pattern of isotropic lobes on planar reflectors: "auto" (the
+        multi-ring of section 4.5.3, viewer/lobe_patterns.py), or "ring" / "multi_ring" forced
+        (for comparisons: `glint bench --methods patterns-ring`); anisotropic lobes keep their line."""
+        if planar_pattern not in PLANAR_PATTERNS:
+            raise GlintError(f"unknown planar pattern {planar_pattern!r}; use one of {', '.join(PLANAR_PATTERNS)}")
+        self.planar_pattern = planar_pattern
         self.ctx = ctx
         self.software = "llvmpipe" in ctx.info.get("GL_RENDERER", "").lower()
         manifest = bake.manifest
@@ -225,6 +232,8 @@ class GpuScene:
             entry = {}
             for row, planar in ((k, False), (count + k, True)):
                 kind = choose_pattern(mx, my, planar)
+                if planar and kind == "multi_ring" and self.planar_pattern != "auto":
+                    kind = self.planar_pattern  # forced, isotropic lobes only
                 n = int(samples) if samples is not None else int(samples_for_lobe(mx, my, planar))
                 xi = np.asarray(pattern_xi(kind, n), np.float32).reshape(-1, 2)
                 table[row]["info"] = (first, len(xi), PATTERN_KINDS.get(kind, -1), count + k)

@@ -61,12 +61,14 @@ class Renderer:
     def __init__(self, ctx: moderngl.Context, bake, supersample: int = 1, exposure: float = 0.0, *,
                  lobe_samples: int | None = None, weights: str = "eq4.25", walkthrough: str = "patterns",
                  samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
-                 blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET):
+                 blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto"):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "eq4.25" or "eq4.24" (walkthrough); walkthrough: a key of
         WALKTHROUGH_METHODS; samples_per_frame, max_frames, blend_frames: the still camera's
         (viewer/progressive.py); mirror_budget: mirror passes per frame at most (planar
-        reflectors, viewer/reflectors.py; 0: none, planar objects show their diffuse part)."""
+        reflectors, viewer/reflectors.py; 0: none, planar objects show their diffuse part);
+        planar_pattern: "auto", "ring" or "multi_ring", the walkthrough pattern of isotropic lobes
+        on planar reflectors (viewer/gpu_scene.py; "auto" is the multi-ring)."""
         check_context(ctx)
         if walkthrough not in WALKTHROUGH_METHODS:
             raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
@@ -74,7 +76,7 @@ class Renderer:
         self.bake = bake
         self.supersample = supersample
         self.exposure = float(exposure)  # EV: the tone-mapped image is scaled by 2^exposure
-        self.scene = GpuScene(ctx, bake)
+        self.scene = GpuScene(ctx, bake, planar_pattern=planar_pattern)
         if lobe_samples is not None:
             self.scene.set_lobe_samples(lobe_samples)
         if not (isinstance(mirror_budget, (int, np.integer)) and mirror_budget >= 0):
