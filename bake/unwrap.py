@@ -103,8 +103,6 @@ def _pack_options(texels_per_metre: float, padding: int, page_size: int):
 
 def unwrap(objects, texels_per_metre: float, padding: int = 2, max_page_size: int = 2048) -> Atlas:
     """Charts for every object (list of `bake.scene.Object`) in one atlas of equal pages."""
-    import xatlas
-
     if not texels_per_metre > 0:
         raise GlintError(f"texels per metre must be positive (got {texels_per_metre})")
     if not objects:
@@ -123,31 +121,13 @@ def unwrap(objects, texels_per_metre: float, padding: int = 2, max_page_size: in
             f"(scene surface {areas.sum():.1f} m^2, limit {MAX_PAGES} pages); "
             f"use a lower texels_per_metre (about {texels_per_metre * math.sqrt(MAX_PAGES * max_page_size ** 2 / needed):.1f})")
 
-    atlas = xatlas.Atlas()
-    for obj, s in zip(objects, scale):
-        # Only the parametrisation sees the scaled copy; translation is irrelevant to it.
-        positions = np.ascontiguousarray(np.asarray(obj.positions, np.float64) * s, np.float32)
-        atlas.add_mesh(positions, np.ascontiguousarray(obj.indices, np.uint32),
-                       np.ascontiguousarray(obj.normals, np.float32))
-    atlas.generate(_chart_options(), _pack_options(texels_per_metre, padding, max_page_size))
-
-    pages = int(atlas.atlas_count)
+    meshes = [(np.ascontiguousarray(np.asarray(obj.positions, np.float64) * s, np.float32),
+               np.ascontiguousarray(obj.indices, np.uint32),
+               np.ascontiguousarray(obj.normals, np.float32)) for obj, s in zip(objects, scale)]
+    pages, page_w, page_h, raw = _isolated(_run_xatlas, meshes, texels_per_metre, padding, max_page_size)
     if pages > MAX_PAGES:
         raise GlintError(f"the light map needs {pages} pages of {max_page_size}x{max_page_size} texels at "
                          f"{texels_per_metre:g} texels/m (limit {MAX_PAGES}); use a lower texels_per_metre")
-    page_w, page_h = int(atlas.width), int(atlas.height)
-
-    raw = []
-    for i in range(len(objects)):
-        vmapping, indices, uv = atlas.get_mesh(i)
-        page, _chart = atlas.get_mesh_vertex_assignment(i)
-        page = page.astype(np.int64)
-        uncharted = (page < 0) | (page >= pages)  # xatlas marks dropped triangles' vertices with ~0u
-        page[uncharted] = 0
-        texel_uv = uv.astype(np.float64) * (page_w, page_h)  # back to xatlas's texel units
-        texel_uv[uncharted] = 0.0
-        raw.append((vmapping.astype(np.int64), indices.astype(np.int64).reshape(-1, 3),
-                    texel_uv, page.astype(np.int32)))
 
     width, height = page_w, page_h
     if pages == 1:
@@ -165,6 +145,73 @@ def unwrap(objects, texels_per_metre: float, padding: int = 2, max_page_size: in
         _check_density(obj, charts[-1], width, height, texels_per_metre * s)
     return Atlas(objects=charts, width=width, height=height, pages=pages,
                  texels_per_metre=float(texels_per_metre), padding=int(padding))
+
+
+def _run_xatlas(meshes, texels_per_metre: float, padding: int, page_size: int):
+    """xatlas itself: (pages, page width, page height, per mesh (vmapping, indices, texel uv, page))."""
+    import xatlas
+
+    atlas = xatlas.Atlas()
+    for positions, indices, normals in meshes:
+        # Only the parametrisation sees the scaled copy; translation is irrelevant to it.
+        atlas.add_mesh(positions, indices, normals)
+    atlas.generate(_chart_options(), _pack_options(texels_per_metre, padding, page_size))
+    pages, page_w, page_h = int(atlas.atlas_count), int(atlas.width), int(atlas.height)
+    raw = []
+    for i in range(len(meshes)):
+        vmapping, indices, uv = atlas.get_mesh(i)
+        page, _chart = atlas.get_mesh_vertex_assignment(i)
+        page = page.astype(np.int64)
+        uncharted = (page < 0) | (page >= pages)  # xatlas marks dropped triangles' vertices with ~0u
+        page[uncharted] = 0
+        texel_uv = uv.astype(np.float64) * (page_w, page_h)  # back to xatlas's texel units
+        texel_uv[uncharted] = 0.0
+        raw.append((vmapping.astype(np.int64), indices.astype(np.int64).reshape(-1, 3),
+                    texel_uv, page.astype(np.int32)))
+    return pages, page_w, page_h, raw
+
+
+XATLAS_TRIES = 3
+
+
+def _isolated(fn, *args):
+    """Run `fn(*args)` in a forked child and return its result.
+
+    xatlas 0.0.11's multithreaded charting crashes now and then (a segfault inside
+    Atlas.generate: twice in one full test run here, never again with the same input);
+    in a child the crash costs a retry, not the whole process.
+    The result is deterministic, so a retry gives the same charts.
+    """
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork")
+    for attempt in range(XATLAS_TRIES):
+        receive, send = ctx.Pipe(duplex=False)
+        child = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
+        child.start()
+        send.close()
+        try:
+            ok, value = receive.recv()
+        except EOFError:  # the child died without answering
+            ok, value = None, None
+        finally:
+            receive.close()
+            child.join()
+        if ok:
+            return value
+        if ok is False:
+            raise value
+    raise GlintError(f"the light-map unwrap (xatlas) crashed {XATLAS_TRIES} times "
+                     f"(last exit code {child.exitcode}); run the bake again")
+
+
+def _child(send, fn, args) -> None:
+    try:
+        send.send((True, fn(*args)))
+    except BaseException as e:  # report it to the parent, which raises it
+        send.send((False, e))
+    finally:
+        send.close()
 
 
 def _round4(n: int) -> int:

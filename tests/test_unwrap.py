@@ -198,3 +198,22 @@ def test_uncharted_zero_area_triangle_gets_no_texels():
     assert (c.uv[c.indices[1]] == 0).all()
     page = rasterize_texels([obj], atlas)[0]
     assert set(np.unique(page.triangle[page.object >= 0])) == {0}
+
+
+def _crash_first_time(marker):
+    import os
+    import signal
+    from pathlib import Path
+
+    if not Path(marker).exists():
+        Path(marker).write_text("crashed once")
+        os.kill(os.getpid(), signal.SIGSEGV)  # what an xatlas crash looks like to the parent
+    return "charts"
+
+
+def test_a_crashing_unwrap_is_retried_and_errors_are_passed_on(tmp_path):
+    from bake.unwrap import _isolated
+
+    assert _isolated(_crash_first_time, str(tmp_path / "marker")) == "charts"
+    with pytest.raises(ZeroDivisionError):
+        _isolated(lambda: 1 / 0)
