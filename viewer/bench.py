@@ -220,19 +220,14 @@ def check_arguments(args) -> dict:
 
 
 def choose_cameras(manifest: dict, names: list[str] | None, aspect: float) -> list:
-    from viewer.camera import ViewCamera
+    from viewer.camera import ViewCamera, find_named
     from viewer.capture import _scene_bounds
 
     cameras = manifest.get("cameras") or []
     if names:
         chosen = []
         for name in dict.fromkeys(names):
-            entry = next((c for c in cameras if c["name"] == name), None)
-            if entry is None:
-                have = ", ".join(c["name"] for c in cameras)
-                raise GlintError(f"unknown camera '{name}'; "
-                                 + (f"the scene has: {have}" if have else "the scene has no cameras"))
-            chosen.append(ViewCamera.from_manifest(entry))
+            chosen.append(ViewCamera.from_manifest(find_named(cameras, name)))
         return chosen
     if cameras:
         return [ViewCamera.from_manifest(c) for c in cameras]

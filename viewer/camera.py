@@ -182,3 +182,15 @@ def _hermite(p: np.ndarray, times: np.ndarray, i: int, s: float, closed: bool) -
     s2, s3 = s * s, s * s * s
     return ((2 * s3 - 3 * s2 + 1) * p[i] + (s3 - 2 * s2 + s) * m0
             + (-2 * s3 + 3 * s2) * p[i + 1] + (s3 - s2) * m1)
+
+
+def find_named(entries: list[dict], name: str, what: str = "camera",
+               none: str = "the scene has no cameras") -> dict:
+    """The manifest entry called `name`, or a one-line GlintError listing the names there are."""
+    from glint.errors import GlintError
+
+    entry = next((e for e in entries if e["name"] == name), None)
+    if entry is None:
+        have = ", ".join(e["name"] for e in entries)
+        raise GlintError(f"unknown {what} '{name}'; " + (f"the scene has: {have}" if have else none))
+    return entry

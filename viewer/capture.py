@@ -197,17 +197,13 @@ def check_arguments(args) -> dict:
 # -- views ----------------------------------------------------------------------------------------
 def choose_views(manifest: dict, args, parsed: dict) -> list:
     """The camera of every frame to render, from the bake manifest and the options."""
-    from viewer.camera import DEFAULT_YFOV, ViewCamera, camera_path_at, path_span
+    from viewer.camera import DEFAULT_YFOV, ViewCamera, camera_path_at, find_named, path_span
 
     cameras, paths = manifest.get("cameras") or [], manifest.get("camera_paths") or []
     fov = parsed["fov"]
     w, h = parsed["size"]
     if args.path is not None:
-        path = next((p for p in paths if p["name"] == args.path), None)
-        if path is None:
-            have = ", ".join(p["name"] for p in paths)
-            raise GlintError(f"unknown camera path '{args.path}'; "
-                             + (f"the scene has: {have}" if have else "the scene has none (sidecar [camera_paths])"))
+        path = find_named(paths, args.path, "camera path", "the scene has none (sidecar [camera_paths])")
         t0, t1 = path_span(path)
         n = parsed["frames"]
         near, far = _clip_range(manifest)
@@ -219,12 +215,7 @@ def choose_views(manifest: dict, args, parsed: dict) -> list:
         return [ViewCamera.look_at(parsed["eye"], parsed["target"], parsed["up"],
                                    fov if fov is not None else DEFAULT_YFOV, znear=near, zfar=far, name="--eye")]
     if args.camera is not None:
-        entry = next((c for c in cameras if c["name"] == args.camera), None)
-        if entry is None:
-            have = ", ".join(c["name"] for c in cameras)
-            raise GlintError(f"unknown camera '{args.camera}'; "
-                             + (f"the scene has: {have}" if have else "the scene has no cameras"))
-        camera = ViewCamera.from_manifest(entry)
+        camera = ViewCamera.from_manifest(find_named(cameras, args.camera))
     elif cameras:
         camera = ViewCamera.from_manifest(cameras[0])
     else:

@@ -81,14 +81,13 @@ def cmd_view(args) -> int:
         print(report.summary, flush=True)
 
     from bake.bake_dir import Bake
+    from viewer.camera import find_named
     from viewer.controls import WalkControls
 
     bake = Bake(report.bake_dir)
     manifest = bake.manifest
-    names = [c["name"] for c in manifest["cameras"]]
-    if args.camera is not None and args.camera not in names:
-        raise GlintError(f"unknown camera '{args.camera}'; "
-                         + (f"the scene has: {', '.join(names)}" if names else "the scene has no cameras"))
+    if args.camera is not None:
+        find_named(manifest["cameras"], args.camera)  # a one-line error before the window opens
     controls = WalkControls(manifest["cameras"], manifest["camera_paths"], home_camera(manifest, width / height),
                             start=args.camera)
 
