@@ -29,6 +29,14 @@ def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
     return True
 
 
+def draw_object(program, scene, obj) -> None:
+    """One object with its material index and base-colour texture: the G-buffer's and the mirror
+    passes' surface shaders (raster_surface.glsl) read both."""
+    program["material_index"] = obj.material
+    scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
+    obj.vertex_array(program).render(moderngl.TRIANGLES)
+
+
 class GBufferPass:
     name = "gbuffer"
 
@@ -86,9 +94,7 @@ class GBufferPass:
             if not in_frustum(obj.bounds, view_proj):
                 culled.append(obj.name)
                 continue
-            self.program["material_index"] = obj.material
-            scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
-            obj.vertex_array(self.program).render(moderngl.TRIANGLES)
+            draw_object(self.program, scene, obj)
             drawn += 1
             triangles += obj.triangles
         return {"objects_drawn": drawn, "triangles": triangles, "objects_culled": culled,

@@ -46,7 +46,7 @@ from viewer.camera import ViewCamera, gl_bytes
 from viewer.cubemaps import gl_functions
 from viewer.gpu_scene import SKY_MODES
 from viewer.mirror_camera import group_coplanar
-from viewer.passes.gbuffer import KD_TEXTURE_UNIT, LIGHTMAP_UNIT, in_frustum
+from viewer.passes.gbuffer import KD_TEXTURE_UNIT, LIGHTMAP_UNIT, draw_object, in_frustum
 from viewer.reflectors import (DEFAULT_BUDGET, MirrorPlan, OcclusionResults, Reflector,
                                plan_mirror_passes)
 from viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
@@ -292,9 +292,7 @@ class MirrorPasses:
                 if not in_frustum(obj.bounds, view_proj):
                     culled += 1
                     continue
-                self.raster["material_index"] = obj.material
-                scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
-                obj.vertex_array(self.raster).render(moderngl.TRIANGLES)
+                draw_object(self.raster, scene, obj)
                 drawn += 1
                 triangles += obj.triangles
         finally:
