@@ -1,0 +1,113 @@
+"""Frame time per pass of the built-in scenes at several sizes (issues 3-5; thesis Table 4.2).
+
+    python3 docs/measure_frame_times.py [--sizes 1920x1080,3840x2160] [--supersample 1,2] [--frames 60]
+                                        [--scenes living-room,...] [--bake-root DIR] [--out DIR]
+
+For every scene, camera, size and supersampling factor: --warmup untimed frames, then --frames
+walkthrough frames of the same view; printed and written (DIR/frame_times.json, .md) are the
+medians of the renderer's per-pass times (viewer/timing.py: GPU timer queries on a GPU, the
+glFinish-bracketed wall clock on llvmpipe), their sum ("gpu total") and the wall-clock time per
+frame as the program sees it (the frames back to back, one glFinish at the end, divided by their
+number: CPU work and driver overhead included). Then the same for still-camera frames
+("converge": 4 quasi-random samples per lobe and pixel, added to the running mean). The bakes
+are the scenes' default bakes (`glint bake SCENE`); --bake-root DIR uses DIR/SCENE.bake instead
+(made when missing).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
+
+
+def load_bake(scene: str, bake_root: Path | None):
+    from bake.bake_dir import Bake, default_bake_dir
+    from bake.pipeline import bake_scene
+    from bake.settings import resolve_settings
+    from glint.cli import open_scene
+
+    loaded, builtin = open_scene(scene)
+    out = bake_root / f"{scene}.bake" if bake_root else default_bake_dir(loaded.source, builtin)
+    bake_scene(loaded, resolve_settings(loaded.bake_settings), out, progress=False)  # no-op when up to date
+    return Bake(out)
+
+
+def time_view(renderer, camera, size, frames: int, warmup: int, mode: str) -> dict:
+    for _ in range(warmup):
+        renderer.render(camera, *size, mode=mode)
+    renderer.ctx.finish()
+    renderer.timer.reset()
+    start = time.perf_counter()
+    for _ in range(frames):
+        if mode == "converge":
+            renderer.progressive.invalidate()  # every frame a first still frame: the same work each time
+        renderer.render(camera, *size, mode=mode)
+    renderer.ctx.finish()
+    wall_ms = (time.perf_counter() - start) * 1e3 / frames
+    ms = renderer.stats["gpu_ms_median"]
+    return {"passes_ms": {k: round(v, 3) for k, v in ms.items() if k != "total"},
+            "gpu_total_ms": round(ms.get("total", 0.0), 3), "wall_ms_per_frame": round(wall_ms, 3),
+            "specular": renderer.stats["specular"], "mirror_passes": renderer.stats["mirror"].get("passes_run")}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="1920x1080,3840x2160")
+    ap.add_argument("--supersample", default="1,2")
+    ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--warmup", type=int, default=10)
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--bake-root", type=Path)
+    ap.add_argument("--out", type=Path, default=Path("/tmp/glint-frame-times"))
+    args = ap.parse_args()
+    from viewer.camera import ViewCamera
+    from viewer.context import describe, headless_context
+    from viewer.renderer import Renderer
+
+    sizes = [tuple(int(x) for x in s.lower().split("x")) for s in args.sizes.split(",")]
+    factors = [int(s) for s in args.supersample.split(",")]
+    ctx = headless_context()
+    rows = []
+    header = (f"{'scene':17s} {'camera':14s} {'size':>9s} ss {'mode':11s} {'gpu total':>9s} {'wall':>8s}  "
+              "passes (ms)")
+    print(describe(ctx))
+    print(header)
+    for scene in args.scenes.split(","):
+        bake = load_bake(scene, args.bake_root)
+        for cam in bake.manifest["cameras"]:
+            camera = ViewCamera.from_manifest(cam)
+            for ss in factors:
+                renderer = Renderer(ctx, bake, supersample=ss, samples_per_frame=4)
+                for size in sizes:
+                    for mode in ("walkthrough", "converge"):
+                        r = time_view(renderer, camera, size, args.frames, args.warmup, mode)
+                        r.update(scene=scene, camera=cam["name"], size=f"{size[0]}x{size[1]}", supersample=ss,
+                                 mode=mode)
+                        rows.append(r)
+                        passes = " ".join(f"{k}={v:.2f}" for k, v in r["passes_ms"].items())
+                        print(f"{scene:17s} {cam['name'][:14]:14s} {r['size']:>9s} {ss:2d} {mode:11s} "
+                              f"{r['gpu_total_ms']:9.2f} {r['wall_ms_per_frame']:8.2f}  {passes}", flush=True)
+                renderer.release()
+    device = describe(ctx)
+    ctx.release()
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "frame_times.json").write_text(json.dumps(
+        {"device": device, "frames": args.frames, "warmup": args.warmup, "rows": rows}, indent=1) + "\n")
+    lines = [f"Device: {device}; medians of {args.frames} frames after {args.warmup} warm-up frames.", "",
+             "| scene | camera | size | supersample | mode | GPU ms (sum of passes) | wall ms/frame | passes (ms) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        passes = ", ".join(f"{k} {v:.2f}" for k, v in r["passes_ms"].items())
+        lines.append(f"| {r['scene']} | {r['camera']} | {r['size']} | {r['supersample']} | {r['mode']} | "
+                     f"{r['gpu_total_ms']:.2f} | {r['wall_ms_per_frame']:.2f} | {passes} |")
+    (args.out / "frame_times.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
