@@ -1,7 +1,10 @@
 """The bake directory: the one contract between the bake and the viewer.
 
     manifest.json          versioned description (see `FORMAT_VERSION`): scene hash, per-stage
-                           input hashes, settings, statistics, materials, lights, cameras, objects
+                           input hashes, settings, statistics, materials, lights, cameras, objects;
+                           optional `statistics.last_bake`: what the bake that wrote it redid and
+                           reused and why (bake/skipped.py; absent in older bake dirs, which stay
+                           readable: no version change)
     meshes.npz             per object o<i>_*: positions, normals, uvs (texture), lm_uv, lm_page,
                            indices -- vertices already split along light-map chart seams
     lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;

@@ -76,7 +76,12 @@ XI1_BORDER = 0.01  # Eq. 4.10
 TEXELS_PER_LOBE_RADIUS = 4
 FACE_TEXELS_PER_METRE = 400.0
 SUPERSAMPLE = 2  # per axis: a texel is the mean of 2 x 2 samples
-ZNEAR = 1e-3  # m: 24-bit depth then resolves distances to < 0.3 mm at 2 m, < 2 cm at 20 m
+# Clip planes of the faces, from the distance `far` to the scene's farthest corner (so a 1 mm and
+# a 10 km scene get the same picture): zfar = FAR_MARGIN x far, znear = NEAR_PER_FAR x far.
+# 24-bit depth then resolves d^2 / (znear 2^24), 6e-4 of far at far; 1 mm at 6 m on a room
+# (a fixed 1 mm znear clipped a 1 mm scene and let a 10 km one z-fight: glint bench --stress).
+NEAR_PER_FAR = 1e-4
+FAR_MARGIN = 1.02
 SKY_DISTANCE = 65504.0  # alpha where only sky shows: the largest half float, far but finite
 
 
@@ -135,7 +140,8 @@ def plan_cubemaps(scene: Scene, transport: str) -> list[CubeMapPlan]:
         plan.hash = hashing.cubemap_hash(transport, {
             "object": [i, obj.name], "size": plan.size, "centre": plan.centre,
             "hidden": [[k, scene.objects[k].name] for k in plan.hidden],
-            "render": {"supersample": SUPERSAMPLE, "znear": ZNEAR, "sky_distance": SKY_DISTANCE}})
+            "render": {"supersample": SUPERSAMPLE, "near_per_far": NEAR_PER_FAR, "far_margin": FAR_MARGIN,
+                       "sky_distance": SKY_DISTANCE}})
         plans.append(plan)
     return plans
 
@@ -164,7 +170,7 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
             for plan in plans:
                 # far enough for the farthest corner of the scene, seen from the centre
                 far = float(np.linalg.norm(np.maximum(np.abs(lo - plan.centre), np.abs(hi - plan.centre))))
-                faces = render_faces(renderer, plan.centre, plan.size, plan.hidden, zfar=1.01 * far + 1.0)
+                faces = render_faces(renderer, plan.centre, plan.size, plan.hidden, far=max(far, 1e-9))
                 write_cubemap(Path(bake_dir) / plan.file, faces)
                 if progress is not None:
                     progress()
@@ -174,13 +180,15 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
     return {"seconds": round(time.perf_counter() - t0, 3), "device": device}
 
 
-def render_faces(renderer, centre, size: int, hidden=(), *, zfar: float) -> np.ndarray:
-    """(6, S, S, 4) float32: radiance and distance of the six faces in GL order, row 0 at t = 0."""
+def render_faces(renderer, centre, size: int, hidden=(), *, far: float) -> np.ndarray:
+    """(6, S, S, 4) float32: radiance and distance of the six faces in GL order, row 0 at t = 0;
+    `far`: the distance from the centre to the farthest point to show."""
     from viewer.camera import ViewCamera
 
     faces = np.zeros((6, size, size, 4), np.float32)
     for k, (_, forward, up) in enumerate(FACES):
-        camera = ViewCamera(eye=centre, forward=forward, up=up, yfov=math.pi / 2, znear=ZNEAR, zfar=zfar)
+        camera = ViewCamera(eye=centre, forward=forward, up=up, yfov=math.pi / 2,
+                            znear=NEAR_PER_FAR * far, zfar=FAR_MARGIN * far)
         renderer.render(camera, size, size, hidden_objects=hidden)
         faces[k, ..., :3] = renderer.read_linear()[::-1]  # bottom row first: GL's t = 0
         distance = renderer.read_distance()[::-1]

@@ -21,6 +21,7 @@ from bake.bake_dir import (FORMAT_VERSION, BakeDirWriter, load_meshes, read_mani
 from bake.cubemap import CubeMapPlan, plan_cubemaps, render_cubemaps
 from bake.scene import Scene
 from bake.settings import BakeSettings
+from bake.skipped import bake_record
 from glint.image_io import write_image
 
 
@@ -140,6 +141,9 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         if manifest["statistics"]["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status
             redone.append("cube maps")
+        # What this bake redid and reused, for later commands that find it up to date (bake/skipped.py).
+        manifest["statistics"]["last_bake"] = bake_record(status, old, manifest, manifest["statistics"]["cubemaps"],
+                                                          forced=force)
         write_json(out.path / "manifest.json", manifest)
         out.commit()
     return BakeReport(bake_dir, status, manifest, redone)

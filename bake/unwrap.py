@@ -1,7 +1,8 @@
 """Light-map charts: every object of the scene unwrapped into one xatlas atlas.
 
-Texel density is in texels per world metre: the objects go to xatlas in world
-space, so `PackOptions.texels_per_unit` is the density itself. Charts are packed
+Texel density is in texels per world metre: the objects go to xatlas scaled to
+texel units (`PackOptions.texels_per_unit` = 1), so its absolute tolerances mean the
+same at any scene scale (a 1 mm scene in metres lost whole objects). Charts are packed
 with `padding` empty texels between them (plus xatlas's one-texel bilinear
 border), on one page when they fit in `max_page_size` squared and on several
 equal pages otherwise.
@@ -82,11 +83,11 @@ def _chart_options():
     return o
 
 
-def _pack_options(texels_per_metre: float, padding: int, page_size: int):
+def _pack_options(texels_per_unit: float, padding: int, page_size: int):
     import xatlas
 
     o = xatlas.PackOptions()
-    o.texels_per_unit = float(texels_per_metre)
+    o.texels_per_unit = float(texels_per_unit)
     # A fixed page size lets xatlas open more pages when one is full; charts
     # are packed from the origin, so a single page is cropped afterwards.
     o.resolution = int(page_size)
@@ -121,10 +122,12 @@ def unwrap(objects, texels_per_metre: float, padding: int = 2, max_page_size: in
             f"(scene surface {areas.sum():.1f} m^2, limit {MAX_PAGES} pages); "
             f"use a lower texels_per_metre (about {texels_per_metre * math.sqrt(MAX_PAGES * max_page_size ** 2 / needed):.1f})")
 
-    meshes = [(np.ascontiguousarray(np.asarray(obj.positions, np.float64) * s, np.float32),
+    # xatlas sees the objects in texel units (texels_per_unit = 1): its own area and length
+    # tolerances are absolute, and dropped every triangle of a 1 mm sphere given in metres.
+    meshes = [(np.ascontiguousarray(np.asarray(obj.positions, np.float64) * (s * texels_per_metre), np.float32),
                np.ascontiguousarray(obj.indices, np.uint32),
                np.ascontiguousarray(obj.normals, np.float32)) for obj, s in zip(objects, scale)]
-    pages, page_w, page_h, raw = _isolated(_run_xatlas, meshes, texels_per_metre, padding, max_page_size)
+    pages, page_w, page_h, raw = _isolated(_run_xatlas, meshes, 1.0, padding, max_page_size)
     if pages > MAX_PAGES:
         raise GlintError(f"the light map needs {pages} pages of {max_page_size}x{max_page_size} texels at "
                          f"{texels_per_metre:g} texels/m (limit {MAX_PAGES}); use a lower texels_per_metre")
@@ -147,7 +150,7 @@ def unwrap(objects, texels_per_metre: float, padding: int = 2, max_page_size: in
                  texels_per_metre=float(texels_per_metre), padding=int(padding))
 
 
-def _run_xatlas(meshes, texels_per_metre: float, padding: int, page_size: int):
+def _run_xatlas(meshes, texels_per_unit: float, padding: int, page_size: int):
     """xatlas itself: (pages, page width, page height, per mesh (vmapping, indices, texel uv, page))."""
     import xatlas
 
@@ -155,7 +158,7 @@ def _run_xatlas(meshes, texels_per_metre: float, padding: int, page_size: int):
     for positions, indices, normals in meshes:
         # Only the parametrisation sees the scaled copy; translation is irrelevant to it.
         atlas.add_mesh(positions, indices, normals)
-    atlas.generate(_chart_options(), _pack_options(texels_per_metre, padding, page_size))
+    atlas.generate(_chart_options(), _pack_options(texels_per_unit, padding, page_size))
     pages, page_w, page_h = int(atlas.atlas_count), int(atlas.width), int(atlas.height)
     raw = []
     for i in range(len(meshes)):

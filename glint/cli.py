@@ -130,8 +130,13 @@ def run_bake(args, *, progress: bool = True):
 
 
 def cmd_bake(args) -> int:
+    from bake.skipped import summary_line
+
     report = run_bake(args, progress=sys.stderr.isatty())
     print(report.summary)
+    skipped = summary_line(report.manifest, report.status)
+    if skipped:
+        print(skipped)
     return 0
 
 

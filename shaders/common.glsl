@@ -19,6 +19,15 @@ vec3 clean_radiance(vec3 v) {
     return min(max(finite_or_zero(v), vec3(0.0)), vec3(RADIANCE_MAX));
 }
 
+// Radiance for a half-float (rgba16f) target: clean_radiance clamped to the largest half float,
+// 65504. A larger value's conversion is implementation-dependent (GL 4.5, 2.3.4.2): Mesa clamps,
+// other drivers may store Inf, which the mirror buffer's MIP chain would spread (a 1e5 lamp seen in
+// a mirror: glint bench --stress, the emitters case).
+const float HALF_MAX = 65504.0;
+vec3 clean_half_radiance(vec3 v) {
+    return min(clean_radiance(v), vec3(HALF_MAX));
+}
+
 // v / |v|, or `fallback` when v is (nearly) zero or not finite.
 vec3 safe_normalize(vec3 v, vec3 fallback) {
     float len2 = dot(v, v);

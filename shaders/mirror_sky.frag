@@ -18,7 +18,7 @@ layout(location = 2) out vec4 out_normal;
 
 void main() {
     vec3 ray = view_ray(ivec2(gl_FragCoord.xy), buffer_size);
-    out_radiance = vec4(clean_radiance(sky_radiance(reflect(ray, mirror_normal_world))), 1.0);
+    out_radiance = vec4(clean_half_radiance(sky_radiance(reflect(ray, mirror_normal_world))), 1.0);
     out_position = vec4(0.0);
     out_normal = vec4(0.0);  // background: no plane to intersect (mirror_buffer.glsl)
 }

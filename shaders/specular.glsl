@@ -3,7 +3,7 @@
 // pass this frame (section 4.5). specular.comp calls `specular_radiance` for the pixels that
 // shading.comp found to need it (`needs_specular`) and queued by tile.
 //
-// Per lobe the specular integral (Eq. 4.3) over the object's cube map is estimated in one of three
+// Per lobe the specular integral (Eq. 4.3) over the object's cube map is estimated in one of these
 // ways, chosen by the uniform `specular_mode` (one program serves the moving and the still camera):
 // - SPECULAR_PATTERNS (walkthrough): the lobe's deterministic regular pattern (Eq. 4.10-4.13, the
 //   same (xi1, xi2) positions at every pixel: smooth in space and time), each sample a MIP-filtered
@@ -15,6 +15,8 @@
 // - SPECULAR_FILTERED_IS (for comparison, Colbert and Krivanek 2007): as many importance samples
 //   as the lobe's pattern has, the same unrotated sequence at every pixel, each filtered by the
 //   MIP level of its pdf; Eq. 4.4 weights.
+// - SPECULAR_SPLIT_SUM (for comparison, compiled in with SPLIT_SUM; split_sum.glsl): what game
+//   engines do, one look-up of a prefiltered cube map at the lobe centre times the lobe's albedo.
 // Samples on the wrong side of the surface (below the horizon; for transmission above it) are
 // dropped (section 4.4.3); each look-up goes through the object's bounding planes (4.4.1).
 //
@@ -50,7 +52,7 @@
 layout(std430, binding = PATTERN_BINDING) readonly buffer PatternBuffer { vec2 pattern_xi[]; };
 layout(std430, binding = LOBE_PATTERN_BINDING) readonly buffer LobePatternBuffer { ivec4 lobe_patterns[]; };
 
-uniform int specular_mode;  // SPECULAR_PATTERNS, SPECULAR_QMC or SPECULAR_FILTERED_IS
+uniform int specular_mode;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
 uniform int qmc_first;      // SPECULAR_QMC: index of this frame's first sample in the sequence
 uniform int qmc_count;      // SPECULAR_QMC: samples per lobe and pixel in this frame
 
@@ -266,6 +268,10 @@ vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, i
 
 // -------------------------------------------------------------------------------------------------
 
+#ifdef SPLIT_SUM
+#include "split_sum.glsl"
+#endif
+
 // One lobe's reflected (or transmitted) radiance towards the eye, times its ks.
 vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
     bool planar = sp.mirror >= 0;
@@ -274,6 +280,10 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
             return vec3(0.0);
         planar = false;
     }
+#ifdef SPLIT_SUM
+    if (specular_mode == SPECULAR_SPLIT_SUM)
+        return lobe.ks.rgb * split_sum_estimate(sp, lobe, lobe_index, planar);
+#endif
     ivec4 pattern = lobe_patterns[planar ? lobe_patterns[lobe_index].w : lobe_index];
     uvec2 rotation = pcg3d(sp.seed + uvec3(0u, 0u, uint(lobe_index))).xy;
     vec3 L;

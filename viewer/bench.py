@@ -4,7 +4,8 @@
     glint bench material-classes --size 320x180 --reference-samples 512 --lobe-samples 3,7 -o out/
 
 For every camera of the scene (or --camera), every method of `METHODS` and every sample count
-n (per lobe and pixel), it renders the frame the method would show, times its passes and
+n (per lobe and pixel; `split-sum`, which has none, once, reported as n = 1 and plotted as a
+single point; its one-time prefilter's ms are in the JSON), it renders the frame the method would show, times its passes and
 compares the image with the converged reference. Results: `bench.csv` (one row per camera,
 method, n and image region), `bench.json` (the same, plus the set-up), `bench.md` (tables) and `bench.png` (PSNR
 against the specular pass's milliseconds, one curve per method, points labelled n) in the
@@ -65,7 +66,7 @@ REFERENCE_BATCH = 64       # reference samples per still-camera frame
 REL_MSE_EPSILON = 0.01     # (W/(m^2 sr))^2 in rel_mse's denominator
 FLIP_PPD = 67.0            # FLIP's default viewing condition: pixels per degree
 MIN_REGION_PIXELS = 16     # smaller per-material regions are not reported
-EXTRA_KEYS = ("lookups_per_pixel", "pixels_with_lobes", "samples_per_lobe")
+EXTRA_KEYS = ("lookups_per_pixel", "pixels_with_lobes", "samples_per_lobe", "skipping", "prefilter_ms")
 # The renderer's timed passes (viewer/renderer.py), in frame order: the CSV's columns; the JSON has
 # whatever the renderer timed.
 PASSES = ("mirror_passes", "mirror_mips", "gbuffer", "occlusion_queries", "shading", "specular", "resolve",
@@ -81,6 +82,11 @@ class Method:
     walkthrough: str | None   # Renderer(walkthrough=...) for a walkthrough frame; None: still camera
     weights: str = "eq4.25"
     planar_pattern: str = "auto"  # Renderer(planar_pattern=...): "ring" forces the single ring on planar lobes
+    ignores_n: bool = False  # one look-up per lobe whatever n: run once, reported as n = 1
+
+    def samples(self, ns) -> tuple:
+        """The n of the sweep this method runs at."""
+        return (1,) if self.ignores_n else tuple(ns)
 
     def renderer(self, ctx, bake, n: int, supersample: int, exposure: float):
         from viewer.renderer import Renderer
@@ -107,12 +113,12 @@ METHODS = {m.key: m for m in (
     Method("patterns-ring", "ours with the single ring on planar reflectors", "patterns", "eq4.25", "ring"),
     Method("filtered-is", "Colbert-Krivanek filtered importance sampling", "filtered-importance"),
     Method("qmc", "unfiltered per-pixel QMC (still camera, one frame)", None),
-    # Issue 6 adds "split-sum": a prefiltered split-sum cube map (what game engines and glTF
-    # viewers use). It needs its own shader path; a Method whose renderer() builds it and whose
-    # frame() renders one frame fits here unchanged, and n is then ignored (or the MIP count).
+    # What game engines and glTF viewers use (viewer/split_sum.py): prefiltered when its renderer
+    # is made (the JSON's prefilter_ms), then one look-up per lobe and pixel, so n means nothing.
+    Method("split-sum", "split-sum prefiltered cube map (game engines, glTF viewers)", "split-sum", ignores_n=True),
 )}
-DEFAULT_METHODS = ("patterns", "patterns-eq4.24", "filtered-is", "qmc")
-PLANNED = {"split-sum": "the prefiltered split-sum cube map is not implemented yet (issue 6)"}
+DEFAULT_METHODS = ("patterns", "patterns-eq4.24", "filtered-is", "qmc", "split-sum")
+PLANNED: dict[str, str] = {}  # methods named but not implemented yet: key -> why
 
 
 # -- options ----------------------------------------------------------------------------------------
@@ -128,7 +134,7 @@ def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argp
                     "materials and each such material. Writes bench.csv, bench.json, bench.md and bench.png into "
                     "the output directory. Bakes first when the bake is missing or stale.",
         epilog=f"Methods: {methods}. The errors are deterministic; the times are not.")
-    p.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
+    p.add_argument("scene", metavar="SCENE", nargs="?", help=SCENE_HELP + " (not with --stress)")
     p.add_argument("-o", "--output", type=Path, metavar="DIR",
                    help="directory for bench.csv, bench.json, bench.md, bench.png (made if missing; default: "
                         "bench-NAME in the current directory)")
@@ -157,6 +163,8 @@ def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argp
                    help="also write the reference and every method's image as PNG into DIR/images")
     p.add_argument("--no-flip", action="store_true", help="skip FLIP even when flip-evaluator is installed")
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
+    from viewer.stress import add_stress_options
+    add_stress_options(p)
     p.set_defaults(run=cmd_bench)
     return p
 
@@ -367,6 +375,8 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
     """(image, timing) of every (method, n) in `runs` for one camera. All the renderers stay alive
     and the timed frames go round-robin over them, so whatever else the machine does at the
     time slows every method alike; then each one's medians and its last frame's image."""
+    from viewer.skipping import frame_section
+
     renderers = []
     try:
         for method, n in runs:
@@ -393,6 +403,8 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
             timing["lookups_per_pixel"] = spec["lookups_per_pixel_with_lobes"]
             timing["pixels_with_lobes"] = spec["pixels_with_lobes"]
             timing["samples_per_lobe"] = [entry["samples"] for entry in spec["samples_per_lobe"]]
+            timing["prefilter_ms"] = stats.get("split_sum", {}).get("prefilter_ms")  # one-time, split-sum only
+            timing["skipping"] = frame_section(stats)  # viewer/skipping.py
             out.append(({"srgb": renderer.read_srgb(), "linear": renderer.read_linear()}, timing))
         return out
     finally:
@@ -406,7 +418,16 @@ def cmd_bench(args) -> int:
     from bake.bake_dir import Bake
     from glint.cli import run_bake
     from viewer.context import headless_context
+    from viewer.skipping import bake_section
 
+    if args.stress:  # the numerical stress suite (viewer/stress.py): its own scenes, no SCENE
+        from viewer.stress import run_stress
+
+        if args.scene is not None:
+            raise GlintError("--stress runs its own scenes (scenes/stress.py): give no SCENE with it")
+        return run_stress(args)
+    if args.scene is None:
+        raise GlintError("glint bench needs a SCENE (a built-in name or a .glb/.gltf file), or --stress")
     parsed = check_arguments(args)
     report = run_bake(args, progress=sys.stderr.isatty())
     bake = Bake(report.bake_dir)
@@ -415,10 +436,11 @@ def cmd_bench(args) -> int:
     out = parsed["output"]
     flip = None if args.no_flip else flip_module()
     methods = [METHODS[k] for k in parsed["methods"]]
-    steps = reference_batches(parsed["reference"])[1] + len(methods) * len(parsed["samples"]) + parsed["frames"]
+    steps = (reference_batches(parsed["reference"])[1] + sum(len(m.samples(parsed["samples"])) for m in methods)
+             + parsed["frames"])
 
     ctx = headless_context()
-    results, references = [], []
+    results, references, skipping = [], [], {}
     try:
         from viewer.context import describe
         from viewer.timing import PassTimer
@@ -435,13 +457,17 @@ def cmd_bench(args) -> int:
                 out.mkdir(parents=True, exist_ok=True)
                 if args.images:
                     _write_png(out / "images" / f"{_slug(camera.name)}_reference.png", ref["srgb"])
-                runs = [(method, n) for method in methods for n in parsed["samples"]]
+                runs = [(method, n) for method in methods for n in method.samples(parsed["samples"])]
                 for (method, n), (image, timing) in zip(runs, sweep(ctx, bake, runs, camera, size, parsed, progress)):
+                    # the work skipped in the camera's frame (the same tiles and passes for every method)
+                    skipping.setdefault(camera.name, {**timing["skipping"], **bake_section(bake.manifest, report.status)})
                     results.append({"camera": camera.name, "method": method.key, "n": n,
                                     "gpu_ms": {k: v for k, v in timing.items() if k not in EXTRA_KEYS},
                                     "lookups_per_pixel": timing["lookups_per_pixel"],
                                     "pixels_with_lobes": timing["pixels_with_lobes"],
                                     "samples_per_lobe": timing["samples_per_lobe"],
+                                    **({"prefilter_ms": timing["prefilter_ms"]}
+                                       if timing["prefilter_ms"] is not None else {}),
                                     "regions": errors(image, ref, regions, flip)})
                     if args.images:
                         _write_png(out / "images" / f"{_slug(camera.name)}_{method.key}_n{n}.png", image["srgb"])
@@ -458,6 +484,7 @@ def cmd_bench(args) -> int:
                       "estimator": "still-camera QMC: R2 sequence with a per-pixel Cranley-Patterson rotation, "
                                    "Eq. 4.4 weights, unfiltered cube-map look-ups",
                       "per_camera": references},
+        "skipping": skipping,
         "metrics": {"psnr_db": "10 log10(255^2 / MSE) of the displayed 8-bit sRGB images; null: identical (inf)",
                     "rel_mse": f"mean of (x - r)^2 / (r^2 + {REL_MSE_EPSILON}) on linear radiance",
                     "flip": (f"mean LDR-FLIP ({flip.__name__}, {FLIP_PPD:g} ppd) over the region"
@@ -495,7 +522,7 @@ def csv_rows(setup: dict, results: list) -> list[dict]:
 def markdown(setup: dict, results: list) -> str:
     """The results as Markdown tables: per camera, PSNR (dB) per region and FLIP of the
     view-dependent pixels (methods x n), then the specular pass's and the frame's milliseconds."""
-    ns = setup["samples"]
+    ns = sorted({*setup["samples"], *(r["n"] for r in results)})  # split-sum's n = 1 may be outside the sweep
     head = "| method | " + " | ".join(f"n = {n}" for n in ns) + " |\n|---|" + "---:|" * len(ns) + "\n"
 
     def table(camera, cell) -> str:
@@ -525,6 +552,11 @@ def markdown(setup: dict, results: list) -> str:
         out.append(f"**{camera}**: specular pass / whole frame, ms (median of {setup['frames_timed']})\n\n")
         out.append(table(camera, lambda r: f"{fmt(r['gpu_ms'].get('specular'), '.1f')} / "
                                            f"{fmt(r['gpu_ms'].get('frame'), '.1f')}") + "\n")
+    if setup.get("skipping"):
+        from viewer.skipping import markdown_table
+
+        out.append("**Skipped work** (per camera: its frame, the same for every method; viewer/skipping.py)\n\n")
+        out.append(markdown_table(setup["skipping"]))
     return "".join(out)
 
 

@@ -89,9 +89,10 @@ def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> ar
                                "from its width)")
     specular.add_argument("--weights", choices=("eq4.25", "eq4.24"), default="eq4.25",
                           help="the walkthrough's normalised estimator: the thesis' Eq. 4.25 (default) or Eq. 4.24")
-    specular.add_argument("--walkthrough-method", choices=("patterns", "filtered-importance"), default="patterns",
-                          help="regular patterns (default), or Colbert-Krivanek filtered importance sampling with "
-                               "as many samples, for comparisons")
+    specular.add_argument("--walkthrough-method", choices=("patterns", "filtered-importance", "split-sum"),
+                          default="patterns",
+                          help="regular patterns (default), or, for comparisons, Colbert-Krivanek filtered importance "
+                               "sampling with as many samples, or game engines' split-sum prefiltered cube maps")
     specular.add_argument("--mirror-budget", metavar="N",
                           help=f"mirror passes per frame at most, for planar reflectors (section 4.5; default "
                                f"{DEFAULT_BUDGET}; 0: none, planar objects show their diffuse part)")
@@ -236,12 +237,14 @@ def _scene_bounds(manifest: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _clip_range(manifest: dict, eye=None) -> tuple[float, float]:
-    """Near and far planes for views the scene does not define: 1 cm, and far enough to hold
-    the whole scene from wherever the eye is."""
+    """Near and far planes for views the scene does not define: far enough to hold the whole
+    scene from wherever the eye is (at least 1 km); near 1 cm, less in a scene under 2 m across
+    (1 % of its radius: a 1 mm model still shows) and 2e-5 of its reach in one over about 1 km (so
+    24-bit depth still separates its surfaces: glint bench --stress, the 10 km room)."""
     lo, hi = _scene_bounds(manifest)
     centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
     reach = radius * 2 + (float(np.linalg.norm(np.asarray(eye) - centre)) if eye is not None else 0.0)
-    return 0.01, max(1000.0, 2 * reach)
+    return max(min(0.01, 0.01 * radius), 2e-5 * reach), max(1000.0, 2 * reach)
 
 
 # -- the command ----------------------------------------------------------------------------------
@@ -288,10 +291,13 @@ def cmd_capture(args) -> int:
             else:
                 write_image(path, renderer.read_srgb())
             if args.stats is not None:
+                from viewer.skipping import frame_section
+
                 s = renderer.stats
                 frames.append({"file": str(path), "camera": _camera_json(camera), "gpu_ms": s["gpu_ms"],
                                "objects_drawn": s["objects_drawn"], "triangles": s["triangles"],
-                               "skipped": s["skipped"], "specular": s["specular"], "mirror": s["mirror"]})
+                               "skipped": s["skipped"], "specular": s["specular"], "mirror": s["mirror"],
+                               "skipping": frame_section(s)})
         seconds = time.perf_counter() - started
         if args.stats is not None:
             if len(views) == 1 and not converge:  # time a few more renders of the same view: medians, warm caches
@@ -313,6 +319,8 @@ def _camera_json(camera) -> dict:
 
 
 def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
+    from viewer.skipping import skipping_section
+
     s = renderer.stats
     data = {
         "scene": args.scene,
@@ -330,6 +338,8 @@ def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
         "objects": s["objects"],
         "triangles_in_scene": s["triangles_in_scene"],
         "lightmap_format": s["lightmap_format"],
+        # of the last frame (per_frame has each frame's specular and mirror parts) and of the bake
+        "skipping": skipping_section(s, renderer.bake.manifest, report.status),
         "per_frame": frames,
     }
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")

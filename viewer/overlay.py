@@ -17,8 +17,9 @@ PADDING = 6  # px around the text
 HELP = "WASD/arrows walk  drag look  Q/E down/up  Shift run  +/- speed  Tab/1-9 cameras  P tour  F12 shot  F1 hide"
 
 
-def overlay_lines(fps: float, gpu_ms: dict[str, float], status: str) -> list[str]:
-    """The overlay's text: fps and frame time, GPU time per pass and in total, the walker's status."""
+def overlay_lines(fps: float, gpu_ms: dict[str, float], status: str, extra=()) -> list[str]:
+    """The overlay's text: fps and frame time, GPU time per pass and in total, `extra` lines (the
+    skipped work, viewer/skipping.py), the walker's status."""
     lines = [f"{fps:6.1f} fps  {1000.0 / fps if fps > 0 else 0.0:6.1f} ms/frame"]
     passes = {name: ms for name, ms in gpu_ms.items() if name != "total"}
     if passes:
@@ -26,7 +27,7 @@ def overlay_lines(fps: float, gpu_ms: dict[str, float], status: str) -> list[str
         width = max(map(len, [*passes, "GPU total"]))
         lines += [f"{name:<{width}}  {ms:7.2f} ms" for name, ms in passes.items()]
         lines.append(f"{'GPU total':<{width}}  {total:7.2f} ms")
-    lines += [status, HELP]
+    lines += [*extra, status, HELP]
     return lines
 
 
@@ -58,11 +59,11 @@ class Overlay:
         self._elapsed += dt
         return self.texture is None or self._elapsed >= UPDATE_INTERVAL
 
-    def update(self, gpu_ms: dict[str, float], status: str) -> None:
+    def update(self, gpu_ms: dict[str, float], status: str, extra=()) -> None:
         """Redraw the text, with the frame rate measured since the last update."""
         self.fps = self._frames / self._elapsed if self._elapsed > 0 else 0.0
         self._frames, self._elapsed = 0, 0.0
-        image = render_text(overlay_lines(self.fps, gpu_ms, status))
+        image = render_text(overlay_lines(self.fps, gpu_ms, status, extra))
         if self.texture is None or self.texture.size != image.size:
             if self.texture is not None:
                 self.texture.release()

@@ -48,13 +48,17 @@ from viewer.passes.shading import SKY_UNIT, ShadingPass, mirror_first_unit
 from viewer.passes.tonemap import TonemapPass
 from viewer.progressive import DEFAULT_MAX_FRAMES, DEFAULT_SAMPLES_PER_FRAME, Progressive
 from viewer.reflectors import DEFAULT_BUDGET
+from viewer.split_sum import SplitSum
 from viewer.timing import PassTimer
 
 MAX_SUPERSAMPLE = 8
 MODES = ("walkthrough", "converge", "auto")
 # How the walkthrough estimates lobes: the thesis' regular patterns (Eq. 4.10-4.25), or, for
-# comparisons, Colbert and Krivanek's filtered importance sampling with as many samples.
-WALKTHROUGH_METHODS = {"patterns": "SPECULAR_PATTERNS", "filtered-importance": "SPECULAR_FILTERED_IS"}
+# comparisons, Colbert and Krivanek's filtered importance sampling with as many samples, or the
+# split-sum prefiltered cube maps of game engines (viewer/split_sum.py; prefiltered when the
+# renderer is made, stats["split_sum"]["prefilter_ms"]).
+WALKTHROUGH_METHODS = {"patterns": "SPECULAR_PATTERNS", "filtered-importance": "SPECULAR_FILTERED_IS",
+                       "split-sum": "SPECULAR_SPLIT_SUM"}
 
 
 class Renderer:
@@ -86,7 +90,9 @@ class Renderer:
         self.gbuffer = GBufferPass(ctx, self.scene, defines)
         self.mirror = MirrorPasses(ctx, self.scene, bake, defines, budget=int(mirror_budget))
         self.mirror.set_units(mirror_unit, SKY_UNIT)
-        self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror)
+        self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
+        self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror,
+                                   split_sum=self.split_sum)
         self.resolve = ResolvePass(ctx, defines)
         self.tonemap = TonemapPass(ctx, defines)
         self.progressive = Progressive(ctx, defines, samples_per_frame=samples_per_frame, max_frames=max_frames,
@@ -303,6 +309,7 @@ class Renderer:
             "skipped": skipped,
             "specular": specular,
             "mirror": mirror,
+            **({"split_sum": self.split_sum.describe()} if self.split_sum is not None else {}),
         }
 
     def _mirror_stats(self) -> dict:
@@ -352,8 +359,9 @@ class Renderer:
 
     def release(self) -> None:
         for part in (self.gbuffer, self.mirror, self.shading, self.resolve, self.tonemap, self.progressive,
-                     self.scene):
-            part.release()
+                     self.split_sum, self.scene):
+            if part is not None:
+                part.release()
         self._linear = self._display = None
 
     def __enter__(self) -> "Renderer":

@@ -126,7 +126,10 @@ class ViewerWindow(moderngl_window.WindowConfig):
 
         if self.overlay.visible and self.overlay.due(frame_time):
             # stats waits for the GPU's timer queries: read it only when the text is redrawn
-            self.overlay.update(self.renderer.stats["gpu_ms_median"], self.controls.status)
+            from viewer.skipping import frame_section, one_line
+
+            stats = self.renderer.stats
+            self.overlay.update(stats["gpu_ms_median"], self.controls.status, [one_line(frame_section(stats))])
         self.overlay.draw(height)
 
     def on_resize(self, width: int, height: int) -> None:

@@ -35,7 +35,8 @@ CUBE_FIRST_UNIT = 6  # cube-map classes on units 6, 7, ...
 IMAGE_UNIT = 0
 # Storage buffers 0-5: viewer/gpu_scene.py and viewer/cubemaps.py; 6-7: viewer/glsl_eval.py.
 SPECULAR_WORK_BINDING, SPECULAR_FLAGS_BINDING = 8, 9
-SPECULAR_MODES = {"SPECULAR_PATTERNS": 0, "SPECULAR_QMC": 1, "SPECULAR_FILTERED_IS": 2}
+SPECULAR_MODES = {"SPECULAR_PATTERNS": 0, "SPECULAR_QMC": 1, "SPECULAR_FILTERED_IS": 2, "SPECULAR_SPLIT_SUM": 3}
+MIRROR_UNITS = 3  # the mirror buffers' texture arrays (viewer/passes/mirror.py mirror_defines)
 WEIGHTS = ("eq4.25", "eq4.24")  # Eq. 4.25 (the thesis' choice) or Eq. 4.24 for the walkthrough estimate
 WORK_HEADER = 8  # uints before the tile list (shaders/specular.glsl SpecularWork)
 
@@ -48,9 +49,11 @@ def mirror_first_unit(scene) -> int:
 class ShadingPass:
     name = "shading"
 
-    def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "eq4.25", mirror=None):
+    def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "eq4.25", mirror=None,
+                 split_sum=None):
         """defines: shader_defines() with mirror_defines(mirror_first_unit(scene)); mirror: the
-        frame's MirrorPasses (None: no planar reflectors are shaded)."""
+        frame's MirrorPasses (None: no planar reflectors are shaded); split_sum: a
+        viewer/split_sum.py SplitSum, which compiles SPECULAR_SPLIT_SUM in (None: not)."""
         if weights not in WEIGHTS:
             raise ValueError(f"weights must be one of {WEIGHTS}, not {weights!r}")
         self.ctx = ctx
@@ -60,6 +63,10 @@ class ShadingPass:
                  "SPECULAR_WORK_BINDING": SPECULAR_WORK_BINDING, "SPECULAR_FLAGS_BINDING": SPECULAR_FLAGS_BINDING}
         if weights == "eq4.24":
             extra["WEIGHTS_EQ_4_24"] = 1
+        self.split_sum = split_sum
+        self.split_sum_unit = mirror_first_unit(scene) + MIRROR_UNITS  # after the mirror buffers
+        if split_sum is not None:
+            extra.update(split_sum.defines(self.split_sum_unit))
         self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
         self.specular = compute_program(ctx, "specular.comp", {**defines, **extra})
         for program in (self.program, self.specular):
@@ -134,6 +141,8 @@ class ShadingPass:
         self._bind_common(program, gbuffer, camera, aspect)
         set_uniforms(program, specular_mode=SPECULAR_MODES[mode], qmc_first=int(qmc_first), qmc_count=int(qmc_count))
         self.cube_maps_bound = self.scene.cubemaps.bind(program, CUBE_FIRST_UNIT)
+        if self.split_sum is not None:
+            self.split_sum.bind(program, self.split_sum_unit)
         self.radiance.bind_to_image(IMAGE_UNIT, read=True, write=True)
         self.planes[0].bind_to_image(PLANE_POSITION_IMAGE, read=True, write=True)
         self.planes[1].bind_to_image(PLANE_NORMAL_IMAGE, read=True, write=True)

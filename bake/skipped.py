@@ -1,0 +1,160 @@
+"""What a bake did not do, and why: objects without a cube map, reused light maps and charts.
+
+`glint bake` redoes only the stages whose inputs changed (bake/pipeline.py). Two things
+say what it skipped:
+
+- `cube_map_skips(manifest)`: per object whether it has a cube map, and if not why not --
+  its material has no view-dependent lobe, it is a planar reflector (a mirror pass at run
+  time instead, section 4.5), or the sidecar made it `diffuse`;
+- `bake_record(...)`, kept as `manifest["statistics"]["last_bake"]`: what the bake that
+  wrote the directory redid and reused (unwrap, light maps, cube maps) and which changed
+  inputs made it (`changed_inputs`, a comparison of the previous manifest with the new one).
+  It is kept in the manifest because a later command (`glint capture`, `glint bench`) finds
+  the bake up to date and did nothing itself; the statistics are outside the up-to-date
+  comparison, and a bake dir written before the record existed reads as "not recorded".
+
+`summary_line` is the line `glint bake` prints; viewer/skipping.py puts the same numbers into
+`--stats` and the bench.
+"""
+from __future__ import annotations
+
+NO_LOBE = "no view-dependent lobe"
+PLANAR = "planar: mirror pass instead"
+DIFFUSE_ROLE = "role diffuse (sidecar): lobes not shown"
+NOT_BAKED = "no cube map in the bake"
+CUBE_MAP_REASONS = (NO_LOBE, PLANAR, DIFFUSE_ROLE, NOT_BAKED)
+
+
+def cube_map_skips(manifest: dict) -> dict:
+    """{"objects": n, "baked": k, "without": {reason: [object names]}} (every reason of
+    CUBE_MAP_REASONS present, in that order)."""
+    materials = manifest["materials"]
+    without: dict[str, list[str]] = {reason: [] for reason in CUBE_MAP_REASONS}
+    baked = 0
+    for obj in manifest["objects"]:
+        if obj.get("cubemap"):
+            baked += 1
+        elif not materials[int(obj["material"])].get("lobes"):
+            without[NO_LOBE].append(obj["name"])
+        elif obj.get("role") == "planar":
+            without[PLANAR].append(obj["name"])
+        elif obj.get("role") == "diffuse":
+            without[DIFFUSE_ROLE].append(obj["name"])
+        else:
+            without[NOT_BAKED].append(obj["name"])
+    return {"objects": len(manifest["objects"]), "baked": baked, "without": without}
+
+
+# -- what changed since the last bake ------------------------------------------------------------
+def _by_name(entries) -> dict:
+    return {e["name"]: e for e in entries or []}
+
+
+def _lobes(material: dict, transmit: bool) -> list:
+    return [lobe for lobe in material.get("lobes") or [] if (lobe.get("kind") == "transmit") == transmit]
+
+
+def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
+    """The inputs that differ between two manifests, by the stage they invalidate (bake/hashing.py):
+    {"geometry": [...], "light maps": [...], "manifest": [...]}, each a list of short phrases
+    such as "kd of Floor" or "cameras"."""
+    out: dict[str, list[str]] = {"geometry": [], "light maps": [], "manifest": []}
+    if old.get("stages", {}).get("geometry") != new["stages"]["geometry"]:
+        out["geometry"].append("geometry or light-map resolution")
+    old_settings = {k: v for k, v in (old.get("settings") or {}).items() if k != "quality"}
+    if old_settings != {k: v for k, v in new["settings"].items() if k != "quality"}:
+        out["light maps"].append("bake settings")
+    old_materials, new_materials = _by_name(old.get("materials")), _by_name(new["materials"])
+    if set(old_materials) != set(new_materials):
+        out["light maps"].append("materials added or removed")
+    for name, m in new_materials.items():
+        o = old_materials.get(name)
+        if o is None:
+            continue
+        for key, what in (("kd", "kd"), ("emission", "emission"), ("double_sided", "sides"),
+                          ("kd_texture", "kd texture")):
+            if o.get(key) != m.get(key):
+                out["light maps"].append(f"{what} of {name}")
+        if _lobes(o, True) != _lobes(m, True):
+            out["light maps"].append(f"glass lobes of {name}")
+        if _lobes(o, False) != _lobes(m, False):
+            out["manifest"].append(f"lobes of {name}")
+    old_objects, old_names = _by_name(old.get("objects")), [m["name"] for m in old.get("materials") or []]
+    for name, obj in _by_name(new["objects"]).items():
+        o = old_objects.get(name)
+        if o is None:
+            continue
+        k = int(o["material"])
+        if (old_names[k] if k < len(old_names) else None) != new["materials"][int(obj["material"])]["name"]:
+            out["light maps"].append(f"material of {name}")
+        if o.get("role") != obj.get("role"):
+            out["manifest"].append(f"role of {name}")
+        elif o.get("cubemap") != obj.get("cubemap"):
+            out["manifest"].append(f"cube map of {name}")  # size, centre or bounding planes
+    for key, what in (("lights", "lights"), ("sky", "sky")):
+        if old.get(key) != new.get(key):
+            out["light maps"].append(what)
+    for key, what in (("cameras", "cameras"), ("camera_paths", "camera paths")):
+        if old.get(key) != new.get(key):
+            out["manifest"].append(what)
+    return out
+
+
+def _phrase(items: list[str], limit: int = 3) -> str:
+    return ", ".join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")
+
+
+def bake_record(status: str, old: dict | None, new: dict, cube_maps: dict, *, forced: bool = False) -> dict:
+    """What the bake that writes `new` did and why (after `old`, the previous manifest or None);
+    `status` as bake/pipeline.py's BakeReport, `cube_maps` its cube-map statistics."""
+    changes = changed_inputs(old, new) if old is not None else {"geometry": [], "light maps": [], "manifest": []}
+    if old is None:
+        why = "--force" if forced else "no earlier bake of this format"
+    elif status == "full":
+        why = "geometry changed"
+    elif status == "lightmaps":
+        why = ("changed: " + _phrase(changes["light maps"])) if changes["light maps"] else "diffuse inputs changed"
+    elif changes["manifest"]:
+        why = "only " + _phrase(changes["manifest"]) + " changed"
+    elif status == "cubemaps":  # e.g. a new cube-map renderer version (bake/hashing.py CUBEMAP_VERSION)
+        why = "only the cube maps' inputs changed"
+    else:
+        why = "only the manifest changed"
+    return {
+        "status": status,
+        "unwrap": "redone" if status == "full" else "reused",
+        "light_maps": "re-baked" if status in ("full", "lightmaps") else "reused",
+        "why": why,
+        "changed": changes["geometry"] + changes["light maps"] + changes["manifest"],
+        "cube_maps_rendered": int(cube_maps.get("rendered", 0)),
+        "cube_maps_reused": int(cube_maps.get("reused", 0)),
+    }
+
+
+def last_bake(manifest: dict) -> dict | None:
+    """The record of the bake that wrote this manifest; None for bake dirs written before it was kept."""
+    return (manifest.get("statistics") or {}).get("last_bake")
+
+
+def summary_line(manifest: dict, status: str) -> str | None:
+    """One line of what a bake skipped, e.g. "skipped: 34 of 39 objects need no cube map
+    (30 no view-dependent lobe, 4 planar: mirror pass instead); light maps and unwrap reused
+    (only lobes of Floor changed); cube maps: 0 rendered, 5 reused". None for an up-to-date
+    bake (its summary says it did nothing)."""
+    if status == "up-to-date":
+        return None
+    cubes = cube_map_skips(manifest)
+    missing = sum(len(names) for names in cubes["without"].values())
+    reasons = ", ".join(f"{len(names)} {reason}" for reason, names in cubes["without"].items() if names)
+    parts = [f"{missing} of {cubes['objects']} objects need no cube map" + (f" ({reasons})" if reasons else "")]
+    record = last_bake(manifest)
+    if record is not None:
+        if record["light_maps"] == "reused":
+            parts.append(f"light maps and unwrap reused ({record['why']})")
+        elif record["unwrap"] == "reused":
+            parts.append(f"unwrap reused; light maps re-baked ({record['why']})")
+        else:
+            parts.append(f"nothing reused ({record['why']})")
+        if record["cube_maps_rendered"] or record["cube_maps_reused"]:
+            parts.append(f"cube maps: {record['cube_maps_rendered']} rendered, {record['cube_maps_reused']} reused")
+    return "skipped: " + "; ".join(parts)

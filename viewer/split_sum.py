@@ -1,0 +1,259 @@
+"""The split-sum approximation (Karis 2013, "Real Shading in Unreal Engine 4"; the glTF sample
+viewer does the same): what game engines and glTF viewers use for glossy reflections, the
+`split-sum` method of `glint bench` (Renderer(walkthrough="split-sum")).
+
+Per lobe, the specular integral of Eq. 4.3 is split into two factors,
+
+    L_spec(v) ~= [ int L(l) k_m(l, r) dl / int k_m(l, r) dl ] x [ int f(l, v) cos(theta_l) dl ],
+
+the first the cube map's radiance prefiltered with the lobe around its centre direction r (the
+mirror direction; for a transmission lobe the straight-through one), the second the lobe's
+directional albedo for the view v. One look-up each per lobe and pixel, whatever n: the method
+has no sample count.
+
+Prefilter (`SplitSum`, shaders/split_sum_prefilter.comp, once when the renderer is made):
+for each object cube map a MIP chain of the same face size where level k holds the radiance
+convolved with the section 3.3 lobe of roughness m_k under the split-sum assumption n = v = r:
+the kernel is Eq. 3.4 with F = 1 and alpha = 0 (k = D(h) cos(theta_l) / (4 v.h), the Fresnel
+term and Kurt's shadowing depend on the material and are in the albedo factor instead, as
+engines leave them out of the prefilter), normalised. It is estimated with importance samples
+of the lobe (Eq. 4.5-4.9, a Hammersley set, as Karis) per texel, each read from the source's
+box-filtered MIP chain at Colbert and Krivanek's level for its pdf (filtered importance
+sampling, as the glTF viewer): smooth with few samples. Level k >= 1 takes `level_samples`:
+PREFILTER_SAMPLES at level 1, doubled per level up to PREFILTER_SAMPLES_MAX (the lobes widen as
+the texels get fewer, so each level costs about half the one before; tests/test_split_sum.py
+holds every texel within 2 % of a numpy quadrature; twice the samples: 0.8 %, at 8x the cost
+on llvmpipe, where this scheme takes ~7 s for material-classes' three cube maps of up to 512^2). Level 0 is the source itself (m_0 = 0). The chain stops at faces of LOWEST_FACE texels (engines stop at
+4-16), so a face of S texels gets log2(S / LOWEST_FACE) + 1 levels.
+
+Roughness to level, as the glTF viewer maps its perceptual roughness sqrt(m) linearly onto the
+levels: level(m) = sqrt(m / M_MAX) (levels - 1), clamped to the chain, read trilinearly
+(GL_LINEAR_MIPMAP_LINEAR between the two nearest levels); so m_k = M_MAX (k / (levels - 1))^2.
+An anisotropic lobe is prefiltered as the isotropic one of m = sqrt(mx my), as engines do
+(the chain has one roughness per level); only the albedo factor knows its anisotropy.
+
+Albedo (`albedo_lut`): per lobe of the scene, its directional albedo int f cos dw (Eq. 3.4-3.5,
+Fresnel, shadowing, transmission and all) by bake.bsdf.lobe_albedo (ALBEDO_SAMPLES quasi-random
+importance samples) on a grid of LUT_COS values of sqrt(cos theta_v) (dense towards grazing,
+where it changes fastest) by LUT_PHI view azimuths in [0, pi/2] (the lobe is symmetric under
+x -> -x and y -> -y, so that quarter is all there is), read bilinearly. Per lobe rather than a
+shared (cos_v, m) table per alpha because that is exact for the scene's own r0, alpha and
+anisotropy (a shared table cannot hold the azimuth dependence of an anisotropic lobe), for
+the price of a few hundred albedos per lobe when the renderer is made (`albedo_ms`). Schlick's
+Fresnel being linear in r0, a shared table would store r0 A + B; per lobe it stores the sum.
+
+Planar reflectors have a mirror buffer, not a cube map: what engines do for glossy planar
+reflections, one look-up of the buffer at the lobe centre's projection (shaders/
+mirror_buffer.glsl's two-step projection) at the MIP level of the lobe's footprint there (its
+ellipse, section 4.5.3, over one sample), times the same albedo. Transmission lobes look up
+around the transmitted direction in the cube map, with their own albedo, as the other methods.
+
+    split = SplitSum(ctx, scene)   # GpuScene: prefilters every cube map, builds the LUT
+    split.defines(first_unit)      # shaders/split_sum.glsl's defines (SPLIT_SUM on)
+    split.bind(program, first_unit)
+    split.describe()               # prefilter_ms, albedo_ms, levels ... (renderer.stats["split_sum"])
+"""
+from __future__ import annotations
+
+import ctypes
+import math
+import time
+
+import moderngl
+import numpy as np
+
+from viewer.cubemaps import (GL_CLAMP_TO_EDGE, GL_FLOAT, GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR, GL_RGBA, GL_RGBA16F,
+                             GL_RGBA32F, GL_TEXTURE0, GL_TEXTURE_CUBE_MAP_ARRAY, GL_TEXTURE_MAG_FILTER,
+                             GL_TEXTURE_MIN_FILTER, GL_TEXTURE_WRAP_R, GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, _GL,
+                             gl_functions)
+from viewer.shader_source import LOCAL_SIZE, compute_program, set_uniforms
+
+PREFILTER_SAMPLES = 64    # importance samples per texel of level 1, doubled per level ...
+PREFILTER_SAMPLES_MAX = 512  # ... up to this: wider lobes on fewer texels (converged: see tests)
+LOWEST_FACE = 4           # texels per side of the chain's last level
+M_MAX = 1.0               # the roughness of the last level
+LUT_COS, LUT_PHI = 32, 8  # albedo grid: sqrt(cos theta_v) x view azimuth in [0, pi/2]
+ALBEDO_SAMPLES = 4096     # per albedo (bake.bsdf.lobe_albedo)
+PREFILTER_UNIT = 0        # source cube maps' first texture unit while prefiltering
+IMAGE_UNIT = 0
+
+GL_TEXTURE_BASE_LEVEL, GL_TEXTURE_MAX_LEVEL = 0x813C, 0x813D
+GL_WRITE_ONLY = 0x88B9
+GL_PACK_ALIGNMENT = 0x0D05
+GL_PIXEL_PACK_BUFFER, GL_PIXEL_PACK_BUFFER_BINDING = 0x88EB, 0x88ED
+
+
+def level_count(face_size: int) -> int:
+    """Levels of the prefiltered chain of faces of `face_size` texels: down to LOWEST_FACE."""
+    return max(1, int(math.log2(max(face_size, 1))) - int(math.log2(LOWEST_FACE)) + 1)
+
+
+def level_roughness(level: int, levels: int) -> float:
+    """m_k of level k: the inverse of shaders/split_sum.glsl split_sum_lod."""
+    return M_MAX * (level / (levels - 1)) ** 2 if levels > 1 else 0.0
+
+
+def level_samples(level: int, samples: int = PREFILTER_SAMPLES) -> int:
+    """Importance samples per texel of prefiltered level `level` (level 0, the source: one)."""
+    return 1 if level == 0 else min(samples << (level - 1), max(PREFILTER_SAMPLES_MAX, samples))
+
+
+def lut_views() -> np.ndarray:
+    """(LUT_COS, LUT_PHI, 3) unit view directions of the albedo grid's nodes (local frame): row i at
+    sqrt(cos theta) = i / (LUT_COS - 1), column j at phi = j / (LUT_PHI - 1) pi / 2."""
+    cos = (np.arange(LUT_COS) / (LUT_COS - 1)) ** 2
+    phi = np.arange(LUT_PHI) / (LUT_PHI - 1) * (np.pi / 2)
+    c, p = np.meshgrid(cos, phi, indexing="ij")
+    s = np.sqrt(np.maximum(1.0 - c * c, 0.0))
+    return np.stack([s * np.cos(p), s * np.sin(p), c], axis=-1)
+
+
+def albedo_lut(lobe_table: np.ndarray, samples: int = ALBEDO_SAMPLES) -> np.ndarray:
+    """(lobes, LUT_COS, LUT_PHI) float32: each lobe's directional albedo (without ks) at the grid's
+    views. Lobes with the same parameters are computed once; isotropic ones for one azimuth."""
+    from bake import bsdf
+
+    views = lut_views()
+    out = np.zeros((max(len(lobe_table), 1), LUT_COS, LUT_PHI), np.float32)
+    done: dict[tuple, np.ndarray] = {}
+    for k, row in enumerate(lobe_table):
+        mx, my, r0, alpha = (float(x) for x in row["shape"])
+        kind = "transmit" if int(round(float(row["ks"][3]))) == 1 else "reflect"
+        key = (mx, my, r0, alpha, kind)
+        if key not in done:
+            iso = max(mx, bsdf.M_MIN) == max(my, bsdf.M_MIN)
+            wo = views[:, :1] if iso else views
+            a = bsdf.lobe_albedo(wo, mx, my, r0, alpha, kind, n=samples)
+            done[key] = np.broadcast_to(a, (LUT_COS, LUT_PHI))
+        out[k] = done[key]
+    return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+class _SplitSumGL(_GL):
+    """The cube-map entry points plus those the prefilter needs."""
+
+    def __init__(self, ctx):
+        super().__init__(ctx)
+        fn = gl_functions(ctx)
+        u, i, p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
+        self.TexStorage3D = fn("glTexStorage3D", None, u, i, u, i, i, i)
+        self.BindImageTexture = fn("glBindImageTexture", None, u, u, i, ctypes.c_ubyte, i, u, u)
+        self.GetTexImage = fn("glGetTexImage", None, u, i, u, u, p)
+
+
+class SplitSum:
+    """Prefiltered cube-map arrays (one per size class of viewer/cubemaps.py, same layers) and the
+    per-lobe albedo LUT of a GpuScene."""
+
+    def __init__(self, ctx, scene, samples: int = PREFILTER_SAMPLES):
+        from viewer.gpu_scene import shader_defines
+
+        self.ctx = ctx
+        self.samples = int(samples)
+        cubes = scene.cubemaps
+        started = time.perf_counter()
+        lut = albedo_lut(scene.lobe_table[:scene.lobe_count])
+        self.albedo_ms = (time.perf_counter() - started) * 1e3
+        self.lut = ctx.texture_array((LUT_PHI, LUT_COS, lut.shape[0]), 1, np.ascontiguousarray(lut).tobytes(),
+                                     dtype="f4")
+        self.lut.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        self.lut.repeat_x = self.lut.repeat_y = False
+        self.classes = cubes.classes
+        self.levels = [level_count(c.size) for c in self.classes]
+        self.textures: list[int] = []
+        self._gl = _SplitSumGL(ctx) if self.classes else None
+        self.prefilter_ms = 0.0
+        if not self.classes:
+            return
+        defines = {**shader_defines(), **cubes.defines(PREFILTER_UNIT)}
+        programs = {}
+        ctx.finish()
+        started = time.perf_counter()
+        cubes.bind_buffers()
+        for k, (cls, levels) in enumerate(zip(self.classes, self.levels)):
+            fmt = "rgba16f" if cls.dtype == "f2" else "rgba32f"
+            if fmt not in programs:
+                programs[fmt] = compute_program(ctx, "split_sum_prefilter.comp", {**defines, "SPLIT_SUM_FORMAT": fmt})
+            self.textures.append(self._prefilter(programs[fmt], cubes, k, cls, levels))
+        ctx.finish()
+        self.prefilter_ms = (time.perf_counter() - started) * 1e3
+        for program in programs.values():
+            program.release()
+
+    def _prefilter(self, program, cubes, k: int, cls, levels: int) -> int:
+        """The prefiltered chain of class k: a new cube-map array, each level written by one dispatch."""
+        gl = self._gl
+        name = ctypes.c_uint(0)
+        gl.GenTextures(1, ctypes.byref(name))
+        gl.ActiveTexture(GL_TEXTURE0 + self.ctx.default_texture_unit)
+        gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, name.value)
+        internal = GL_RGBA16F if cls.dtype == "f2" else GL_RGBA32F
+        gl.TexStorage3D(GL_TEXTURE_CUBE_MAP_ARRAY, levels, internal, cls.size, cls.size, 6 * len(cls.objects))
+        for key, value in ((GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR), (GL_TEXTURE_MAG_FILTER, GL_LINEAR),
+                           (GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE), (GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE),
+                           (GL_TEXTURE_WRAP_R, GL_CLAMP_TO_EDGE), (GL_TEXTURE_BASE_LEVEL, 0),
+                           (GL_TEXTURE_MAX_LEVEL, levels - 1)):
+            gl.TexParameteri(GL_TEXTURE_CUBE_MAP_ARRAY, key, value)
+        gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
+        cubes.bind(program, PREFILTER_UNIT)
+        for level in range(levels):
+            face = max(cls.size >> level, 1)
+            gl.BindImageTexture(IMAGE_UNIT, name.value, level, 1, 0, GL_WRITE_ONLY, internal)
+            set_uniforms(program, source_class=k, face_size=face, roughness=level_roughness(level, levels),
+                         samples=level_samples(level, self.samples))
+            program.run(-(-face // LOCAL_SIZE), -(-face // LOCAL_SIZE), 6 * len(cls.objects))
+        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        return name.value
+
+    # -- shading ----------------------------------------------------------------------------------
+    def defines(self, first_unit: int) -> dict:
+        """shaders/split_sum.glsl: the prefiltered classes on units first_unit .. first_unit + C - 1
+        (C = CUBE_CLASSES, at least 1), the albedo LUT on the next one, the LUT's shape."""
+        classes = max(len(self.classes), 1)
+        return {"SPLIT_SUM": 1, "SPLIT_SUM_FIRST_UNIT": int(first_unit), "SPLIT_SUM_LUT_UNIT": int(first_unit) + classes,
+                "SPLIT_SUM_LUT_COS": LUT_COS, "SPLIT_SUM_LUT_PHI": LUT_PHI, "SPLIT_SUM_M_MAX": float(M_MAX)}
+
+    def bind(self, program, first_unit: int) -> None:
+        """Bind the prefiltered arrays and the LUT as `defines(first_unit)` told the shader."""
+        self.lut.use(first_unit + max(len(self.classes), 1))
+        if not self.classes:
+            return
+        gl = self._gl
+        for k, glo in enumerate(self.textures):
+            gl.ActiveTexture(GL_TEXTURE0 + first_unit + k)
+            gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, glo)
+        gl.ActiveTexture(GL_TEXTURE0 + self.ctx.default_texture_unit)
+        if program is not None and "split_sum_levels" in program:
+            program["split_sum_levels"].write(np.array(self.levels, np.float32).tobytes())
+
+    def read_level(self, k: int, level: int) -> np.ndarray:
+        """(layers, 6, s, s, 4) float32: level `level` of class k's prefiltered chain, faces in GL
+        order, row 0 at t = 0 (for tests and debugging)."""
+        cls, gl = self.classes[k], self._gl
+        s = max(cls.size >> level, 1)
+        out = np.zeros((len(cls.objects), 6, s, s, 4), np.float32)
+        pack = ctypes.c_int(0)
+        gl.GetIntegerv(GL_PIXEL_PACK_BUFFER_BINDING, ctypes.byref(pack))
+        gl.BindBuffer(GL_PIXEL_PACK_BUFFER, 0)
+        gl.PixelStorei(GL_PACK_ALIGNMENT, 1)
+        gl.ActiveTexture(GL_TEXTURE0 + self.ctx.default_texture_unit)
+        gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, self.textures[k])
+        gl.GetTexImage(GL_TEXTURE_CUBE_MAP_ARRAY, level, GL_RGBA, GL_FLOAT, out.ctypes.data)
+        gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
+        gl.BindBuffer(GL_PIXEL_PACK_BUFFER, pack.value)
+        return out
+
+    def describe(self) -> dict:
+        return {"prefilter_ms": round(self.prefilter_ms, 3), "albedo_ms": round(self.albedo_ms, 3),
+                "levels": [{"face_size": c.size, "levels": n,
+                            "roughness": [round(level_roughness(k, n), 6) for k in range(n)],
+                            "samples": [level_samples(k, self.samples) for k in range(n)]}
+                           for c, n in zip(self.classes, self.levels)],
+                "albedo_lut": [LUT_COS, LUT_PHI], "albedo_samples": ALBEDO_SAMPLES}
+
+    def release(self) -> None:
+        if self._gl is not None:
+            for glo in self.textures:
+                self._gl.DeleteTextures(1, ctypes.byref(ctypes.c_uint(glo)))
+        self.textures = []
+        self.lut.release()
