@@ -165,6 +165,12 @@ def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argp
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
     from viewer.stress import add_stress_options
     add_stress_options(p)
+    p.add_argument("--mitsuba", action="store_true",
+                   help="instead of the method sweep: the walkthrough and converged images against Mitsuba 3 "
+                        "rendering the same scene, with Mitsuba's error at 1, 2, 4, ... spp and its seconds: "
+                        "mitsuba.csv, mitsuba.json, mitsuba.png (viewer/bench_mitsuba.py)")
+    from viewer.bench_mitsuba import add_mitsuba_options
+    add_mitsuba_options(p)
     p.set_defaults(run=cmd_bench)
     return p
 
@@ -428,6 +434,10 @@ def cmd_bench(args) -> int:
         return run_stress(args)
     if args.scene is None:
         raise GlintError("glint bench needs a SCENE (a built-in name or a .glb/.gltf file), or --stress")
+    if args.mitsuba:
+        from viewer.bench_mitsuba import cmd_bench_mitsuba
+
+        return cmd_bench_mitsuba(args)
     parsed = check_arguments(args)
     report = run_bake(args, progress=sys.stderr.isatty())
     bake = Bake(report.bake_dir)
