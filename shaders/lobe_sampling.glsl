@@ -41,14 +41,19 @@ float lobe_border_tan(vec3 c, vec3 w) {
     return cos_a * LOBE_TAN_MAX > sin_a ? sin_a / cos_a : LOBE_TAN_MAX;
 }
 
-// Area A = pi u v of the lobe's elliptical cross-section at unit distance (Eq. 4.14-4.15): the
-// ellipse's vertices U, V are the border directions (xi1 = 0) at phi_h = 0 and 90 degrees
-// (xi2 = 0, 0.25: along t and b), its centre C the lobe centre (xi1 = 1).
-float lobe_ellipse_area(vec3 wo, Lobe lobe) {
+// Half-axes (u, v) and area A = pi u v of the lobe's elliptical cross-section at unit distance
+// (Eq. 4.14-4.15): the ellipse's vertices U, V are the border directions (xi1 = 0) at phi_h = 0
+// and 90 degrees (xi2 = 0, 0.25: along t and b), its centre C the lobe centre (xi1 = 1).
+vec2 lobe_ellipse_axes(vec3 wo, Lobe lobe) {
     vec3 c = pattern_direction(wo, vec2(1.0, 0.0), lobe);
     vec3 u = pattern_direction(wo, vec2(0.0, 0.0), lobe);
     vec3 v = pattern_direction(wo, vec2(0.0, 0.25), lobe);
-    return PI * lobe_border_tan(c, u) * lobe_border_tan(c, v);
+    return vec2(lobe_border_tan(c, u), lobe_border_tan(c, v));
+}
+
+float lobe_ellipse_area(vec3 wo, Lobe lobe) {
+    vec2 uv = lobe_ellipse_axes(wo, lobe);
+    return PI * uv.x * uv.y;
 }
 
 // MIP level of a cube-map sample of area `sample_area` (A' = A / n at unit distance) along
@@ -68,6 +73,43 @@ float cube_mip_level(float sample_area, vec3 dir_world, float face_size) {
     float area_cube = sample_area * d * d / cos_beta;          // Eq. 4.16
     float pixels = area_cube * face_size * face_size / 4.0;    // Eq. 4.17
     return clamp(0.5 * log2(max(pixels, 1.0)), 0.0, log2(face_size));  // log4
+}
+
+// The footprint of one pattern sample from the lobe's second moment (viewer/lobe_patterns.py,
+// "Footprint"), instead of the thesis' share A / n of the 99 % ellipse (Eq. 4.16), which for
+// n = 1 is a box as wide as the lobe's support: a filter of ~2.7 times its standard deviation. Each
+// sample's filter supplies the part of the lobe's spread that the pattern's own spread does not:
+//   k_a = max(s^2 - v_a, s^2 / n)   per axis a = t, b of the lobe, in units of its border radius,
+// s^2 = 1 / (-2 log xi1_border) the lobe's variance per axis (D falls as xi1_border^(r^2) to the
+// border r = 1), v_a the D-weighted variance of the pattern's positions r (cos, sin)(2 pi xi2),
+// r = 1 - xi1 (Eq. 4.12-4.13 in the lobe's ellipse scaled to a unit circle), s^2 / n the share of
+// one of n samples. A bilinear look-up of a 2 x 2 box-filtered MIP level whose texels have area a
+// filters with variance a / 4 per axis (box * tent), so the sample's area is 4 sqrt(K_t K_b),
+// K_a = k_a times the squared half-axis (u or v of Eq. 4.15).
+const float LOBE_AXIS_VARIANCE = -0.5 / log(XI1_BORDER);
+
+struct PatternMoment {
+    float w;     // sum of the weights D / D(centre) = xi1_border^(r^2)
+    vec2 mean;   // their weighted sums of the position
+    vec2 sq;     // ... and of its square
+};
+
+void add_pattern_moment(inout PatternMoment pm, vec2 xi) {
+    float r = 1.0 - xi.x;
+    vec2 p = r * vec2(cos(2.0 * PI * xi.y), sin(2.0 * PI * xi.y));
+    float w = pow(XI1_BORDER, r * r);
+    pm.w += w;
+    pm.mean += w * p;
+    pm.sq += w * p * p;
+}
+
+// The area (at unit distance, as A' of Eq. 4.16) that each of the pattern's n samples filters, for
+// a lobe of ellipse half-axes uv = (u, v) (Eq. 4.15).
+float pattern_footprint_area(PatternMoment pm, int n, vec2 uv) {
+    vec2 mean = pm.mean / pm.w;
+    vec2 v = max(pm.sq / pm.w - mean * mean, 0.0);
+    vec2 k = max(vec2(LOBE_AXIS_VARIANCE) - v, vec2(LOBE_AXIS_VARIANCE / float(max(n, 1))));
+    return 4.0 * sqrt(k.x * k.y) * uv.x * uv.y;
 }
 
 // Colbert and Krivanek's (2007) MIP level for n filtered importance samples, the comparison

@@ -7,7 +7,8 @@
 // ways, chosen by the uniform `specular_mode` (one program serves the moving and the still camera):
 // - SPECULAR_PATTERNS (walkthrough): the lobe's deterministic regular pattern (Eq. 4.10-4.13, the
 //   same (xi1, xi2) positions at every pixel: smooth in space and time), each sample a MIP-filtered
-//   look-up (Eq. 4.14-4.17), weighted by Eq. 4.25 (or Eq. 4.24 with WEIGHTS_EQ_4_24).
+//   look-up (Eq. 4.16-4.17; its footprint from the lobe's second moment, or the thesis' A / n of
+//   Eq. 4.14-4.15 with `pattern_footprint`), weighted by Eq. 4.25 (or Eq. 4.24 with WEIGHTS_EQ_4_24).
 // - SPECULAR_QMC (still camera): `qmc_count` quasi-random importance samples (Eq. 4.5-4.8) per
 //   frame, the R2 sequence from sample `qmc_first` on, Cranley-Patterson rotated by a hash of the
 //   pixel and lobe, unfiltered look-ups, weights f cos / p (Eq. 4.4). The frames' mean (viewer/
@@ -55,6 +56,8 @@ layout(std430, binding = LOBE_PATTERN_BINDING) readonly buffer LobePatternBuffer
 uniform int specular_mode;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
 uniform int qmc_first;      // SPECULAR_QMC: index of this frame's first sample in the sequence
 uniform int qmc_count;      // SPECULAR_QMC: samples per lobe and pixel in this frame
+uniform int pattern_footprint;  // SPECULAR_PATTERNS on cube maps: one of these (viewer/renderer.py FOOTPRINTS)
+const int FOOTPRINT_MOMENT = 0, FOOTPRINT_THESIS = 1, FOOTPRINT_MOMENT_ALL = 2;
 
 // The specular work of a frame: shading.comp queues the tiles (LOCAL_SIZE^2 pixels) that have a
 // pixel needing specular light, and their count is the x size of specular.comp's indirect
@@ -151,7 +154,19 @@ bool on_lobe_side(vec3 wi, Lobe lobe) {
 vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
     int n = max(pattern.y, 1);
     float face = cube_map_face_size(sp.cube);
-    float sample_area = lobe_ellipse_area(sp.wo, lobe) / float(n);  // A' = A / n (Eq. 4.16)
+    // The per-sample footprint: the thesis' A' = A / n (Eq. 4.16), or the lobe's second moment
+    // (lobe_sampling.glsl) for reflection lobes. Transmission lobes keep A / n unless
+    // FOOTPRINT_MOMENT_ALL: the moment lost on material-classes' frosted sphere and won on
+    // living-room's frosted pane (viewer/lobe_patterns.py, "Footprint").
+    float sample_area;
+    if (pattern_footprint == FOOTPRINT_MOMENT_ALL || (pattern_footprint == FOOTPRINT_MOMENT && !lobe_is_transmit(lobe))) {
+        PatternMoment pm = PatternMoment(0.0, vec2(0.0), vec2(0.0));
+        for (int k = 0; k < pattern.y; ++k)
+            add_pattern_moment(pm, pattern_xi[pattern.x + k]);
+        sample_area = pattern_footprint_area(pm, n, lobe_ellipse_axes(sp.wo, lobe));
+    } else {
+        sample_area = lobe_ellipse_area(sp.wo, lobe) / float(n);
+    }
     LobeSum sum = LobeSum(vec3(0.0), 0.0);
     for (int k = 0; k < pattern.y; ++k) {
         vec3 wi = pattern_direction(sp.wo, pattern_xi[pattern.x + k], lobe);

@@ -83,6 +83,7 @@ class Method:
     weights: str = "eq4.25"
     planar_pattern: str = "auto"  # Renderer(planar_pattern=...): "ring" forces the single ring on planar lobes
     ignores_n: bool = False  # one look-up per lobe whatever n: run once, reported as n = 1
+    footprint: str = "moment"  # Renderer(footprint=...): "thesis" filters each look-up by A / n (Eq. 4.16)
 
     def samples(self, ns) -> tuple:
         """The n of the sweep this method runs at."""
@@ -95,7 +96,8 @@ class Method:
             return Renderer(ctx, bake, supersample=supersample, exposure=exposure, samples_per_frame=n,
                             max_frames=1)
         return Renderer(ctx, bake, supersample=supersample, exposure=exposure, lobe_samples=n,
-                        weights=self.weights, walkthrough=self.walkthrough, planar_pattern=self.planar_pattern)
+                        weights=self.weights, walkthrough=self.walkthrough, planar_pattern=self.planar_pattern,
+                        footprint=self.footprint)
 
     def frame(self, renderer, camera, width: int, height: int) -> None:
         if self.walkthrough is None:
@@ -108,6 +110,10 @@ class Method:
 METHODS = {m.key: m for m in (
     Method("patterns", "ours: regular patterns + MIP, Eq. 4.25", "patterns", "eq4.25"),
     Method("patterns-eq4.24", "ours with Eq. 4.24 weights", "patterns", "eq4.24"),
+    # The thesis' own MIP footprint per cube-map look-up, A / n (Eq. 4.16), that "patterns" replaced.
+    Method("patterns-thesis", "ours with the thesis' footprint A / n (Eq. 4.16)", "patterns", footprint="thesis"),
+    Method("patterns-moment-all", "ours with the second-moment footprint on transmission lobes too", "patterns",
+           footprint="moment-all"),
     # Planar reflectors (issue 5): the single ring of curved objects instead of the multi-ring
     # (section 4.5.3); the same as "patterns" on curved objects. Not in the default sweep.
     Method("patterns-ring", "ours with the single ring on planar reflectors", "patterns", "eq4.25", "ring"),
@@ -117,7 +123,7 @@ METHODS = {m.key: m for m in (
     # is made (the JSON's prefilter_ms), then one look-up per lobe and pixel, so n means nothing.
     Method("split-sum", "split-sum prefiltered cube map (game engines, glTF viewers)", "split-sum", ignores_n=True),
 )}
-DEFAULT_METHODS = ("patterns", "patterns-eq4.24", "filtered-is", "qmc", "split-sum")
+DEFAULT_METHODS = ("patterns", "patterns-thesis", "patterns-eq4.24", "filtered-is", "qmc", "split-sum")
 PLANNED: dict[str, str] = {}  # methods named but not implemented yet: key -> why
 
 

@@ -48,6 +48,7 @@ from viewer.passes.shading import SKY_UNIT, ShadingPass, mirror_first_unit
 from viewer.passes.tonemap import TonemapPass
 from viewer.progressive import DEFAULT_MAX_FRAMES, DEFAULT_SAMPLES_PER_FRAME, Progressive
 from viewer.reflectors import DEFAULT_BUDGET
+from viewer.shader_source import set_uniforms
 from viewer.split_sum import SplitSum
 from viewer.timing import PassTimer
 
@@ -59,23 +60,32 @@ MODES = ("walkthrough", "converge", "auto")
 # renderer is made, stats["split_sum"]["prefilter_ms"]).
 WALKTHROUGH_METHODS = {"patterns": "SPECULAR_PATTERNS", "filtered-importance": "SPECULAR_FILTERED_IS",
                        "split-sum": "SPECULAR_SPLIT_SUM"}
+# The MIP footprint of each pattern look-up in a cube map (shaders/specular.glsl): the lobe's
+# second moment less the pattern's spread for reflection lobes and the thesis' share A / n of the
+# lobe's 99 % ellipse (Eq. 4.16) for transmission lobes (the default; viewer/lobe_patterns.py,
+# "Footprint"), A / n for all lobes, or the second moment for all lobes.
+FOOTPRINTS = {"moment": 0, "thesis": 1, "moment-all": 2}
 
 
 class Renderer:
     def __init__(self, ctx: moderngl.Context, bake, supersample: int = 1, exposure: float = 0.0, *,
                  lobe_samples: int | None = None, weights: str = "eq4.25", walkthrough: str = "patterns",
                  samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
-                 blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto"):
+                 blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto",
+                 footprint: str = "moment"):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "eq4.25" or "eq4.24" (walkthrough); walkthrough: a key of
         WALKTHROUGH_METHODS; samples_per_frame, max_frames, blend_frames: the still camera's
         (viewer/progressive.py); mirror_budget: mirror passes per frame at most (planar
         reflectors, viewer/reflectors.py; 0: none, planar objects show their diffuse part);
         planar_pattern: "auto", "ring" or "multi_ring", the walkthrough pattern of isotropic lobes
-        on planar reflectors (viewer/gpu_scene.py; "auto" is the multi-ring)."""
+        on planar reflectors (viewer/gpu_scene.py; "auto" is the multi-ring); footprint: a key of
+        FOOTPRINTS, the filter of each pattern look-up in a cube map."""
         check_context(ctx)
         if walkthrough not in WALKTHROUGH_METHODS:
             raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
+        if footprint not in FOOTPRINTS:
+            raise GlintError(f"unknown look-up footprint {footprint!r}; use one of {', '.join(FOOTPRINTS)}")
         self.ctx = ctx
         self.bake = bake
         self.supersample = supersample
@@ -93,6 +103,7 @@ class Renderer:
         self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
         self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror,
                                    split_sum=self.split_sum)
+        set_uniforms(self.shading.specular, pattern_footprint=FOOTPRINTS[footprint])
         self.resolve = ResolvePass(ctx, defines)
         self.tonemap = TonemapPass(ctx, defines)
         self.progressive = Progressive(ctx, defines, samples_per_frame=samples_per_frame, max_frames=max_frames,
