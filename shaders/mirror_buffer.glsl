@@ -1,11 +1,14 @@
 // Mirror buffers of planar reflectors (section 4.5) as the shading passes read them: the two-step
-// sample projection of section 4.5.2 and the per-pixel MIP level of section 4.5.3. This is the
+// sample projection of section 4.5.2 and the MIP levels of section 4.5.3 (per pixel from the
+// lobe's extremes, or per sample from the projection's texels per steradian). This is the
 // GLSL port of viewer/mirror_projection.py, the float64 numpy reference (tests/test_mirror_pass.py
 // holds the two equal); its docstring states the conventions, in short:
 // - a reflector's mirror buffer was rendered with the mirrored camera's view-projection
-//   VP_m = P V R; world points of the unmirrored scene are projected with VP_m as they are;
-// - uv = ndc * 0.5 + 0.5, texel row 0 = the bottom (GL); the buffer lines up pixel for pixel
-//   with the main view (same size), so P's own pixel holds the mirror direction's radiance;
+//   VP_m = G P V R (G: the guard band, x and y over its scale s >= 1; viewer/reflectors.py);
+//   world points of the unmirrored scene are projected with VP_m as they are;
+// - uv = ndc * 0.5 + 0.5, texel row 0 = the bottom (GL); the buffer has the main view's size and,
+//   for s = 1, lines up with it pixel for pixel (P's own pixel holds the mirror direction's
+//   radiance); a guard band s > 1 shows an s times wider field, s times coarser;
 // - position / normal look-ups are nearest texel, clamped to the edge; a normal shorter than
 //   MIRROR_BACKGROUND_NORMAL marks a texel where nothing was drawn (its radiance is the sky);
 // - no hit of a tangent plane (parallel, or behind P): the direction itself is projected (w = 0),
@@ -76,8 +79,8 @@ float mirror_intersect(vec3 o, vec3 d, vec3 p, vec3 n, out bool hit) {
 
 // One step of the scheme: intersect P + t w with a plane, project the hit, or the direction
 // where there is none (mirror_projection._step).
-vec2 mirror_step(vec3 P, vec3 w, vec3 plane_p, vec3 plane_n, mat4 vp, out bool ok, out bool hit) {
-    float t = mirror_intersect(P, w, plane_p, plane_n, hit);
+vec2 mirror_step(vec3 P, vec3 w, vec3 plane_p, vec3 plane_n, mat4 vp, out bool ok, out bool hit, out float t) {
+    t = mirror_intersect(P, w, plane_p, plane_n, hit);
     return hit ? mirror_project(vp, P + t * w, 1.0, ok) : mirror_project(vp, w, 0.0, ok);
 }
 
@@ -107,28 +110,36 @@ struct MirrorSample {
     bool hit_second;   // step 2 hit the plane seen at step 1's uv
     vec3 plane_p;      // that plane (the still camera averages them): position ...
     vec3 plane_n;      // ... and normal (~0 where step 1's uv showed background)
+    float t;           // the look-up's point is P + t w, in the plane with normal `normal`; 0: at infinity
+    vec3 normal;
 };
 
 MirrorSample mirror_project_sample(vec3 P, vec3 w, mat4 vp, int layer, MirrorCentre c, vec3 plane_p,
                                    vec3 plane_n, bool second_step) {
     MirrorSample s;
     bool ok1, hit1;
-    vec2 uv1 = mirror_step(P, w, plane_p, plane_n, vp, ok1, hit1);
+    float t1;
+    vec2 uv1 = mirror_step(P, w, plane_p, plane_n, vp, ok1, hit1, t1);
     vec2 uv = uv1;
     bool ok = ok1;
     s.at_infinity = !hit1;
+    s.t = t1;
+    s.normal = plane_n;
     s.hit_second = false;
     s.plane_p = vec3(0.0);
     s.plane_n = vec3(0.0);
     if (second_step) {
         mirror_fetch_plane(layer, uv1, s.plane_p, s.plane_n);
         bool ok2, hit2;
-        vec2 uv2 = mirror_step(P, w, s.plane_p, s.plane_n, vp, ok2, hit2);
+        float t2;
+        vec2 uv2 = mirror_step(P, w, s.plane_p, s.plane_n, vp, ok2, hit2, t2);
         bool background = length(s.plane_n) < MIRROR_BACKGROUND_NORMAL;
         if (hit2 || background) {  // a missed (parallel / behind) plane keeps step 1
             uv = uv2;
             ok = ok2;
             s.at_infinity = !hit2;
+            s.t = t2;
+            s.normal = s.plane_n;
         }
         s.hit_second = hit2;
     }
@@ -156,6 +167,43 @@ float mirror_lobe_mip_level(vec3 P, vec3 e0, vec3 e1, vec3 e2, vec3 e3, int n, m
     vec2 uv2 = mirror_project_sample(P, e2, vp, layer, c, c.position, c.normal, true).uv;
     vec2 uv3 = mirror_project_sample(P, e3, vp, layer, c, c.position, c.normal, true).uv;
     return mirror_ellipse_mip_level(uv0, uv1, uv2, uv3, n, size, max_level);
+}
+
+// Buffer texels per steradian of sample direction at the look-up of sample s of direction w
+// (unit) at P: |det| of the map from the directions around w to buffer pixels (section 4.5.3 per
+// sample: the planar counterpart of Eq. 4.16's d^2 / cos). Turning w by d (d . w = 0) moves the
+// point X = P + t w in its plane (normal n) by t (d - (d . n) / (w . n) w), a direction at
+// infinity (t = 0) by d itself; the projection uv = (clip.xy / clip.w) / 2 moves by G dX, G's rows
+// (clip.w A_r - clip_r A_w) / clip.w^2 (A_r: row r of vp's xyz columns). For a 2x3 map with rows
+// g_x, g_y restricted to the plane normal to w, the area factor is |(g_x x g_y) . w|.
+// 0 where the look-up is not valid (the centre's uv stands in). mirror_projection.texels_per_steradian.
+float mirror_texels_per_sr(vec3 P, vec3 w, MirrorSample s, mat4 vp, vec2 size) {
+    bool finite = s.t > 0.0;
+    vec4 clip = vp * (finite ? vec4(P + s.t * w, 1.0) : vec4(w, 0.0));
+    if (!s.valid || !(clip.w > MIRROR_W_EPS))
+        return 0.0;
+    vec3 a_x = vec3(vp[0].x, vp[1].x, vp[2].x);
+    vec3 a_y = vec3(vp[0].y, vp[1].y, vp[2].y);
+    vec3 a_w = vec3(vp[0].w, vp[1].w, vp[2].w);
+    float inv_w2 = 1.0 / (clip.w * clip.w);
+    vec3 g_x = (clip.w * a_x - clip.x * a_w) * (0.5 * size.x * inv_w2);  // pixels per unit of X
+    vec3 g_y = (clip.w * a_y - clip.y * a_w) * (0.5 * size.y * inv_w2);
+    if (finite) {  // times t (I - w n^T / (w . n)): the plane's point follows w (w . n != 0: a hit)
+        float wn = dot(w, s.normal);
+        g_x = s.t * (g_x - (dot(g_x, w) / wn) * s.normal);
+        g_y = s.t * (g_y - (dot(g_y, w) / wn) * s.normal);
+    }
+    return abs(dot(cross(g_x, g_y), w));
+}
+
+// The MIP level of one sample covering `solid_angle` sr of the lobe: log4 of its texels,
+// clamped to the chain; the chain's last level where that is unknown (invalid look-up, overflow).
+// mirror_projection.sample_mip_level.
+float mirror_sample_mip_level(float solid_angle, vec3 P, vec3 w, MirrorSample s, mat4 vp, vec2 size,
+                              float max_level) {
+    float texels = solid_angle * mirror_texels_per_sr(P, w, s, vp, size);
+    bool known = s.valid && !isnan(texels) && !isinf(texels);
+    return known ? clamp(0.5 * log2(max(texels, 1.0)), 0.0, max_level) : max_level;
 }
 
 // Radiance the mirror buffer holds at uv (clamped to its edge: a sample leaving the buffer reads

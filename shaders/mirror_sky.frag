@@ -1,9 +1,10 @@
 // Mirror passes (viewer/passes/mirror.py), after the scene: the sky where the mirror camera saw
 // nothing, drawn as one triangle over the viewport at the far plane (blit.vert with FAR_PLANE,
 // depth test "<=" against the pass's depth: only texels still at the clear depth get it), so
-// look-ups and the MIP chain built next find the sky there. The mirror buffer lines up pixel for
-// pixel with the main view: its pixel p looks along the main camera's ray through p reflected
-// about the mirror plane.
+// look-ups and the MIP chain built next find the sky there. The mirror buffer has the main view's
+// size over a field widened by the pass's guard band (viewer/reflectors.py; the caller scales
+// cam_right and cam_up by its s): its pixel p looks along the main camera's ray through
+// (p - centre) * s + centre reflected about the mirror plane (p itself when s = 1).
 
 #include "common.glsl"
 #include "camera.glsl"

@@ -25,14 +25,16 @@
 // each sample direction is mapped to a buffer position by the two-step tangent-plane projection
 // (4.5.2), starting from the plane of P_R, the point the mirror direction sees.
 // - SPECULAR_PATTERNS: the lobe's planar pattern (multi-ring for isotropic lobes, the lines for
-//   anisotropic ones; viewer/lobe_patterns.py), every sample at the pixel's MIP level: the lobe's
-//   four extreme directions projected the same way span an ellipse in the buffer, whose area over
-//   the sample count is the texels per sample (4.5.3); Eq. 4.25 weights.
+//   anisotropic ones; viewer/lobe_patterns.py), each sample at its own MIP level (4.5.3 per
+//   sample): its share A / n of the lobe's solid angle (Eq. 4.14-4.15) times the buffer's texels
+//   per steradian at its look-up, the Jacobian of the two-step projection (the planar Eq. 4.16;
+//   mirror_buffer.glsl); Eq. 4.25 weights. Split-sum keeps one level from the lobe's four extreme
+//   directions, which span an ellipse in the buffer (planar_lobe_lod).
 // - SPECULAR_QMC: importance samples as for cube maps, unfiltered; step 1 intersects the running
 //   mean of the planes that this pixel's samples were found in so far (all frames of the still
 //   camera; kept in two images) instead of P_R's own plane, so the first projection no longer
 //   jumps with P_R at the depth edges of the mirror image.
-// - SPECULAR_FILTERED_IS: importance samples at the pattern's MIP level (the ellipse over n).
+// - SPECULAR_FILTERED_IS: importance samples, each at its own level for A / n sr (as the patterns).
 // The mirror buffer holds the sky where nothing was drawn; a sample that leaves the buffer reads
 // its edge (clamp to edge): the nearest known radiance, better indoors than the sky. Transmission
 // lobes have no mirror image: a planar object's transmit lobes use its cube map if it has one
@@ -227,37 +229,86 @@ float planar_lobe_lod(SpecularPoint sp, Lobe lobe, int n) {
                                  slot.info.yz, slot.info.x);
 }
 
-// The radiance a sample direction wi (local frame) reads in the mirror buffer: projected by the
-// two steps, step 1 in the plane (plane_p, plane_n).
-vec3 planar_lookup(SpecularPoint sp, vec3 wi, vec3 plane_p, vec3 plane_n, float lod, out MirrorSample ms) {
+// Where a sample direction wi (local frame) reads the mirror buffer: projected by the two steps,
+// step 1 in the plane (plane_p, plane_n).
+MirrorSample planar_project(SpecularPoint sp, vec3 wi, vec3 plane_p, vec3 plane_n) {
     MirrorSlot slot = mirror_slots[sp.mirror];
-    ms = mirror_project_sample(sp.position, sp.frame * wi, slot.view_proj, sp.mirror, sp.centre, plane_p,
-                               plane_n, true);
     mirror_lookups += 1;
+    return mirror_project_sample(sp.position, sp.frame * wi, slot.view_proj, sp.mirror, sp.centre, plane_p,
+                                 plane_n, true);
+}
+
+// The radiance it reads there at MIP level `lod`.
+vec3 planar_lookup(SpecularPoint sp, vec3 wi, vec3 plane_p, vec3 plane_n, float lod, out MirrorSample ms) {
+    ms = planar_project(sp, wi, plane_p, plane_n);
     return mirror_radiance_at(sp.mirror, ms.uv, lod);
 }
 
-// Walkthrough: the lobe's planar pattern, every sample at the lobe's MIP level, Eq. 4.25 (4.24).
-vec3 planar_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
-    float lod = planar_lobe_lod(sp, lobe, max(pattern.y, 1));
+// ... at the sample's own MIP level, for `sample_sr` steradians of the lobe: times the texels per
+// steradian of the projection at its look-up (mirror_sample_mip_level; the planar Eq. 4.16). One
+// level for the whole lobe (planar_lobe_lod) over-blurred wide lobes: their samples see near and
+// far, slanted and facing planes, and the guard band's coarser buffer (viewer/reflectors.py).
+vec3 planar_filtered_lookup(SpecularPoint sp, vec3 wi, vec3 plane_p, vec3 plane_n, float sample_sr,
+                            out MirrorSample ms) {
+    ms = planar_project(sp, wi, plane_p, plane_n);
+    MirrorSlot slot = mirror_slots[sp.mirror];
+    float lod = mirror_sample_mip_level(sample_sr, sp.position, sp.frame * wi, ms, slot.view_proj, slot.info.yz,
+                                        slot.info.x);
+    return mirror_radiance_at(sp.mirror, ms.uv, lod);
+}
+
+// Step 1's plane (4.5.2): the mean of the planes this pixel's samples were found in so far, once
+// there is one; P_R's own before. A wide lobe spans several planes (floor, walls): P_R's alone put
+// step 1 far off for much of it (the blurry aluminium of planar-classes read up to 3 times the
+// ray-cast light), the running mean lands near what a ray cast finds. Still camera, walkthrough
+// and filtered importance sampling all project this way, so they estimate the same integral.
+void step_one_plane(SpecularPoint sp, out vec3 plane_p, out vec3 plane_n) {
+    plane_p = sp.centre.position;
+    plane_n = sp.centre.normal;
+    if (sp.plane_sum_p.w > 0.0) {
+        plane_p = sp.plane_sum_p.xyz / sp.plane_sum_p.w;
+        plane_n = safe_normalize(sp.plane_sum_n, sp.centre.normal);
+    }
+}
+
+// Add the plane a sample's step 2 found to the running mean (its normal turned towards P).
+void add_found_plane(inout SpecularPoint sp, MirrorSample ms) {
+    if (length(ms.plane_n) >= MIRROR_BACKGROUND_NORMAL) {
+        vec3 n = safe_normalize(ms.plane_n, vec3(0.0));
+        sp.plane_sum_p += vec4(ms.plane_p, 1.0);
+        sp.plane_sum_n += dot(n, sp.position - ms.plane_p) < 0.0 ? -n : n;
+    }
+}
+
+// Walkthrough: the lobe's planar pattern, each sample at its own MIP level for A / n of the lobe's
+// solid angle (Eq. 4.14-4.16), Eq. 4.25 (4.24); step 1 in the running mean of the planes found
+// (the pattern's centre sample first: P_R's plane).
+vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern) {
+    float sample_sr = lobe_ellipse_area(sp.wo, lobe) / float(max(pattern.y, 1));  // A' = A / n
     LobeSum sum = LobeSum(vec3(0.0), 0.0);
     MirrorSample ms;
     for (int k = 0; k < pattern.y; ++k) {
         vec3 wi = pattern_direction(sp.wo, pattern_xi[pattern.x + k], lobe);
         if (!on_lobe_side(wi, lobe))
             continue;  // below the horizon: cannot contribute (section 4.4.3)
-        vec3 L = planar_lookup(sp, wi, sp.centre.position, sp.centre.normal, lod, ms);
+        vec3 plane_p, plane_n;
+        step_one_plane(sp, plane_p, plane_n);
+        vec3 L = planar_filtered_lookup(sp, wi, plane_p, plane_n, sample_sr, ms);
+        add_found_plane(sp, ms);
         add_pattern_sample(sum, L, lobe_value(wi, sp.wo, lobe), lobe_pdf(wi, sp.wo, lobe), abs(wi.z));
     }
     return lobe_sum_result(sum);
 }
 
-// Still camera (average_planes: step 1 in the running mean of the planes found so far) and
-// filtered importance sampling (lod_n > 0: every sample at the MIP level of the lobe over lod_n
-// samples): Eq. 4.4 over `count` importance samples.
+// Still camera (over all its frames; unfiltered: unbiased) and filtered importance sampling
+// (`filtered`: each sample at its own MIP level for A / count sr, as the patterns; within the
+// frame): step 1 in the running mean of the planes found so far (step_one_plane); Eq. 4.4 over
+// `count` importance samples. Colbert and Krivanek's 1 / (count p) sr per sample (the cube maps'
+// importance_mip_level) measured worse here: tiles of planar-classes 24 / 31 dB at n = 3 / 7
+// against 30 / 41, the tails' samples of a narrow lobe blurred over the whole buffer.
 vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, int count, uvec2 rotation,
-                                bool average_planes, int lod_n) {
-    float lod = lod_n > 0 ? planar_lobe_lod(sp, lobe, lod_n) : 0.0;  // unfiltered: unbiased
+                                bool filtered) {
+    float sample_sr = filtered ? lobe_ellipse_area(sp.wo, lobe) / float(max(count, 1)) : 0.0;  // A' = A / n
     vec3 sum = vec3(0.0);
     MirrorSample ms;
     for (int k = 0; k < count; ++k) {
@@ -265,17 +316,11 @@ vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, i
         float pdf, weight;
         if (!importance_sample(sp, lobe, first + uint(k), rotation, wi, pdf, weight))
             continue;
-        vec3 plane_p = sp.centre.position, plane_n = sp.centre.normal;
-        if (average_planes && sp.plane_sum_p.w > 0.0) {
-            plane_p = sp.plane_sum_p.xyz / sp.plane_sum_p.w;
-            plane_n = safe_normalize(sp.plane_sum_n, sp.centre.normal);
-        }
-        vec3 L = planar_lookup(sp, wi, plane_p, plane_n, lod, ms);
-        if (average_planes && length(ms.plane_n) >= MIRROR_BACKGROUND_NORMAL) {
-            vec3 n = safe_normalize(ms.plane_n, vec3(0.0));
-            sp.plane_sum_p += vec4(ms.plane_p, 1.0);
-            sp.plane_sum_n += dot(n, sp.position - ms.plane_p) < 0.0 ? -n : n;  // turned towards P
-        }
+        vec3 plane_p, plane_n;
+        step_one_plane(sp, plane_p, plane_n);
+        vec3 L = filtered ? planar_filtered_lookup(sp, wi, plane_p, plane_n, sample_sr, ms)
+                          : planar_lookup(sp, wi, plane_p, plane_n, 0.0, ms);
+        add_found_plane(sp, ms);
         sum += weight * L;
     }
     return sum / float(max(count, 1));
@@ -304,9 +349,9 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
     vec3 L;
     if (planar) {
         if (specular_mode == SPECULAR_QMC)
-            L = planar_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, true, 0);
+            L = planar_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, false);
         else if (specular_mode == SPECULAR_FILTERED_IS)
-            L = planar_importance_estimate(sp, lobe, 0u, pattern.y, R2_CENTRED, false, pattern.y);
+            L = planar_importance_estimate(sp, lobe, 0u, pattern.y, R2_CENTRED, true);
         else
             L = planar_pattern_estimate(sp, lobe, pattern);
     } else if (specular_mode == SPECULAR_QMC) {

@@ -96,7 +96,8 @@ def test_mirror_pass_draws_what_numpy_predicts_and_nothing_behind_the_plane(ctx,
     radiance, position = r.mirror.read(0, "radiance"), r.mirror.read(0, "position")
     normal = r.mirror.read(0, "normal")
     mirror = MirrorCamera(camera, p0, n)
-    vp_m = mirror.view_projection(width / height).astype(np.float64)
+    guard = np.diag([1 / stats["passes"][0]["guard_scale"]] * 2 + [1.0, 1.0])  # test_guard_scale_is_the_lobe_reach
+    vp_m = guard @ mirror.view_projection(width / height).astype(np.float64)
 
     # The red square's centre lands on the texel numpy projects it to, and that texel holds it.
     uv, ok = project(vp_m, red_at)
@@ -154,10 +155,12 @@ def test_mirror_buffer_shows_the_sky_map_along_the_mirrored_rays(ctx, tmp_path):
     r = Renderer(ctx, Bake(tmp_path / "b"))
     r.render(camera, 48, 32)
     radiance, normal = r.mirror.read(0, "radiance"), r.mirror.read(0, "normal")
+    guard = r.stats["mirror"]["passes"][0]["guard_scale"]  # the frustum widened by the lobe's reach
     r.release()
     assert not np.any(normal[..., :3])  # nothing but the sky in this mirror
     cols, rows = np.meshgrid(np.arange(48) + 0.5, np.arange(32) + 0.5)  # GL rows: row 0 at the bottom
     forward, right, up = camera.ray_basis(48 / 32)
+    right, up = right * guard, up * guard
     d = forward + (cols / 48 * 2 - 1)[..., None] * right + (rows / 32 * 2 - 1)[..., None] * up
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
     d -= 2 * (d @ n)[..., None] * n
@@ -295,15 +298,19 @@ def _columns(vp, k):
     return {f"c{j}": np.tile(vp[:, j].astype(np.float32), (k, 1)) for j in range(4)}
 
 
-def test_glsl_projection_matches_numpy(projection_setup):
-    cam, vp_m, pos, nrm, defines = projection_setup
-    rng = np.random.default_rng(11)
-    k = 3000
+def floor_samples(cam, rng, k, spreads):
+    """k points on the mirror floor and lobe-like directions around their mirror directions, each
+    spread by one of `spreads` (some wide, some below the floor)."""
     p = np.c_[rng.uniform(-1.5, 1.5, k), np.zeros(k), rng.uniform(-2.5, 1.0, k)]
     w_r = np.array([mirror_dir(cam, x) for x in p])
-    # Lobe-like directions around the mirror direction, some wide, some below the floor.
-    w = w_r + rng.normal(scale=rng.choice([0.01, 0.05, 0.2], k)[:, None], size=(k, 3))
-    w /= np.linalg.norm(w, axis=1, keepdims=True)
+    w = w_r + rng.normal(scale=rng.choice(spreads, k)[:, None], size=(k, 3))
+    return p, w / np.linalg.norm(w, axis=1, keepdims=True)
+
+
+def test_glsl_projection_matches_numpy(projection_setup):
+    cam, vp_m, pos, nrm, defines = projection_setup
+    k = 3000
+    p, w = floor_samples(cam, np.random.default_rng(11), k, [0.01, 0.05, 0.2])
     for second in (0.0, 1.0):
         ref = project_sample(p, w, vp_m, pos, nrm, second_step=bool(second))
         out = glsl_eval.evaluate("mirror_buffer.glsl", PROJECT_BODY,
@@ -346,6 +353,65 @@ def test_glsl_mip_level_matches_numpy(projection_setup):
     close = np.abs(out["level"] - ref) < 1e-3
     assert close.mean() > 0.98  # the rest: an extreme within a hair of a texel edge (as above)
     print(f"MIP level: {close.mean():.1%} within 1e-3 of numpy, max difference {np.abs(out['level'] - ref).max():.3f}")
+
+
+SAMPLE_MIP_BODY = """
+    mat4 vp = mat4(c0, c1, c2, c3);
+    MirrorCentre c = mirror_centre(P, vp, 0);
+    MirrorSample s = mirror_project_sample(P, w, vp, 0, c, c.position, c.normal, true);
+    texels = mirror_texels_per_sr(P, w, s, vp, size);
+    level = mirror_sample_mip_level(solid_angle, P, w, s, vp, size, max_level);
+"""
+
+
+def test_glsl_per_sample_mip_level_matches_numpy(projection_setup):
+    """The per-sample level (the planar Eq. 4.16): GLSL against numpy, and numpy's texels per
+    steradian against finite differences of the projection itself (uv of w turned by +-h)."""
+    from viewer.mirror_projection import sample_mip_level, texels_per_steradian
+
+    cam, vp_m, pos, nrm, defines = projection_setup
+    rng = np.random.default_rng(13)
+    k = 2000
+    p, w = floor_samples(cam, rng, k, [0.01, 0.1, 0.4])
+    solid_angle = rng.choice([1e-5, 1e-3, 0.05], k)
+    size = (SIZE[0], SIZE[1])
+    proj = project_sample(p, w, vp_m, pos, nrm)
+    ref_texels = texels_per_steradian(p, w, proj, vp_m, size)
+    ref = sample_mip_level(solid_angle, p, w, proj, vp_m, size, 7.0)
+    out = glsl_eval.evaluate("mirror_buffer.glsl", SAMPLE_MIP_BODY,
+                             {"P": p, "w": w, "solid_angle": solid_angle, "size": np.tile([SIZE[1], SIZE[0]], (k, 1)),
+                              "max_level": np.full(k, 7.0), **_columns(vp_m, k)},
+                             {"texels": 1, "level": 1}, defines=defines)
+    assert np.all(np.isfinite(out["texels"])) and np.all(np.isfinite(out["level"]))
+    assert ref.min() == 0 and ref.max() == 7 and np.mean((ref > 0.5) & (ref < 6.5)) > 0.3  # all regimes
+    close = np.abs(out["level"] - ref) < 1e-3
+    assert close.mean() > 0.98, close.mean()  # the rest: a step-1 point within a hair of a texel edge
+    rel = np.abs(out["texels"] - ref_texels) / np.maximum(ref_texels, 1e-9)
+    assert np.mean(rel < 1e-3) > 0.98
+
+    # Independent: the area of the uv image of a small square of directions around w, through the
+    # same two steps with the planes held (project_sample's step-2 plane: finite differences of
+    # the plane intersection and projection), against the Jacobian.
+    sel = proj.valid & (ref_texels > 0)
+    e1 = np.cross(w, (0.3, 1.0, 0.2))
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(w, e1)
+    h = 1e-5
+    finite = proj.t > 0
+
+    def uv_of(d):
+        d = d / np.linalg.norm(d, axis=1, keepdims=True)
+        with np.errstate(divide="ignore", invalid="ignore"):  # at infinity: not used
+            t = np.sum((proj.point - p) * proj.normal, 1) / np.sum(d * proj.normal, 1)
+        uv_pt, _ = project(vp_m, p + t[:, None] * d)
+        uv_dir, _ = project(vp_m, d, 0.0)
+        return np.where(finite[:, None], uv_pt, uv_dir) * np.array([SIZE[1], SIZE[0]])
+
+    j1 = (uv_of(w + h * e1) - uv_of(w - h * e1)) / (2 * h)
+    j2 = (uv_of(w + h * e2) - uv_of(w - h * e2)) / (2 * h)
+    fd = np.abs(j1[:, 0] * j2[:, 1] - j1[:, 1] * j2[:, 0])
+    np.testing.assert_allclose(ref_texels[sel], fd[sel], rtol=1e-4)
+    print(f"per-sample level: {close.mean():.1%} within 1e-3 of numpy; {finite.mean():.0%} of samples in a plane")
 
 
 # -- skipping -------------------------------------------------------------------------------------
@@ -721,3 +787,60 @@ def test_planar_pattern_can_be_forced_to_the_single_ring(ctx, tmp_path):
     assert np.abs(images["ring"] - images["multi_ring"]).max() > 1e-3
     with pytest.raises(GlintError, match="planar pattern"):
         Renderer(ctx, bake, planar_pattern="line_x")
+
+
+def test_guard_scale_is_the_lobe_reach():
+    """The guard band (viewer/reflectors.py): the half fields of view widened by twice the lobe
+    border's half-vector angle (Eq. 4.10: tan theta = sqrt(ln 100) m at normal view), capped at
+    80 degrees, over the view's own, and the scale at 2; written out here from the angles."""
+    from viewer.reflectors import guard_scale, lobe_reach
+
+    cam = ViewCamera.look_at((0, 1, 2), (0, 1, 0), (0, 1, 0), math.radians(62), znear=0.01, zfar=50)
+    for m, aspect in ((0.2, 16 / 9), (0.1, 16 / 9), (0.05, 16 / 9), (0.02, 1.0), (0.0, 2.0)):
+        reach = 2 * math.atan(math.sqrt(math.log(100.0)) * m)
+        assert lobe_reach(m, m / 3) == pytest.approx(reach)
+        half_y = math.radians(31)
+        half_x = math.atan(math.tan(half_y) * aspect)
+        expected = max(math.tan(min(h + reach, math.radians(80))) / math.tan(h) for h in (half_y, half_x))
+        assert guard_scale(cam, aspect, reach) == pytest.approx(min(max(expected, 1.0), 2.0))
+    assert guard_scale(cam, 16 / 9, 0.0) == 1.0  # a mirror lobe: the view's own field
+
+
+def test_wide_lobe_near_the_border_stays_inside_the_guarded_buffer(ctx, tmp_path):
+    """A blurry (m = 0.2) wall seen at the right border of the view: the lobe's importance
+    samples (numpy, bake/bsdf.py) at its pixels project into the pass's buffer (the guard band),
+    where without it a third of their weight left the view."""
+    from viewer.reflectors import guard_scale, lobe_reach
+
+    n = np.array([-1.0, 0.0, 0.0])
+    wall = quad((2.0, 0.0, 1.0), (0.0, 0.0, -3.0), (0.0, 2.0, 0.0))
+    floor = quad((-2.0, 0.0, 1.0), (4.0, 0.0, 0.0), (0.0, 0.0, -3.0))
+    mats = [material("metal", kd=BLACK, lobes=[glossy(m=0.2, r0=0.9, alpha=0.0)]),
+            material("grey", kd=(0.5, 0.5, 0.5), double_sided=True)]
+    bake = planar_bake(tmp_path / "b", [wall, floor], mats, [0, 1], {0: ((2.0, 0.0, 0.0), n)})
+    camera = ViewCamera.look_at((0.0, 1.2, 1.5), (0.6, 0.8, -1.0), (0, 1, 0), math.radians(62), znear=0.01, zfar=50)
+    r = Renderer(ctx, bake)
+    r.render(camera, 64, 36)
+    p = r.mirror.plan_.passes[0]
+    assert p.guard == pytest.approx(guard_scale(camera, 64 / 36, lobe_reach(0.2, 0.2)))
+    r.release()
+    rng = np.random.default_rng(3)
+    P = np.stack([np.full(64, 2.0), rng.uniform(0.3, 1.7, 64), rng.uniform(-1.8, 0.8, 64)], -1)
+    inside = {}
+    for name, vp in (("view", p.camera.view_projection(64 / 36)), ("guarded", p.view_projection(64 / 36))):
+        fractions = []
+        for x in P:
+            t, b = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
+            frame = np.stack([t, b, n], 1)
+            wo = frame.T @ ((camera.eye - x) / np.linalg.norm(camera.eye - x))
+            xi = rng.random((256, 2))
+            wi = bsdf.sample_lobe(wo, xi[:, 0], xi[:, 1], 0.2, 0.2, "reflect")
+            f = bsdf.lobe_value(wi, wo, 0.2, 0.2, 0.9, 0.0, "reflect")
+            pdf = bsdf.lobe_pdf(wi, wo, 0.2, 0.2, "reflect")
+            w = np.where((wi[:, 2] > 0) & (pdf > 0), f * wi[:, 2] / np.maximum(pdf, 1e-30), 0.0)
+            uv, ok = project(vp.astype(np.float64), x + 1.5 * (wi @ frame.T))  # a point 1.5 m along
+            ins = ok & np.all((uv >= 0) & (uv <= 1), axis=-1)
+            fractions.append((w * ins).sum() / w.sum())
+        inside[name] = float(np.mean(fractions))
+    assert inside["view"] < 0.9, inside  # the problem: much of the lobe left the view's own field
+    assert inside["guarded"] > 0.97, inside

@@ -6,8 +6,9 @@ is float64 and vectorised: leading dimensions of points and directions broadcast
 Geometry
 --------
 The mirror buffer of a reflector plane is rendered with the mirrored camera's
-view-projection `VP_m = P @ V @ R` (`viewer.mirror_camera.MirrorCamera.view_projection`):
-R is already inside, so *world* points of the (unmirrored) scene are projected
+view-projection `VP_m = G P V R` (`viewer.reflectors.MirrorPass.view_projection`: the
+mirrored camera's P V R of `viewer.mirror_camera.MirrorCamera.view_projection`, and G
+the guard band, x and y divided by its scale s >= 1): R is already inside, so *world* points of the (unmirrored) scene are projected
 with `VP_m` directly -- do not reflect them again. The buffer's position and
 normal images hold those world points and their world normals.
 
@@ -16,9 +17,11 @@ The mirrored camera sees the unmirrored scene through the plane as through a
 window (its view matrix is V R: a point X is drawn where the real camera would
 see R X), so P_I is looked up at `VP_m P_I`, with no further reflection. For the
 mirror direction w_r = R_lin (P - E) / |P - E| (E the real eye), the mirrored eye
-R E, P and P_R are collinear, and since R P = P, `VP_m P = VP P`: the centre
+R E, P and P_R are collinear, and since R P = P, `P V R P = VP P`: the centre
 (mirror) sample of a reflector pixel reads the mirror buffer at that pixel's own
-screen position.
+screen position when s = 1; with a guard band the buffer shows a field s times
+wider at the same pixel count, so it reads at (uv - 1/2) / s + 1/2 of it, s times
+coarser.
 
 Two-step projection of a lobe sample w at reflector point P (section 4.5.2):
 0. centre: look up the buffer at P's projection -> P_R, n_R (the scene point hit
@@ -55,6 +58,17 @@ axes) with the same two steps; they are taken as the end points of two conjugate
 diameters of an ellipse in the buffer, area pi |a x b| in pixels (a, b the
 semi-diameter vectors; the thesis' pi a b when they are perpendicular), divided
 by the sample count: level = log4(area / n), clamped to [0, max level].
+
+Per sample (`sample_mip_level`, what the shading pass uses): one level for a
+whole lobe over-blurs where the projection stretches unevenly across it (the
+buffer's texels per steradian change with the distance and slant of what each
+sample sees, and with the guard band's coarser texels). So each sample's level
+is its share of the lobe's solid angle (A / n, Eq. 4.14-4.15, or 1 / (n p) for
+filtered importance sampling) times the texels per steradian at its own look-up
+(`texels_per_steradian`, the planar counterpart of Eq. 4.16's d^2 / cos beta):
+the Jacobian of the two-step map w -> uv, taken in the plane that the final step
+hit (X = P + t w moves by t (dw - (dw . n) / (w . n) w)) or, at infinity, of the
+projected direction itself.
 """
 from __future__ import annotations
 
@@ -151,6 +165,8 @@ class SampleProjection:
     hit_first: np.ndarray  # (...) step 1 hit the tangent plane of P_R
     hit_second: np.ndarray  # (...) step 2 hit the plane looked up at uv_first
     uv_centre: np.ndarray  # (..., 2) P projected: where P_R was read
+    t: np.ndarray  # (...) uv's point is P + t w (0: at infinity) ...
+    normal: np.ndarray  # (..., 3) ... in the plane with this normal (the one its step hit)
 
 
 def _step(P, w, plane_p, plane_n, vp):
@@ -160,7 +176,7 @@ def _step(P, w, plane_p, plane_n, vp):
     uv_dir, ok_dir = project(vp, w, 0.0)
     uv = np.where(hit[..., None], uv_pt, uv_dir)
     ok = np.where(hit, ok_pt, ok_dir)
-    return uv, ok, x, hit
+    return uv, ok, x, hit, t
 
 
 def project_sample(P, w, mirror_view_proj, positions: np.ndarray, normals: np.ndarray, *,
@@ -179,23 +195,26 @@ def project_sample(P, w, mirror_view_proj, positions: np.ndarray, normals: np.nd
     p_r = fetch(positions, uv_c) if centre_position is None else np.broadcast_to(_f64(centre_position), P.shape)
     n_r = fetch(normals, uv_c) if centre_normal is None else np.broadcast_to(_f64(centre_normal), P.shape)
 
-    uv1, ok1, x1, hit1 = _step(P, w, p_r, n_r, vp)
+    uv1, ok1, x1, hit1, t1 = _step(P, w, p_r, n_r, vp)
     if second_step:
         p2, n2 = fetch(positions, uv1), fetch(normals, uv1)
-        uv2, ok2, x2, hit2 = _step(P, w, p2, n2, vp)
+        uv2, ok2, x2, hit2, t2 = _step(P, w, p2, n2, vp)
         background = np.linalg.norm(n2, axis=-1) < BACKGROUND_NORMAL
         take = hit2 | background  # a missed (parallel / behind) plane keeps step 1
         uv = np.where(take[..., None], uv2, uv1)
         ok = np.where(take, ok2, ok1)
         x = np.where(hit2[..., None], x2, x1)
         at_inf = np.where(take, ~hit2, ~hit1)
+        t = np.where(take, t2, t1)
+        normal = np.where(take[..., None], n2, n_r)
     else:
-        uv, ok, x, hit2, at_inf = uv1, ok1, x1, np.zeros_like(hit1), ~hit1
+        uv, ok, x, hit2, at_inf, t, normal = uv1, ok1, x1, np.zeros_like(hit1), ~hit1, t1, n_r
     ok = ok & ok_c
     uv = np.where(ok[..., None], uv, uv_c)
     uv1 = np.where((ok1 & ok_c)[..., None], uv1, uv_c)
     return SampleProjection(uv=uv, valid=ok, point=x, at_infinity=at_inf, uv_first=uv1, point_first=x1,
-                            hit_first=hit1, hit_second=hit2, uv_centre=uv_c)
+                            hit_first=hit1, hit_second=hit2, uv_centre=uv_c, t=np.where(at_inf, 0.0, t),
+                            normal=np.broadcast_to(normal, P.shape))
 
 
 # -- MIP level (section 4.5.3) ---------------------------------------------------------------------
@@ -236,6 +255,43 @@ def lobe_mip_level(P, extremes, n_samples: int, mirror_view_proj, positions: np.
     P = _f64(P)[..., None, :]
     proj = project_sample(P, _f64(extremes), mirror_view_proj, positions, normals, second_step=second_step)
     return ellipse_mip_level(proj.uv, n_samples, positions.shape[:2], conjugate=conjugate)
+
+
+def texels_per_steradian(P, w, proj: SampleProjection, mirror_view_proj, size: tuple[int, int]) -> np.ndarray:
+    """Buffer texels per steradian of sample direction at each look-up of `project_sample`
+    (module docstring, "per sample"): |det| of the map from the directions around unit w (...,
+    3) at P to the pixels of the (H, W) buffer; 0 where the look-up is not valid."""
+    vp = _f64(mirror_view_proj)
+    P, w = np.broadcast_arrays(_f64(P), _f64(w))
+    t = proj.t[..., None]
+    finite = t > 0
+    x = np.where(finite, P + t * w, w)
+    clip = np.concatenate([x, finite.astype(np.float64)], axis=-1) @ vp.T
+    cw = clip[..., 3:]
+    ok = proj.valid & (cw[..., 0] > W_EPS)
+    cw = np.where(ok[..., None], cw, 1.0)
+    h, wd = size
+    # d(clip_r / clip_w) / dX = (clip_w A_r - clip_r A_w) / clip_w^2, A: vp's xyz columns
+    g = [(cw * vp[r, :3] - clip[..., r:r + 1] * vp[3, :3]) * (0.5 * s / cw**2) for r, s in ((0, wd), (1, h))]
+    n = proj.normal
+    wn = np.sum(w * n, axis=-1, keepdims=True)
+    wn = np.where(finite & (wn != 0), wn, 1.0)
+    # a point in a plane: dX = t (I - w n^T / (w . n)) dw
+    g = [np.where(finite, t * (gr - np.sum(gr * w, axis=-1, keepdims=True) / wn * n), gr) for gr in g]
+    det = np.abs(np.sum(np.cross(g[0], g[1]) * w, axis=-1))
+    return np.where(ok, det, 0.0)
+
+
+def sample_mip_level(solid_angle, P, w, proj: SampleProjection, mirror_view_proj, size: tuple[int, int],
+                     max_level: float | None = None) -> np.ndarray:
+    """Per-sample MIP level: log4(solid_angle * texels_per_steradian), clamped to [0, max_level]
+    (default: the chain's last level); that last level where the look-up is not valid or the
+    product is not finite."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        texels = _f64(solid_angle) * texels_per_steradian(P, w, proj, mirror_view_proj, size)
+        level = 0.5 * np.log2(np.maximum(np.where(np.isfinite(texels), texels, 1.0), 1.0))
+    top = max_mip_level(size) if max_level is None else max_level
+    return np.where(proj.valid & np.isfinite(texels), np.clip(level, 0.0, top), top)
 
 
 def lobe_extremes(centre, axis_a, axis_b, angle_a, angle_b) -> np.ndarray:

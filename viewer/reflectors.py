@@ -20,6 +20,28 @@ The result is a `MirrorPlan`: `passes` (plane, members, mirrored camera) and
 `skipped` (reflector, reason); `stats()` / `summary()` give "passes run and
 skipped" per reason for `--stats`.
 
+Guard band
+----------
+A lobe sample of a reflector pixel near the border of the view looks past the
+border of a mirror buffer that shows the view's own field: with the buffer
+clamped to its edge, a wide lobe there read the edge texels instead of what
+its directions see (41% of the lobe's f cos / p weight of the blurry aluminium
+panel of planar-classes, m = 0.2; its PSNR stuck at 14-16 dB whatever n). So
+each pass widens its frustum by the reach of its widest lobe (`lobe_reach`:
+twice the half-vector angle of the lobe border, Eq. 4.10, the angle a
+reflected direction turns by at normal view), `guard_scale`: the projection's
+x and y are divided by s >= 1, the buffer keeps its pixel count (coarser by s;
+wide lobes read coarse MIP levels anyway). `MirrorPass.view_projection` is what
+the pass renders and the shaders project with.
+
+s is capped at GUARD_MAX_SCALE = 2: uncapped, the reach gave 1.2 (stone), 2.4
+(tiles) and 6.8 (aluminium) on planar-classes, and the coarser buffer cost the
+glossy tiles 2 dB at n = 3..7 while the aluminium gained nothing over s = 2
+(walkthrough PSNR against one reference for all, converged with the uncapped band
+and 3x finer buffers: tiles 41.2 / 52.1 dB at n = 3 / 7 capped, 39.0 / 50.1
+uncapped; aluminium 15.0 / 17.6 and 14.7 / 17.6; no band: tiles 34.5 / 50.4,
+aluminium 13.0 / 14.4; cap 1.5: aluminium 14.5 / 16.7).
+
 Occlusion queries (the GL side is the renderer's)
 -------------------------------------------------
 The mirror passes run before the G-buffer, so this frame's depth is not there
@@ -48,6 +70,9 @@ from viewer.camera import ViewCamera
 from viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HEIGHT, MirrorCamera, group_coplanar
 
 DEFAULT_BUDGET = 4  # mirror passes per frame
+GUARD_MAX_HALF_ANGLE = np.radians(80.0)  # the widened half field of view at most (tan 80 deg = 5.7)
+GUARD_MAX_SCALE = 2.0  # and the scale at most (module doc: measured on planar-classes)
+XI1_BORDER = 0.01  # the lobe border of Eq. 4.10 (viewer/lobe_patterns.py)
 
 
 class SkipReason(str, enum.Enum):
@@ -67,6 +92,7 @@ class Reflector:
     normal: np.ndarray
     bounds: np.ndarray
     area: float = 0.0
+    reach: float = 0.0  # radians: how far its widest lobe turns from the mirror direction (`lobe_reach`)
 
     def __post_init__(self):
         n = np.asarray(self.normal, np.float64).reshape(3)
@@ -118,10 +144,36 @@ class MirrorPass:
     camera: MirrorCamera
     screen_area: float  # fraction of the screen, [0, 1]
     distance: float  # m, eye to the nearest member's bounds
+    guard: float = 1.0  # the guard band's scale s (module doc, `guard_scale`)
 
     @property
     def names(self) -> list[str]:
         return [r.name for r in self.members]
+
+    def view_projection(self, aspect: float) -> np.ndarray:
+        """float32 world -> clip of the pass: the mirrored camera's P V R with x and y divided by
+        the guard scale (a wider frustum, the same depth)."""
+        guard = np.diag([1.0 / self.guard, 1.0 / self.guard, 1.0, 1.0])
+        return (guard @ self.camera.view_projection(aspect).astype(np.float64)).astype(np.float32)
+
+
+def lobe_reach(mx: float, my: float) -> float:
+    """Radians a reflection lobe's directions turn from its mirror direction at most, at normal
+    view: twice theta_thresh of Eq. 4.10 along its wider axis, atan(sqrt(-ln xi1_border) m)."""
+    m = max(float(mx), float(my), 0.0)
+    return 2.0 * float(np.arctan(np.sqrt(-np.log(XI1_BORDER)) * m))
+
+
+def guard_scale(camera: ViewCamera, aspect: float, reach: float) -> float:
+    """The guard band's scale s >= 1 (module doc): the half fields of view, each widened by
+    `reach` up to GUARD_MAX_HALF_ANGLE, over the view's, the larger of x and y (s keeps the
+    buffer's pixels square), at most GUARD_MAX_SCALE."""
+    ty = float(np.tan(camera.yfov / 2.0))
+    scale = 1.0
+    for t in (ty, ty * float(aspect)):
+        wide = min(float(np.arctan(t)) + max(float(reach), 0.0), GUARD_MAX_HALF_ANGLE)
+        scale = max(scale, float(np.tan(wide)) / t)
+    return min(scale, GUARD_MAX_SCALE)
 
 
 @dataclass
@@ -266,7 +318,8 @@ def plan_mirror_passes(reflectors: Sequence[Reflector], camera: ViewCamera, aspe
         except ValueError:  # the averaged plane passes through the eye: edge-on
             skipped.extend(Skipped(r, SkipReason.BACK_FACING) for r in members)
             continue
-        passes.append(MirrorPass(mirror.point, mirror.normal, members, mirror, screen, dist))
+        guard = guard_scale(camera, aspect, max(r.reach for r in members))
+        passes.append(MirrorPass(mirror.point, mirror.normal, members, mirror, screen, dist, guard))
     return MirrorPlan(passes=passes, skipped=skipped, queries=queries, budget=int(budget),
                       passes_over_budget=over)
 

@@ -20,8 +20,11 @@ Per frame, before the G-buffer:
        position   RGBA32F  xyz world position of the unmirrored scene point (w = 1; 0 = nothing)
        normal     RGBA16F  xyz its unit normal, on the side the mirrored eye sees (0 = nothing)
 
-   at the render size (supersampled), so the buffer lines up pixel for pixel with the main
-   view (viewer/mirror_projection.py states the conventions: texel row 0 = the bottom).
+   at the render size (supersampled), over the mirrored view widened by the pass's guard band
+   (viewer/reflectors.py: x and y of the projection divided by s >= 1, from the reach of its
+   widest lobe, so lobes near the border of the view still find what they see; with s = 1 the
+   buffer lines up pixel for pixel with the main view). viewer/mirror_projection.py states the
+   conventions (texel row 0 = the bottom); the shaders project with the slot's matrix.
    The PassTimer sections are "mirror_passes" (the raster passes and their sky) and
    "mirror_mips" (the MIP chains).
 3. After the G-buffer, `query_occlusion(...)`: one GL_ANY_SAMPLES_PASSED_CONSERVATIVE query
@@ -47,7 +50,7 @@ from viewer.cubemaps import gl_functions
 from viewer.gpu_scene import SKY_MODES
 from viewer.mirror_camera import group_coplanar
 from viewer.passes.gbuffer import KD_TEXTURE_UNIT, LIGHTMAP_UNIT, draw_object, in_frustum
-from viewer.reflectors import (DEFAULT_BUDGET, MirrorPlan, OcclusionResults, Reflector,
+from viewer.reflectors import (DEFAULT_BUDGET, MirrorPlan, OcclusionResults, Reflector, lobe_reach,
                                plan_mirror_passes)
 from viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
 
@@ -87,8 +90,9 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
     for i, entry in enumerate(bake.manifest["objects"]):
         if entry.get("role") != "planar" or not entry.get("triangles", 1):
             continue
-        lobes = materials[int(entry["material"])].get("lobes") or []
-        if not any(lobe.get("kind", "reflect") == "reflect" for lobe in lobes):
+        lobes = [lobe for lobe in materials[int(entry["material"])].get("lobes") or []
+                 if lobe.get("kind", "reflect") == "reflect"]
+        if not lobes:
             continue
         plane = entry.get("plane")
         if plane:
@@ -101,7 +105,8 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
             continue
         name = entry["name"] if entry["name"] not in seen else f"{entry['name']} #{i}"
         seen.add(name)
-        out.append((i, Reflector(name, point, normal, np.asarray(entry["bounds"], np.float64))))
+        reach = max(lobe_reach(lobe.get("mx", 0.0), lobe.get("my", 0.0)) for lobe in lobes)  # the guard band
+        out.append((i, Reflector(name, point, normal, np.asarray(entry["bounds"], np.float64), reach=reach)))
     return out
 
 
@@ -235,7 +240,7 @@ class MirrorPasses:
         for k, p in enumerate(plan.passes):
             for r in p.members:
                 self.object_slots[self.object_of[r.name]] = k
-            slots[k]["view_proj"] = p.camera.view_projection(aspect).astype(np.float32).T  # column-major
+            slots[k]["view_proj"] = p.view_projection(aspect).T  # column-major; with its guard band
             n = np.asarray(p.camera.normal, np.float64)
             slots[k]["plane"] = (*n, -float(n @ p.camera.point))
             slots[k]["info"] = (levels, *self.size, 0.0)
@@ -270,7 +275,7 @@ class MirrorPasses:
         ctx.front_face = p.camera.front_face  # V R mirrors: counter-clockwise faces come out clockwise
         gl.Enable(GL_CLIP_DISTANCE0)
         mirror = p.camera
-        view_proj = mirror.view_projection(aspect)
+        view_proj = p.view_projection(aspect)  # the guard band's wider frustum (viewer/reflectors.py)
         self.raster["view_proj"].write(gl_bytes(view_proj))
         set_uniforms(self.raster, eye=tuple(map(float, mirror.eye)),
                      clip_plane=tuple(map(float, mirror.clip_plane())))
@@ -299,14 +304,16 @@ class MirrorPasses:
             gl.Disable(GL_CLIP_DISTANCE0)
             ctx.front_face = "ccw"
         if sky_map:
-            self._draw_sky(mirror, camera, aspect)
+            self._draw_sky(mirror, camera, aspect, p.guard)
         return {"reflectors": p.names, "objects_drawn": drawn, "triangles": triangles,
                 "objects_behind_plane": behind, "objects_outside_view": culled}
 
-    def _draw_sky(self, mirror, camera: ViewCamera, aspect: float) -> None:
-        """The sky on the texels the scene left at the clear depth (the pass's framebuffer is bound)."""
+    def _draw_sky(self, mirror, camera: ViewCamera, aspect: float, guard: float = 1.0) -> None:
+        """The sky on the texels the scene left at the clear depth (the pass's framebuffer is bound);
+        the rays span the guard band's `guard` times wider frustum."""
         ctx, gl = self.ctx, self._gl
         forward, right, up = camera.ray_basis(aspect)
+        right, up = right * guard, up * guard
         vec = lambda v: tuple(map(float, v))  # noqa: E731
         set_uniforms(self.sky, eye=vec(camera.eye), cam_forward=vec(forward), cam_right=vec(right),
                      cam_up=vec(up), mirror_normal_world=vec(mirror.normal), buffer_size=tuple(self.size),
@@ -416,7 +423,8 @@ class MirrorPasses:
             plan = MirrorPlan(passes=[], skipped=[], queries=[], budget=self.budget)
             self._drawn = []
         out.update({**plan.stats(), "budget": self.budget})
-        out["passes"] = [{**d, "screen_area": round(p.screen_area, 4), "distance_m": round(p.distance, 3)}
+        out["passes"] = [{**d, "screen_area": round(p.screen_area, 4), "distance_m": round(p.distance, 3),
+                          "guard_scale": round(p.guard, 3)}
                          for d, p in zip(self._drawn, plan.passes)]
         out["skipped_reflectors"] = {reason.value: names for reason, names in plan.skipped_by_reason().items()
                                      if names}
