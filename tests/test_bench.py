@@ -43,16 +43,20 @@ def test_files_have_the_expected_rows_and_columns(run):
     regions = {"image", "view-dependent", *(f"material:{c}" for c in CLASSES)}
     assert {r["region"] for r in rows} == regions
     keys = {(r["camera"], r["method"], r["n"], r["region"]) for r in rows}
-    runs = 2 * len(bench.DEFAULT_METHODS) - 1  # split-sum has no n: it runs once, as n = 1
+    one_point = [k for k in bench.DEFAULT_METHODS if bench.METHODS[k].ignores_n]
+    assert one_point == ["patterns-auto", "split-sum"]
+    runs = 2 * len(bench.DEFAULT_METHODS) - len(one_point)  # these have no n: they run once, as n = 1
     assert len(keys) == len(rows) == 1 * runs * len(regions)
     assert {r["method"] for r in rows} == set(bench.DEFAULT_METHODS) and {r["n"] for r in rows} == {"1", "19"}
-    assert {r["n"] for r in rows if r["method"] == "split-sum"} == {"1"}
+    assert {r["n"] for r in rows if r["method"] in one_point} == {"1"}
     data = json.loads((out / "bench.json").read_text())
     assert data["scene"] == "material-classes" and data["size"] == [128, 72]
     assert data["reference"]["samples_per_lobe_and_pixel"] == 256
     assert set(data["methods"]) == set(bench.DEFAULT_METHODS)
     assert len(data["results"]) == runs
     assert [r["prefilter_ms"] > 0 for r in data["results"] if "prefilter_ms" in r] == [True]  # split-sum's
+    auto = [r for r in data["results"] if r["method"] == "patterns-auto"][0]  # n chosen per lobe, not the sweep's
+    assert len(set(auto["samples_per_lobe"])) > 1 and all(1 <= n <= 19 for n in auto["samples_per_lobe"])
     for r in data["results"]:
         assert set(r["regions"]) == regions
         assert r["gpu_ms"]["specular"] > 0 and r["gpu_ms"]["frame"] >= r["gpu_ms"]["specular"]

@@ -84,6 +84,7 @@ class Method:
     planar_pattern: str = "auto"  # Renderer(planar_pattern=...): "ring" forces the single ring on planar lobes
     ignores_n: bool = False  # one look-up per lobe whatever n: run once, reported as n = 1
     footprint: str = "moment"  # Renderer(footprint=...): "thesis" filters each look-up by A / n (Eq. 4.16)
+    auto_samples: bool = False  # Renderer(lobe_samples=None): each lobe's n chosen from its width, as shipped
 
     def samples(self, ns) -> tuple:
         """The n of the sweep this method runs at."""
@@ -95,8 +96,8 @@ class Method:
         if self.walkthrough is None:  # one still-camera frame of n quasi-random samples per lobe
             return Renderer(ctx, bake, supersample=supersample, exposure=exposure, samples_per_frame=n,
                             max_frames=1)
-        return Renderer(ctx, bake, supersample=supersample, exposure=exposure, lobe_samples=n,
-                        weights=self.weights, walkthrough=self.walkthrough, planar_pattern=self.planar_pattern,
+        return Renderer(ctx, bake, supersample=supersample, exposure=exposure,
+                        lobe_samples=None if self.auto_samples else n, weights=self.weights, walkthrough=self.walkthrough, planar_pattern=self.planar_pattern,
                         footprint=self.footprint)
 
     def frame(self, renderer, camera, width: int, height: int) -> None:
@@ -109,6 +110,10 @@ class Method:
 
 METHODS = {m.key: m for m in (
     Method("patterns", "ours: regular patterns + MIP, Eq. 4.25", "patterns", "eq4.25"),
+    # The walkthrough as `glint view` and `glint capture` run it: every lobe's n chosen from its width
+    # (viewer/lobe_patterns.py; JSON samples_per_lobe), so the sweep's n means nothing: one point.
+    Method("patterns-auto", "ours as shipped: n per lobe from its width", "patterns", ignores_n=True,
+           auto_samples=True),
     Method("patterns-eq4.24", "ours with Eq. 4.24 weights", "patterns", "eq4.24"),
     # The thesis' own MIP footprint per cube-map look-up, A / n (Eq. 4.16), that "patterns" replaced.
     Method("patterns-thesis", "ours with the thesis' footprint A / n (Eq. 4.16)", "patterns", footprint="thesis"),
@@ -123,7 +128,7 @@ METHODS = {m.key: m for m in (
     # is made (the JSON's prefilter_ms), then one look-up per lobe and pixel, so n means nothing.
     Method("split-sum", "split-sum prefiltered cube map (game engines, glTF viewers)", "split-sum", ignores_n=True),
 )}
-DEFAULT_METHODS = ("patterns", "patterns-thesis", "patterns-eq4.24", "filtered-is", "qmc", "split-sum")
+DEFAULT_METHODS = ("patterns", "patterns-auto", "patterns-thesis", "patterns-eq4.24", "filtered-is", "qmc", "split-sum")
 PLANNED: dict[str, str] = {}  # methods named but not implemented yet: key -> why
 
 
