@@ -232,7 +232,7 @@ class _Transport:
         normals on the path's side; fbeta: throughput x BSDF value).
 
         Returns [(rows, contributions)] with rows unique within each pair (one pair per light kind)."""
-        tr, lights = self.tracer, self.lights
+        lights = self.lights
         rows, dirs, tmaxs, values = [], [], [], []
 
         area = lights.area

@@ -36,7 +36,6 @@ what failed when a count is not zero or a bound does not hold.
 from __future__ import annotations
 
 import json
-import math
 import os
 import sys
 import time
