@@ -152,23 +152,26 @@ bool on_lobe_side(vec3 wi, Lobe lobe) {
     return int(lobe.ks.a + 0.5) == LOBE_TRANSMIT ? wi.z < 0.0 : wi.z > 0.0;
 }
 
-// Walkthrough: the regular pattern, MIP-filtered, normalised by Eq. 4.25 (or 4.24).
-vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
+// The solid angle each of a pattern's samples filters (its MIP footprint): the thesis' A' = A / n
+// (Eq. 4.16), or the lobe's second moment less the pattern's own spread (lobe_sampling.glsl) for
+// reflection lobes, in cube maps and mirror buffers alike. Transmission lobes keep A / n unless
+// FOOTPRINT_MOMENT_ALL: the moment lost on material-classes' frosted sphere and won on
+// living-room's frosted pane (viewer/lobe_patterns.py, "Footprint").
+float pattern_sample_area(vec3 wo, Lobe lobe, ivec4 pattern) {
     int n = max(pattern.y, 1);
-    float face = cube_map_face_size(sp.cube);
-    // The per-sample footprint: the thesis' A' = A / n (Eq. 4.16), or the lobe's second moment
-    // (lobe_sampling.glsl) for reflection lobes. Transmission lobes keep A / n unless
-    // FOOTPRINT_MOMENT_ALL: the moment lost on material-classes' frosted sphere and won on
-    // living-room's frosted pane (viewer/lobe_patterns.py, "Footprint").
-    float sample_area;
     if (pattern_footprint == FOOTPRINT_MOMENT_ALL || (pattern_footprint == FOOTPRINT_MOMENT && !lobe_is_transmit(lobe))) {
         PatternMoment pm = PatternMoment(0.0, vec2(0.0), vec2(0.0));
         for (int k = 0; k < pattern.y; ++k)
             add_pattern_moment(pm, pattern_xi[pattern.x + k]);
-        sample_area = pattern_footprint_area(pm, n, lobe_ellipse_axes(sp.wo, lobe));
-    } else {
-        sample_area = lobe_ellipse_area(sp.wo, lobe) / float(n);
+        return pattern_footprint_area(pm, n, lobe_ellipse_axes(wo, lobe));
     }
+    return lobe_ellipse_area(wo, lobe) / float(n);
+}
+
+// Walkthrough: the regular pattern, MIP-filtered, normalised by Eq. 4.25 (or 4.24).
+vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
+    float face = cube_map_face_size(sp.cube);
+    float sample_area = pattern_sample_area(sp.wo, lobe, pattern);
     LobeSum sum = LobeSum(vec3(0.0), 0.0);
     for (int k = 0; k < pattern.y; ++k) {
         vec3 wi = pattern_direction(sp.wo, pattern_xi[pattern.x + k], lobe);
@@ -280,11 +283,14 @@ void add_found_plane(inout SpecularPoint sp, MirrorSample ms) {
     }
 }
 
-// Walkthrough: the lobe's planar pattern, each sample at its own MIP level for A / n of the lobe's
-// solid angle (Eq. 4.14-4.16), Eq. 4.25 (4.24); step 1 in the running mean of the planes found
-// (the pattern's centre sample first: P_R's plane).
+// Walkthrough: the lobe's planar pattern, each sample at its own MIP level for its footprint
+// (pattern_sample_area: the second moment; A / n of Eq. 4.14-4.16 with the thesis' footprint) times
+// the projection's texels per steradian, Eq. 4.25 (4.24); step 1 in the running mean of the planes
+// found (the pattern's centre sample first: P_R's plane). With A / n the samples of a wide lobe read
+// levels of 2-6, whose boxes mixed the sky beyond the room into the floor's reflection (the blurry
+// aluminium of planar-classes read 3.7x the ray-cast value on its dim part).
 vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern) {
-    float sample_sr = lobe_ellipse_area(sp.wo, lobe) / float(max(pattern.y, 1));  // A' = A / n
+    float sample_sr = pattern_sample_area(sp.wo, lobe, pattern);
     LobeSum sum = LobeSum(vec3(0.0), 0.0);
     MirrorSample ms;
     for (int k = 0; k < pattern.y; ++k) {
