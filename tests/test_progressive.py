@@ -143,20 +143,27 @@ def test_view_key_and_sequence_bookkeeping(ctx):
         p.release()
 
 
-def test_each_pixel_takes_its_own_samples(ctx, tmp_path):
-    """The per-pixel scramble: in a white furnace, one frame's error is noise from pixel to pixel,
-    not the smooth, shared error of one sample set used everywhere (as the walkthrough does)."""
+def glossy_furnace(tmp_path, *, m: float, r0: float, size):
+    """A black glossy floor (one isotropic lobe) under a constant white cube map, seen from above at
+    `size`: (bake, camera, per-pixel lobe albedo from bake/bsdf.py: the expected radiance)."""
     from bake import bsdf
     from test_specular import constant, pinhole_rays
 
-    spec = lobe(m=(0.3, 0.3), r0=0.5)
+    spec = lobe(m=(m, m), r0=r0)
     bake = specular_bake(tmp_path / "w", [quad((0, 0, 0), (20, 0, 0), (0, 20, 0))],
                          [material(kd=(0, 0, 0), lobes=[spec])], [0], {0: (cube_file(constant(1.0), 8), (0, 0, 0), [])})
     geometry = ((0.0, -1.0, 2.0), (0.0, 0.0, 0.0), (0, 0, 1), math.radians(20))
     cam = ViewCamera.look_at(*geometry, znear=0.01, zfar=100)
-    size = (32, 32)
     albedo = bsdf.lobe_albedo(-pinhole_rays(*geometry, *size), spec["mx"], spec["my"], spec["r0"], spec["alpha"],
                               "reflect", n=2048)
+    return bake, cam, albedo
+
+
+def test_each_pixel_takes_its_own_samples(ctx, tmp_path):
+    """The per-pixel scramble: in a white furnace, one frame's error is noise from pixel to pixel,
+    not the smooth, shared error of one sample set used everywhere (as the walkthrough does)."""
+    size = (32, 32)
+    bake, cam, albedo = glossy_furnace(tmp_path, m=0.3, r0=0.5, size=size)
     with Renderer(ctx, bake, samples_per_frame=2) as r:
         error = frames(r, cam, 1, size)[..., 0] / albedo - 1
     assert error.std() > 0.02  # two samples: noisy
@@ -166,17 +173,8 @@ def test_each_pixel_takes_its_own_samples(ctx, tmp_path):
 
 def test_filtered_importance_walkthrough_in_a_white_furnace(ctx, tmp_path):
     """The comparison method: n importance samples, the same at every pixel, Eq. 4.4 weights."""
-    from bake import bsdf
-    from test_specular import constant, pinhole_rays
-
-    spec = lobe(m=(0.2, 0.2), r0=0.9)
-    bake = specular_bake(tmp_path / "w", [quad((0, 0, 0), (20, 0, 0), (0, 20, 0))],
-                         [material(kd=(0, 0, 0), lobes=[spec])], [0], {0: (cube_file(constant(1.0), 8), (0, 0, 0), [])})
-    geometry = ((0.0, -1.0, 2.0), (0.0, 0.0, 0.0), (0, 0, 1), math.radians(20))
-    cam = ViewCamera.look_at(*geometry, znear=0.01, zfar=100)
     size = (16, 16)
-    albedo = bsdf.lobe_albedo(-pinhole_rays(*geometry, *size), spec["mx"], spec["my"], spec["r0"], spec["alpha"],
-                              "reflect", n=2048)
+    bake, cam, albedo = glossy_furnace(tmp_path, m=0.2, r0=0.9, size=size)
     with Renderer(ctx, bake, walkthrough="filtered-importance", lobe_samples=64) as r:
         r.render(cam, *size)
         linear = r.read_linear()[..., 0]

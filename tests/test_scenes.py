@@ -393,16 +393,22 @@ def test_material_classes_has_one_sphere_per_class_and_a_camera_on_all_four():
     assert chrome["mx"] == chrome["my"] <= 0.05 and chrome["r0"] >= 0.9 and min(chrome["ks"]) >= 0.9
     assert all(lobe["my"] >= 5 * lobe["mx"] for lobe in lobes["Brushed aluminium"])  # anisotropic
     assert [lobe["kind"] for lobe in lobes["Frosted glass"]] == ["transmit", "reflect"]
-    # The one camera sees every sphere's centre inside its frustum (16:9).
+    # The one camera sees every sphere's centre inside its frustum (16:9), with a margin.
+    assert_centres_in_view(doc, meshes, spheres, margin=0.9)
+
+
+def assert_centres_in_view(doc, meshes, nodes, margin=1.0):
+    """The file's one camera sees the bounding-box centre of every node in `nodes` inside `margin`
+    times its 16:9 frustum."""
     world = node_world_matrices(doc)
     (cam_node,) = [n for n in doc["nodes"] if "camera" in n]
     m = world[cam_node["name"]]
     yfov = doc["cameras"][cam_node["camera"]]["perspective"]["yfov"]
-    for node in spheres:
+    for node in nodes:
         local = np.linalg.inv(m) @ np.r_[meshes[node].bounds.mean(axis=0), 1.0]
-        assert local[2] < 0
-        assert abs(local[1] / -local[2]) < math.tan(yfov / 2) * 0.9
-        assert abs(local[0] / -local[2]) < math.tan(yfov / 2) * 16 / 9 * 0.9
+        assert local[2] < 0, node
+        assert abs(local[1] / -local[2]) < math.tan(yfov / 2) * margin, node
+        assert abs(local[0] / -local[2]) < math.tan(yfov / 2) * 16 / 9 * margin, node
 
 
 # -- planar-classes --------------------------------------------------------------------------
@@ -426,12 +432,4 @@ def test_planar_classes_has_four_planar_reflectors_in_four_planes_and_a_camera_o
     assert all(len(v) == 1 and v[0]["mx"] == v[0]["my"] for v in lobes.values())  # isotropic: multi-ring
     assert [lobes[m][0]["mx"] for m in reflectors.values()] == [0.02, 0.05, 0.1, 0.2]
     assert lobes["Blurry aluminium"][0]["r0"] >= 0.9 and lobes["Polished stone"][0]["r0"] == 0.05
-    world = node_world_matrices(doc)
-    (cam_node,) = [n for n in doc["nodes"] if "camera" in n]
-    m = world[cam_node["name"]]
-    yfov = doc["cameras"][cam_node["camera"]]["perspective"]["yfov"]
-    for node in reflectors:
-        local = np.linalg.inv(m) @ np.r_[meshes[node].bounds.mean(axis=0), 1.0]
-        assert local[2] < 0
-        assert abs(local[1] / -local[2]) < math.tan(yfov / 2)
-        assert abs(local[0] / -local[2]) < math.tan(yfov / 2) * 16 / 9
+    assert_centres_in_view(doc, meshes, reflectors)
