@@ -8,7 +8,7 @@ per object in the sidecar (`[objects."NAME"] bounding_planes = false` for none, 
 `{ point = [x, y, z], normal = [x, y, z] }`).
 
 Candidates (`candidate_surfaces`) are the scene's large flat surfaces: every `planar` object
-(its mirror plane, `bake.roles.plane_of`) and every `diffuse` object whose largest coplanar
+(its mirror plane, `glint.core.geometry.plane_of`) and every `diffuse` object whose largest coplanar
 group of faces (the flatness tolerances of bake/roles.py) is at least `LARGE_AREA` and covers
 at least `FLAT_FRACTION` of its area (a wall with a window reveal counts, a sofa does not).
 Their material decides nothing else: a plane stands for geometry, whatever it looks like.
@@ -32,9 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bake.roles import PLANAR_ANGLE_DEG, PLANAR_DISTANCE, PLANAR_RELATIVE, fit_plane, plane_of
-from bake.scene import Object, Scene
-from bake.validate import face_cross
+from glint.core.geometry import PLANAR_ANGLE_DEG, face_cross, fit_plane, flatness_tolerance, plane_of
+from glint.core.scene import Object, Scene
 
 LARGE_AREA = 1.0  # m^2: a diffuse surface smaller than this is furniture, not a bounding plane
 FLAT_FRACTION = 0.8  # of the object's area in its largest coplanar group
@@ -140,8 +139,7 @@ def _flat_part(obj: Object) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         return None
     unit = np.divide(cross, 2 * area[:, None], out=np.zeros_like(cross), where=area[:, None] > 0)
     centre = obj.positions[obj.indices].mean(axis=1)
-    lo, hi = obj.bounds
-    tolerance = max(PLANAR_DISTANCE, PLANAR_RELATIVE * float(np.linalg.norm(hi - lo)))
+    tolerance = flatness_tolerance(obj)
     cos_max = np.cos(np.radians(PLANAR_ANGLE_DEG))
 
     def members_of(point, normal):

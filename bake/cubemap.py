@@ -6,7 +6,8 @@ six 90-degree faces, HDR, with the distance from the centre to the visible surfa
 (for the bounding-plane and parallax look-ups). Only `curved` and `transmissive` objects get
 one; `diffuse` objects need none and `planar` ones use mirror passes (section 4.5).
 
-Rendering: the viewer's own renderer (viewer/renderer.py) on a headless EGL context, reading
+Rendering (glint/cubemap_stage.py, above both the bake and the viewer, which the pipeline is
+handed): the viewer's own renderer (viewer/renderer.py) on a headless EGL context, reading
 the bake directory written so far (meshes and light maps), so a cube map shows exactly what
 the viewer would. It renders the scene *diffuse*: kd/pi E (Eq. 4.1) plus emission, every lobe
 left out, as the thesis renders "the light-mapped scene". No cube map then depends on another
@@ -26,7 +27,7 @@ vertically in the GL order above, each S x S with its first row at t = 0 and fir
 s = 0 (viewer/cubemaps.py reads it). RGB is radiance W/(m^2 sr); A is the distance in metres
 from the centre along the texel's direction to the visible surface (the mean over its 2 x 2
 supersamples), `SKY_DISTANCE` where only sky shows. Half float unless a value does not fit,
-then float32 (glint.image_io); never Inf.
+then float32 (glint.core.image_io); never Inf.
 
 Face size S (`automatic_size`), a power of two in `AUTO_SIZE_RANGE`, the smaller of two needs:
 - the narrowest lobe: Eq. 4.10 with xi1_border = 0.01 bounds the half vector within
@@ -54,17 +55,14 @@ llvmpipe.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
-from bake import hashing
-from bake.bounding_planes import BoundingPlane, candidate_surfaces, choose_planes, override_planes
-from bake.bsdf import M_MIN
-from bake.scene import Material, Object, Scene
+from glint.bake import hashing
+from glint.bake.bounding_planes import BoundingPlane, candidate_surfaces, choose_planes, override_planes
+from glint.core.bsdf import M_MIN
+from glint.core.scene import Material, Object, Scene
 
 CUBEMAP_ROLES = ("curved", "transmissive")
 # GL_TEXTURE_CUBE_MAP_POSITIVE_X + k: (name, camera forward, camera up)
@@ -144,62 +142,3 @@ def plan_cubemaps(scene: Scene, transport: str) -> list[CubeMapPlan]:
                        "sky_distance": SKY_DISTANCE}})
         plans.append(plan)
     return plans
-
-
-def diffuse_view(manifest: dict) -> dict:
-    """The manifest as the cube-map renders see it: no lobes, no cube maps (module docstring)."""
-    return {**manifest, "materials": [{**m, "lobes": []} for m in manifest["materials"]],
-            "objects": [{**o, "cubemap": None} for o in manifest["objects"]]}
-
-
-def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
-                    progress: Callable[[], None] | None = None) -> dict:
-    """Render `plans` from the bake in `bake_dir` (manifest, meshes and light maps written) into
-    its cubemaps/ folder; returns statistics (seconds, device)."""
-    from bake.bake_dir import Bake
-    from viewer.context import describe, headless_context
-    from viewer.renderer import Renderer
-
-    t0 = time.perf_counter()
-    bake = Bake(bake_dir)
-    bake.manifest = diffuse_view(bake.manifest)
-    ctx = headless_context()
-    try:
-        with Renderer(ctx, bake, supersample=SUPERSAMPLE) as renderer:
-            lo, hi = renderer.scene.bounds
-            for plan in plans:
-                # far enough for the farthest corner of the scene, seen from the centre
-                far = float(np.linalg.norm(np.maximum(np.abs(lo - plan.centre), np.abs(hi - plan.centre))))
-                faces = render_faces(renderer, plan.centre, plan.size, plan.hidden, far=max(far, 1e-9))
-                write_cubemap(Path(bake_dir) / plan.file, faces)
-                if progress is not None:
-                    progress()
-        device = describe(ctx)
-    finally:
-        ctx.release()
-    return {"seconds": round(time.perf_counter() - t0, 3), "device": device}
-
-
-def render_faces(renderer, centre, size: int, hidden=(), *, far: float) -> np.ndarray:
-    """(6, S, S, 4) float32: radiance and distance of the six faces in GL order, row 0 at t = 0;
-    `far`: the distance from the centre to the farthest point to show."""
-    from viewer.camera import ViewCamera
-
-    faces = np.zeros((6, size, size, 4), np.float32)
-    for k, (_, forward, up) in enumerate(FACES):
-        camera = ViewCamera(eye=centre, forward=forward, up=up, yfov=math.pi / 2,
-                            znear=NEAR_PER_FAR * far, zfar=FAR_MARGIN * far)
-        renderer.render(camera, size, size, hidden_objects=hidden)
-        faces[k, ..., :3] = renderer.read_linear()[::-1]  # bottom row first: GL's t = 0
-        distance = renderer.read_distance()[::-1]
-        faces[k, ..., 3] = np.where(np.isfinite(distance), distance, SKY_DISTANCE)
-    return faces
-
-
-def write_cubemap(path: Path, faces: np.ndarray) -> str:
-    """The six faces stacked vertically into one RGBA OpenEXR; returns "half" or "float"."""
-    from glint.image_io import write_image
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    size = faces.shape[1]
-    return write_image(path, faces.reshape(6 * size, size, 4), channels=("R", "G", "B", "A"))

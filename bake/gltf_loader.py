@@ -1,4 +1,4 @@
-"""glTF 2.0 (.gltf + .bin, or .glb) + optional sidecar -> `bake.scene.Scene`.
+"""glTF 2.0 (.gltf + .bin, or .glb) + optional sidecar -> `glint.core.scene.Scene`.
 
 The file is read here, not with `trimesh.load`: trimesh keeps only the first
 camera (and drops the camera node's subtree), loses which glTF material and
@@ -39,14 +39,19 @@ from pathlib import Path
 
 import numpy as np
 
-from bake.material_mapping import MATERIAL_EXTENSIONS, apply_override, material_from_gltf
-from bake.roles import assign_roles
-from bake.scene import (Camera, DirectionalLight, Material, Object, PointLight, Scene,
-                        SpotLight)
-from bake.sidecar import read_sidecar
-from bake.validate import (add_warning, check_finite_positions, degenerate_triangles,
-                           face_cross, repair_normals, validate_scene)
-from glint.errors import GlintError
+from glint.bake.material_mapping import MATERIAL_EXTENSIONS, apply_override, material_from_gltf
+from glint.bake.roles import assign_roles
+from glint.bake.sidecar import read_sidecar
+from glint.bake.validate import (
+    add_warning,
+    check_finite_positions,
+    degenerate_triangles,
+    repair_normals,
+    validate_scene,
+)
+from glint.core.errors import GlintError
+from glint.core.geometry import face_cross
+from glint.core.scene import Camera, DirectionalLight, Material, Object, PointLight, Scene, SpotLight
 
 LUMENS_PER_WATT = 683.0  # luminous efficacy that defines the candela
 SUPPORTED_EXTENSIONS = frozenset(("KHR_lights_punctual", "KHR_mesh_quantization")

@@ -17,7 +17,7 @@ import json
 
 import numpy as np
 
-from bake.scene import Scene
+from glint.core.scene import Scene
 
 # Bump when the integrator or the unwrap changes what they produce.
 GEOMETRY_VERSION = 1

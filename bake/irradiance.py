@@ -43,9 +43,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bake.lights import LightSet, luminance
-from bake.raytrace import RayTracer
-from bake.scene import Scene
+from glint.bake.lights import LightSet, luminance
+from glint.bake.raytrace import RayTracer
+from glint.core.scene import Scene
 
 BATCH_PATHS = 1 << 16  # paths traced together: bounds memory (~1 kB per path); 2^14..2^18 measured equal
 MAX_FILTERS = 4  # transmissive surfaces a shadow ray may pass before it counts as blocked

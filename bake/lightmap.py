@@ -9,12 +9,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bake.dilate import dilate
-from bake.executor import LocalExecutor
-from bake.irradiance import compute_irradiance
-from bake.raytrace import RayTracer
-from bake.scene import Scene
-from bake.texels import TexelPage
+from glint.bake.dilate import dilate
+from glint.bake.executor import LocalExecutor
+from glint.bake.irradiance import compute_irradiance
+from glint.bake.raytrace import RayTracer
+from glint.bake.texels import TexelPage
+from glint.core.scene import Scene
 
 TILE = 2048  # texels per job: small enough for a smooth progress bar, big enough to amortise numpy
 
@@ -82,7 +82,7 @@ def _fill(image: np.ndarray, valid: np.ndarray, settings) -> np.ndarray:
     grow = settings.padding + 2
     image = dilate(image, valid, grow)
     if settings.denoise and valid.any():
-        from bake.denoise import denoise_lightmap
+        from glint.bake.denoise import denoise_lightmap
 
         image = dilate(np.where(valid[..., None], denoise_lightmap(image), 0.0), valid, grow)
     return np.ascontiguousarray(image, dtype=np.float32)

@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from bake.raytrace import RayTracer
-from bake.scene import Scene, Sky
+from glint.bake.raytrace import RayTracer
+from glint.core.scene import Scene, Sky
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance
 

@@ -39,7 +39,7 @@ Overrides
 ---------
 A material's `extras.glint` and the sidecar's `[materials."NAME"]` may give any
 of `kd` (RGB or grey number), `emission`, `lobes` (list of {kind, ks, mx, my, r0,
-alpha}, or `m` for mx = my; missing keys take `bake.scene.Lobe`'s defaults).
+alpha}, or `m` for mx = my; missing keys take `glint.core.scene.Lobe`'s defaults).
 The sidecar wins over extras, extras win over the rule above; `lobes` replaces
 the whole list. `kd` still multiplies a base colour texture.
 """
@@ -49,9 +49,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bake.scene import Lobe, Material
-from bake.validate import add_warning, check_number, check_rgb, warn_unknown_keys
-from glint.errors import GlintError
+from glint.bake.validate import add_warning, check_number, check_rgb, warn_unknown_keys
+from glint.core.errors import GlintError
+from glint.core.scene import Lobe, Material
 
 DIFFUSE_ROUGHNESS = 0.5
 MIN_M = 1e-4

@@ -12,17 +12,18 @@ import hashlib
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
-from bake import hashing
-from bake.bake_dir import (FORMAT_VERSION, BakeDirWriter, load_meshes, read_manifest,
-                           save_meshes, write_json)
-from bake.cubemap import CubeMapPlan, plan_cubemaps, render_cubemaps
-from bake.scene import Scene
-from bake.settings import BakeSettings
-from bake.skipped import bake_record
-from glint.image_io import write_image
+from glint.bake import hashing
+from glint.bake.cubemap import CubeMapPlan, plan_cubemaps
+from glint.bake.settings import BakeSettings
+from glint.core.bake_dir import FORMAT_VERSION, BakeDirWriter, load_meshes, read_manifest, save_meshes, write_json
+from glint.core.errors import GlintError
+from glint.core.image_io import write_image
+from glint.core.scene import Scene
+from glint.core.skipped import bake_record
 
 
 @dataclass
@@ -60,7 +61,7 @@ def source_hash(scene: Scene) -> str:
 
 def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     """The part of the manifest the viewer reads besides the light maps (JSON-ready)."""
-    from bake.roles import plane_of
+    from glint.core.geometry import plane_of
 
     def vec(v):
         return [float(x) for x in np.asarray(v).ravel()]
@@ -99,8 +100,18 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
             "cameras": cameras, "camera_paths": paths}
 
 
+# Renders cube-map plans into a bake directory written so far; returns statistics
+# (glint/cubemap_stage.py render_cubemaps: it needs the viewer's renderer, so the bake is handed it).
+CubeMapRenderer = Callable[..., dict]
+
+
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
-               progress: bool = True) -> BakeReport:
+               progress: bool = True, render_cubemaps: CubeMapRenderer | None = None) -> BakeReport:
+    """Bake `scene` into `bake_dir`, redoing only the stages whose inputs changed.
+
+    `render_cubemaps` renders the cube maps that need rendering (glint.services.bake passes
+    glint.cubemap_stage.render_cubemaps); a scene that needs a new cube map without one is an error.
+    """
     old = None if force else read_manifest(bake_dir)
     geometry = hashing.geometry_hash(scene, settings)
     transport = hashing.transport_hash(scene, settings, geometry)
@@ -137,11 +148,12 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
             manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
                                                           bake_dir if reuse_geometry else None))
             status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
-        manifest["statistics"]["cubemaps"] = _cubemaps(cubemaps, old, bake_dir, out, manifest, progress)
+        manifest["statistics"]["cubemaps"] = _cubemaps(cubemaps, old, bake_dir, out, manifest, progress,
+                                                      render_cubemaps)
         if manifest["statistics"]["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status
             redone.append("cube maps")
-        # What this bake redid and reused, for later commands that find it up to date (bake/skipped.py).
+        # What this bake redid and reused, for later commands that find it up to date (core/skipped.py).
         manifest["statistics"]["last_bake"] = bake_record(status, old, manifest, manifest["statistics"]["cubemaps"],
                                                           forced=force)
         write_json(out.path / "manifest.json", manifest)
@@ -150,7 +162,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
 
 
 def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: BakeDirWriter, manifest: dict,
-              progress: bool) -> dict:
+              progress: bool, render_cubemaps: CubeMapRenderer | None) -> dict:
     """Carry over the cube maps whose inputs did not change, render the others (bake/cubemap.py)."""
     from tqdm import tqdm
 
@@ -164,6 +176,9 @@ def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: Ba
     stats = {"count": len(plans), "rendered": len(todo), "reused": len(plans) - len(todo), "seconds": 0.0,
              "texels": int(sum(6 * p.size ** 2 for p in todo))}
     if todo:
+        if render_cubemaps is None:
+            raise GlintError(f"{len(todo)} cube map(s) to render but no cube-map renderer was given "
+                             "(bake through glint.services.bake)")
         write_json(out.path / "manifest.json", manifest)  # the renderer reads the bake written so far
         with tqdm(total=len(todo), desc="cube maps", unit="map", disable=not progress, leave=False) as bar:
             stats.update(render_cubemaps(out.path, todo, progress=bar.update))
@@ -183,8 +198,8 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
                                  old_dir: Path | None) -> dict:
     from tqdm import tqdm
 
-    from bake.lightmap import bake_lightmaps
-    from bake.texels import rasterize_texels
+    from glint.bake.lightmap import bake_lightmaps
+    from glint.bake.texels import rasterize_texels
 
     t0 = time.perf_counter()
     with tqdm(total=2, desc="unwrap", unit="step", disable=not progress, leave=False) as bar:
@@ -221,7 +236,7 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
 
 def _atlas(scene: Scene, settings: BakeSettings, path: Path, old_dir: Path | None):
     """Unwrap with xatlas, or, when the geometry did not change, read the charts of the last bake."""
-    from bake.unwrap import Atlas, ObjectCharts, unwrap
+    from glint.bake.unwrap import Atlas, ObjectCharts, unwrap
 
     if old_dir is not None:
         old = read_manifest(old_dir)["atlas"]

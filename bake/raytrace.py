@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 from embreex import mesh_construction, rtcore_scene
 
-from bake.scene import Scene
+from glint.core.scene import Scene
 
 EPS_REL = 4e-6  # ray offset per unit of vertex coordinate magnitude (see module docstring)
 T_INFINITE = 1e30

@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 from dataclasses import asdict, dataclass, fields, replace
 
-from glint.errors import GlintError
+from glint.core.errors import GlintError
 
 # samples: hemisphere paths per texel; texels_per_metre: light-map resolution.
 # Measured times per preset are in docs/BAKE.md.

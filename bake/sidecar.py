@@ -47,13 +47,15 @@ from pathlib import Path
 
 import numpy as np
 
-from bake.bounding_planes import MAX_PLANES
-from bake.material_mapping import DIFFUSE_ROUGHNESS, parse_material_override
-from bake.scene import ROLES, Camera, CameraPath, Sky
-from bake.settings import BakeSettings
-from bake.validate import check_number as _number, check_rgb as _rgb, check_vec3 as _vec3
-from bake.validate import warn_unknown_keys as _unknown
-from glint.errors import GlintError
+from glint.bake.bounding_planes import MAX_PLANES
+from glint.bake.material_mapping import DIFFUSE_ROUGHNESS, parse_material_override
+from glint.bake.settings import BakeSettings
+from glint.bake.validate import check_number as _number
+from glint.bake.validate import check_rgb as _rgb
+from glint.bake.validate import check_vec3 as _vec3
+from glint.bake.validate import warn_unknown_keys as _unknown
+from glint.core.errors import GlintError
+from glint.core.scene import ROLES, Camera, CameraPath, Sky
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -304,7 +306,7 @@ def _sky(table, path: Path, w: list[str]) -> Sky:
 
 def read_sky_map(path: Path, where: str = "sky map") -> np.ndarray:
     """An equirectangular EXR/HDR/... -> (H, W, 3) float32 linear RGB, via OpenImageIO."""
-    from glint.image_io import read_image
+    from glint.core.image_io import read_image
 
     pixels = read_image(path, where)
     if pixels.shape[2] < 3:

@@ -30,7 +30,7 @@ class TexelPage:
 
 
 def rasterize_texels(objects, atlas) -> list[TexelPage]:
-    """One `TexelPage` per atlas page for `objects` (list of `bake.scene.Object`) and their `atlas`."""
+    """One `TexelPage` per atlas page for `objects` (list of `glint.core.scene.Object`) and their `atlas`."""
     W, H = atlas.width, atlas.height
     # All charted triangles of the scene, in (object, triangle) order.
     tri_obj, tri_idx, tri_uv, tri_page = [], [], [], []

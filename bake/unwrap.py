@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glint.errors import GlintError, warn
+from glint.core.errors import GlintError, warn
 
 # More pages than this means the density is far too high for the scene: refuse
 # rather than spend minutes packing and gigabytes baking.
@@ -103,7 +103,7 @@ def _pack_options(texels_per_unit: float, padding: int, page_size: int):
 
 
 def unwrap(objects, texels_per_metre: float, padding: int = 2, max_page_size: int = 2048) -> Atlas:
-    """Charts for every object (list of `bake.scene.Object`) in one atlas of equal pages."""
+    """Charts for every object (list of `glint.core.scene.Object`) in one atlas of equal pages."""
     if not texels_per_metre > 0:
         raise GlintError(f"texels per metre must be positive (got {texels_per_metre})")
     if not objects:

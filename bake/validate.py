@@ -12,7 +12,8 @@ import math
 
 import numpy as np
 
-from glint.errors import GlintError, warn
+from glint.core.errors import GlintError, warn
+from glint.core.geometry import face_cross
 
 # A triangle is degenerate when its area is below this fraction of the square of
 # its object's bounding-box diagonal (1e-12 * (10 m)^2 = 1e-10 m^2), or when two of
@@ -34,12 +35,6 @@ def check_finite_positions(name: str, positions: np.ndarray, source: str) -> Non
             f"{source}: object '{name}' has {int(bad.sum())} vertex position(s) that are "
             f"NaN or infinite (first at vertex {int(np.argmax(bad))}); fix or remove it "
             f"in the modelling tool and export again")
-
-
-def face_cross(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
-    """(M, 3) cross products of triangle edges: direction = face normal, length = 2 * area."""
-    p = positions[indices]
-    return np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
 
 
 def degenerate_triangles(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:

@@ -4,7 +4,7 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-from glint.errors import GlintError
+from glint.core.errors import GlintError
 
 BUILTIN = {
     "cornell-box": ("cornell-box.glb", "Mitsuba 3's mitsuba.cornell_box(), for pixel-by-pixel comparison"),

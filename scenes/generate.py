@@ -1,4 +1,4 @@
-"""Generate the built-in scenes: `python3 -m scenes.generate [OUTDIR]` (default: this package).
+"""Generate the built-in scenes: `python3 -m glint.scenes.generate [OUTDIR]` (default: this package).
 
 Writes cornell-box.glb, living-room.glb, material-classes.glb, planar-classes.glb and their sidecars. The output
 is deterministic (vertex data rounded to 1e-6 before it becomes float32, PNGs
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bake.gltf_writer import GltfWriter
-from scenes import teapot
+from glint.scenes import teapot
+from glint.scenes.gltf_writer import GltfWriter
 
 HERE = Path(__file__).resolve().parent
 GENERATOR = "glint scenes/generate.py"

@@ -1,15 +1,15 @@
 """Stress scenes for `glint bench --stress` (issue 6): glTF files at the edges of what glint takes.
 
-    from scenes import stress
+    from glint.scenes import stress
     case = stress.materials(out_dir, spheres=9)       # -> StressScene(name, path, ...)
     cases = stress.build(out_dir, "reduced")           # every case at the CI machine's size
 
-Each case is one small function writing NAME.glb (bake/gltf_writer.py, as scenes/generate.py
+Each case is one small function writing NAME.glb (scenes/gltf_writer.py, as scenes/generate.py
 writes the built-ins) and NAME.glint.toml (exact lobes, roles, cameras, a camera path, bake
 settings) into a directory, with size parameters; `SIZES` holds the full size the issue asks for
 and the reduced one the CI machine affords. What each case states for its checks (the brightest
 emitter's radiance, an exact expected radiance, a reference case to compare with) travels in
-`StressScene`; viewer/stress.py bakes, renders and checks them.
+`StressScene`; bench/stress.py bakes, renders and checks them.
 
 Cases:
     materials   spheres (curved: cube maps) and panels (planar: mirror passes) at the BSDF's
@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bake.gltf_writer import GltfWriter
-from scenes.generate import Mesh, box, checker_texture, quad, uv_sphere
+from glint.scenes.generate import Mesh, box, checker_texture, quad, uv_sphere
+from glint.scenes.gltf_writer import GltfWriter
 
 GENERATOR = "glint scenes/stress.py"
 LAMP_RADIANCE = 12.0       # W/(m^2 sr): the ordinary ceiling lamp of the rooms

@@ -1,10 +1,10 @@
 // The section 3.3 material model on the GPU: Kurt et al.'s anisotropic Beckmann lobes (Eq. 3.3-3.4),
 // the thin-surface transmission lobe (Eq. 3.5) and their importance sampling (Eq. 4.5-4.9).
-// This is the GLSL mirror of bake/bsdf.py, the numpy reference: same formulas, same guards, same
-// constants (tests/test_bsdf_glsl.py holds the two equal). Read bake/bsdf.py's docstring for why
+// This is the GLSL mirror of core/bsdf.py, the numpy reference: same formulas, same guards, same
+// constants (tests/test_bsdf_glsl.py holds the two equal). Read core/bsdf.py's docstring for why
 // each guard is where it is; the comments here only say where the GLSL differs.
 //
-// Conventions (as bake/bsdf.py): directions are in the local shading frame (t, b, n) = (x, y, z);
+// Conventions (as core/bsdf.py): directions are in the local shading frame (t, b, n) = (x, y, z);
 // wo points to the viewer, wi to the light, both away from the surface; wo.z >= 0. Values are
 // scalars without ks (the caller multiplies by lobe.ks.rgb). Reflection needs wi.z >= 0,
 // transmission wi.z <= 0; everything else is 0.
@@ -12,13 +12,13 @@
 #include "common.glsl"
 #include "materials.glsl"
 
-// The guards of bake/bsdf.py, same values.
+// The guards of core/bsdf.py, same values.
 const float M_MIN = 1e-4;      // roughness floor: mx = 0 would divide by zero in Eq. 3.3
 const float HZ_MIN = 1e-7;     // cos(theta_h) floor inside D (Eq. 3.3): finite exponent and cos^4
 const float DOT_MIN = 1e-12;   // wo.h floor in the denominators of Eq. 3.4 and 4.9
 const float COS_MIN = 1e-4;    // cosine floor in Kurt's ((wi.n)(wo.n))^alpha (Eq. 3.4)
 const float HALF_MIN = 1e-30;  // |wi + wo| below this: no half vector (wi = -wo)
-// bake/bsdf.py clamps xi1 at 1e-38, which float32 holds only as a subnormal that GPUs may flush
+// core/bsdf.py clamps xi1 at 1e-38, which float32 holds only as a subnormal that GPUs may flush
 // to 0 (then -log(xi1) = inf); the GLSL uses the smallest normal float, 2^-126, instead.
 const float XI_MIN = 1.17549435e-38;
 
@@ -101,7 +101,7 @@ float lobe_phi_factor(vec2 cs, float mx, float my) {
 }
 
 // (cos, sin)(phi_h) of Eq. 4.5 / 4.12, phi_h = arctan(my/mx tan(2 pi xi2)). Written as
-// atan2(my sin(2 pi xi2), mx cos(2 pi xi2)) it keeps the quadrant (as bake/bsdf.py); its cosine and
+// atan2(my sin(2 pi xi2), mx cos(2 pi xi2)) it keeps the quadrant (as core/bsdf.py); its cosine and
 // sine are then just that vector normalised, which skips an atan/cos/sin round trip.
 vec2 lobe_phi(float xi2, float mx, float my) {
     float a = 2.0 * PI * xi2;

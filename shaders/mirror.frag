@@ -1,7 +1,7 @@
 // Mirror pass of a planar reflector (section 4.5.1), fragments: the diffuse scene seen in the
 // mirror -- light-mapped diffuse + emission only (the last bounce alone is view-dependent) -- and
 // the world position and normal of the *unmirrored* scene point, which the sample projection of
-// section 4.5.2 intersects rays with (viewer/mirror_projection.py). Layout: viewer/passes/mirror.py.
+// section 4.5.2 intersects rays with (bench/mirror_projection.py). Layout: viewer/passes/mirror.py.
 // Vertex side: gbuffer.vert with MIRROR_CLIP (clipped at the mirror plane).
 
 #include "raster_surface.glsl"

@@ -1,7 +1,7 @@
 // Mirror buffers of planar reflectors (section 4.5) as the shading passes read them: the two-step
 // sample projection of section 4.5.2 and the MIP levels of section 4.5.3 (per pixel from the
 // lobe's extremes, or per sample from the projection's texels per steradian). This is the
-// GLSL port of viewer/mirror_projection.py, the float64 numpy reference (tests/test_mirror_pass.py
+// GLSL port of bench/mirror_projection.py, the float64 numpy reference (tests/test_mirror_pass.py
 // holds the two equal); its docstring states the conventions, in short:
 // - a reflector's mirror buffer was rendered with the mirrored camera's view-projection
 //   VP_m = G P V R (G: the guard band, x and y over its scale s >= 1; viewer/reflectors.py);

@@ -30,7 +30,7 @@ vec3 cube_texel_direction(int face, ivec2 texel, int size) {
     return normalize(d);
 }
 
-// Point i of n of the Hammersley set ((i + 1/2) / n, radical inverse of i), as bake/bsdf.py
+// Point i of n of the Hammersley set ((i + 1/2) / n, radical inverse of i), as core/bsdf.py
 // qmc_points: xi1 is never 0.
 vec2 hammersley(uint i, uint n) {
     return vec2((float(i) + 0.5) / float(n), float(bitfieldReverse(i)) * 2.3283064365386963e-10);

@@ -1,4 +1,4 @@
-"""Shared fixtures: small glTF scenes written with bake/gltf_writer.py."""
+"""Shared fixtures: small glTF scenes written with scenes/gltf_writer.py."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bake.gltf_writer import GltfWriter
+from glint.scenes.gltf_writer import GltfWriter
 
 
 def quad(center, u, v):

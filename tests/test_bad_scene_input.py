@@ -5,9 +5,9 @@ import struct
 import numpy as np
 import pytest
 
-from bake.gltf_loader import load_scene
-from bake.gltf_writer import GltfWriter
-from glint.errors import GlintError
+from glint.bake.gltf_loader import load_scene
+from glint.core.errors import GlintError
+from glint.scenes.gltf_writer import GltfWriter
 
 QUAD_P = np.array([[0, 0, 0], [1, 0, 0], [1, 0, -1], [0, 0, -1]], float)
 QUAD_I = np.array([[0, 1, 2], [0, 2, 3]])

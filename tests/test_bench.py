@@ -12,8 +12,8 @@ import math
 import numpy as np
 import pytest
 
+from glint.bench import bench
 from glint.cli import main
-from viewer import bench
 
 BAKE = ["-q", "draft", "--samples", "8", "--texels-per-metre", "4", "--no-denoise"]
 SMALL = ["--size", "128x72", "--frames", "2", "--warmup", "1"]

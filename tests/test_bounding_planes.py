@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-
-from bake.bounding_planes import MAX_PLANES, candidate_surfaces, choose_planes
-from bake.cubemap import plan_cubemaps
-from bake.gltf_loader import load_scene
-from bake.gltf_writer import GltfWriter
-from bake.roles import assign_roles
-from bake.scene import Lobe, Material, Object, Scene
 from conftest import quad
-from glint.errors import GlintError
+
+from glint.bake.bounding_planes import MAX_PLANES, candidate_surfaces, choose_planes
+from glint.bake.cubemap import plan_cubemaps
+from glint.bake.gltf_loader import load_scene
+from glint.bake.roles import assign_roles
+from glint.core.errors import GlintError
+from glint.core.scene import Lobe, Material, Object, Scene
+from glint.scenes.gltf_writer import GltfWriter
 
 MATTE, GLOSSY = 0, 1
 MATERIALS = [Material("Matte"), Material("Glossy", lobes=[Lobe("reflect", mx=0.05, my=0.05)]),

@@ -1,4 +1,4 @@
-"""Tests of bake/bsdf.py (section 3.3 BSDF, Eq. 3.3-3.6; importance sampling, Eq. 4.5-4.9).
+"""Tests of core/bsdf.py (section 3.3 BSDF, Eq. 3.3-3.6; importance sampling, Eq. 4.5-4.9).
 
 Expected values come from elsewhere than the code under test: Gauss-Legendre x
 trapezoid quadrature on (theta, phi) grids, the trigonometric form of Eq. 3.3
@@ -6,9 +6,9 @@ as printed, and analytic limits (normalisation, the mirror limit m -> 0).
 """
 import numpy as np
 import pytest
-from bake import bsdf as B
-from bake.scene import Lobe
 
+from glint.core import bsdf as B
+from glint.core.scene import Lobe
 
 # ----------------------------------------------------------------------------- helpers
 

@@ -1,7 +1,7 @@
-"""shaders/bsdf.glsl against bake/bsdf.py, its numpy reference (Eq. 2.9, 3.3-3.5, 4.5-4.9).
+"""shaders/bsdf.glsl against core/bsdf.py, its numpy reference (Eq. 2.9, 3.3-3.5, 4.5-4.9).
 
-The GLSL runs on llvmpipe in float32 (viewer/glsl_eval.py); the expected values are
-bake/bsdf.py in float64 on the very same float32-rounded inputs, so what is compared is
+The GLSL runs on llvmpipe in float32 (bench/glsl_eval.py); the expected values are
+core/bsdf.py in float64 on the very same float32-rounded inputs, so what is compared is
 the arithmetic alone. The grid covers the numerics DESIGN.md asks for: roughness 1e-4..1,
 anisotropy 1:100, alpha 0..1, r0 0..1, both lobe kinds, views from the normal to exactly
 along the surface, and directions in the lobe (importance samples), anywhere on the
@@ -14,8 +14,8 @@ import itertools
 import numpy as np
 import pytest
 
-from bake import bsdf as B
-from viewer import glsl_eval
+from glint.bench import glsl_eval
+from glint.core import bsdf as B
 
 RTOL = 1e-4
 KINDS = {"reflect": 0.0, "transmit": 1.0}  # LOBE_REFLECT, LOBE_TRANSMIT in ks.a (viewer/gpu_scene.py)
@@ -186,7 +186,7 @@ def sample_inputs():
 def test_sample_lobe_matches_numpy():
     xi, wo, shape, ks, kind, group = sample_inputs()
     out = run("wi = sample_lobe(wo, xi, lobe);", {"wi": 3}, xi=xi, wo=wo, ks=ks, shape=shape)
-    # bake/bsdf.py clamps xi1 at 1e-38, the GLSL at 2^-126 (a float32 normal): compare at the GLSL's clamp
+    # core/bsdf.py clamps xi1 at 1e-38, the GLSL at 2^-126 (a float32 normal): compare at the GLSL's clamp
     xi1 = np.maximum(xi[:, 0], np.float64(np.finfo(np.float32).tiny))
     want = np.zeros((len(xi), 3))
     for name, flag in KINDS.items():

@@ -13,10 +13,10 @@ import sys
 import numpy as np
 import OpenImageIO as oiio
 import pytest
-
 from conftest import write_room
+
 from glint.cli import main
-from glint.image_io import read_image
+from glint.core.image_io import read_image
 
 SIDECAR = """
 [cameras.side]

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from glint.image_io import read_image
+from glint.core.image_io import read_image
 
 REFERENCE = Path(__file__).parent / "data" / "cornell_box_128.exr"
 

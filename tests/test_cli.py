@@ -7,10 +7,10 @@ import sys
 
 import numpy as np
 import pytest
-
-from bake.gltf_writer import GltfWriter
 from conftest import quad, write_room
-from glint.image_io import read_image
+
+from glint.core.image_io import read_image
+from glint.scenes.gltf_writer import GltfWriter
 
 
 def glint(*args, cwd=None):

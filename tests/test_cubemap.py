@@ -12,18 +12,19 @@ import json
 import numpy as np
 import pytest
 import trimesh
-
-from bake import pipeline
-from bake.bsdf import M_MIN
-from bake.cubemap import SKY_DISTANCE, automatic_size
-from bake.gltf_loader import load_scene
-from bake.gltf_writer import GltfWriter
-from bake.pipeline import bake_scene
-from bake.scene import Lobe, Material, Object
-from bake.settings import resolve_settings
 from conftest import FAST, quad, write_room
-from glint.errors import GlintError
-from glint.image_io import HALF_MAX, read_image
+
+from glint import services
+from glint.bake import pipeline
+from glint.bake.cubemap import SKY_DISTANCE, automatic_size
+from glint.bake.gltf_loader import load_scene
+from glint.bake.settings import resolve_settings
+from glint.core.bsdf import M_MIN
+from glint.core.errors import GlintError
+from glint.core.image_io import HALF_MAX, read_image
+from glint.core.scene import Lobe, Material, Object
+from glint.scenes.gltf_writer import GltfWriter
+from glint.services import bake_scene
 
 # An open-topped 2 x 2 x 2 m box of emissive walls (kd = 0), lit by nothing else, with two
 # curved boxes (emissive too, with a lobe) floating inside; a constant sky above.
@@ -198,7 +199,7 @@ def test_diffuse_and_planar_objects_get_no_cube_map(tmp_path, monkeypatch):
     def no_render(*a, **k):
         raise AssertionError("no cube map to render")
 
-    monkeypatch.setattr(pipeline, "render_cubemaps", no_render)
+    monkeypatch.setattr(services, "render_cubemaps", no_render)
     out = tmp_path / "room.bake"
     report = bake(path, out)
     roles = {o["name"]: o["role"] for o in report.manifest["objects"]}
@@ -238,7 +239,7 @@ def test_rebake_renders_only_the_cube_maps_whose_inputs_changed(tmp_path, monkey
     before = {n: (f.read_bytes(), f.stat().st_mtime_ns) for n, f in files.items()}
 
     rendered = []
-    real = pipeline.render_cubemaps
+    real = services.render_cubemaps
 
     def recording(bake_dir, plans, progress=None):
         rendered.extend(p.name for p in plans)
@@ -247,7 +248,7 @@ def test_rebake_renders_only_the_cube_maps_whose_inputs_changed(tmp_path, monkey
     def no_lightmaps(*a, **k):
         raise AssertionError("light maps were re-baked")
 
-    monkeypatch.setattr(pipeline, "render_cubemaps", recording)
+    monkeypatch.setattr(services, "render_cubemaps", recording)
     monkeypatch.setattr(pipeline, "_bake_geometry_and_lightmaps", no_lightmaps)
     assert bake(path, out).status == "up-to-date" and rendered == []
 

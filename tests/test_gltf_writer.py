@@ -1,4 +1,4 @@
-"""bake/gltf_writer.py: output read back by trimesh (an independent glTF reader) and as JSON."""
+"""scenes/gltf_writer.py: output read back by trimesh (an independent glTF reader) and as JSON."""
 import io
 import json
 import struct
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from bake.gltf_writer import GltfWriter, encode_png
+from glint.scenes.gltf_writer import GltfWriter, encode_png
 
 QUAD_P = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
 QUAD_I = np.array([[0, 1, 2], [0, 2, 3]])

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bake.irradiance import compute_irradiance
-from bake.lights import equirect_direction, equirect_uv
-from bake.raytrace import RayTracer
-from bake.scene import DirectionalLight, Lobe, Material, Object, PointLight, Scene, Sky, SpotLight
+from glint.bake.irradiance import compute_irradiance
+from glint.bake.lights import equirect_direction, equirect_uv
+from glint.bake.raytrace import RayTracer
+from glint.core.scene import DirectionalLight, Lobe, Material, Object, PointLight, Scene, Sky, SpotLight
 
 UP = np.array([0.0, 1.0, 0.0])
 
@@ -348,7 +348,7 @@ def test_chunking_does_not_change_result_and_no_nan():
 # -- Mitsuba 3 ----------------------------------------------------------------------------------
 def _mitsuba_irradiance(scene_dict, points, normals, spp):
     """E at surface points in a Mitsuba scene: pi x the radiance of a tiny white Lambertian disk
-    lying 0.5 mm above the point, seen by a radiancemeter (as tests/mitsuba_reference.py does)."""
+    lying 0.5 mm above the point, seen by a radiancemeter (as bench/mitsuba_reference.py does)."""
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
     T = mi.ScalarTransform4f

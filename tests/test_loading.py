@@ -1,6 +1,6 @@
 """bake/gltf_loader.py, bake/material_mapping.py, bake/sidecar.py: glTF + sidecar -> Scene.
 
-Fixtures are written with bake/gltf_writer.py; expected values come from
+Fixtures are written with scenes/gltf_writer.py; expected values come from
 trimesh (an independent glTF reader), from hand-built matrices, from published
 sRGB values, or from the glTF / KHR spec definitions written out by hand.
 """
@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from bake.gltf_loader import load_scene
-from bake.gltf_writer import GltfWriter
-from bake.material_mapping import GltfPbr, map_pbr
+from glint.bake.gltf_loader import load_scene
+from glint.bake.material_mapping import GltfPbr, map_pbr
+from glint.scenes.gltf_writer import GltfWriter
 
 QUAD_P = np.array([[0, 0, 0], [1, 0, 0], [1, 0, -1], [0, 0, -1]], float)  # y = 0, 1 m^2
 QUAD_I = np.array([[0, 1, 2], [0, 2, 3]])  # counter-clockwise seen from +Y
@@ -212,7 +212,7 @@ def test_missing_normals_are_flat_and_zero_normals_replaced(tmp_path):
 
 
 def test_zero_normal_on_shared_vertex_gets_area_weighted_face_normal():
-    from bake.validate import repair_normals
+    from glint.bake.validate import repair_normals
 
     # vertex 0 is shared by a 2 m^2 triangle facing +Z and a 0.5 m^2 triangle facing +X
     p = np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0], [0, 0, -1], [0, 1, 0]], float)

@@ -3,7 +3,7 @@
 thesis' share A / n of the 99 % ellipse (Eq. 4.16).
 
 The independent expectation: a narrow lobe's integral over an analytic environment (a step
-edge) by quasi-random importance sampling of bake/bsdf.py, against the single (n = 1) look-up
+edge) by quasi-random importance sampling of core/bsdf.py, against the single (n = 1) look-up
 of a cube map face whose MIP chain is GL's 2 x 2 box filter, read trilinearly. Averaged over
 the edge's position within a texel, a bilinear look-up of a box-filtered level of texel size s
 filters with box(s) * tent(s), the sum of three uniform variables of width s (Irwin-Hall), so
@@ -14,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bake import bsdf as B
-from viewer import glsl_eval
-from viewer import lobe_patterns as P
+from glint.bench import glsl_eval
+from glint.core import bsdf as B
+from glint.viewer import lobe_patterns as P
 
 FACE = 256  # texels per cube face side: texel size 2 / FACE at unit distance
 

@@ -2,7 +2,7 @@
 
 Expected values come from the thesis' own listings (the n = 5 line pattern), from hand
 calculation (MIP levels, ellipse areas at normal incidence), from quadrature of the
-Beckmann distribution (Eq. 4.10's 99%), from bake/bsdf.py (importance samples, the
+Beckmann distribution (Eq. 4.10's 99%), from core/bsdf.py (importance samples, the
 directional albedo) and, for the GLSL, from the numpy reference in lobe_patterns.py
 evaluated in float64 on the same float32 inputs.
 """
@@ -13,9 +13,9 @@ import itertools
 import numpy as np
 import pytest
 
-from bake import bsdf as B
-from viewer import glsl_eval
-from viewer import lobe_patterns as P
+from glint.bench import glsl_eval
+from glint.core import bsdf as B
+from glint.viewer import lobe_patterns as P
 
 KINDS = {"reflect": 0.0, "transmit": 1.0}  # LOBE_REFLECT, LOBE_TRANSMIT in ks.a (viewer/gpu_scene.py)
 

@@ -4,9 +4,16 @@ import math
 import numpy as np
 import pytest
 
-from viewer.camera import ViewCamera
-from viewer.mirror_camera import (MirrorCamera, group_coplanar, oblique_projection, plane_equation,
-                                  planes_match, reflection_matrix, signed_distance)
+from glint.viewer.camera import ViewCamera
+from glint.viewer.mirror_camera import (
+    MirrorCamera,
+    group_coplanar,
+    oblique_projection,
+    plane_equation,
+    planes_match,
+    reflection_matrix,
+    signed_distance,
+)
 
 ASPECT = 16 / 9
 

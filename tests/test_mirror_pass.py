@@ -3,8 +3,8 @@ and a near-mirror floor against Mitsuba 3.
 
 Expected values come from outside the renderer: the mirrored camera's matrices
 (viewer/mirror_camera.py, tested on its own) projecting known points in numpy, the float64
-numpy reference of the projection (viewer/mirror_projection.py), ray casts written out here,
-numpy quadrature of the lobe's albedo (bake/bsdf.py), and Mitsuba 3 path tracing the same scene.
+numpy reference of the projection (bench/mirror_projection.py), ray casts written out here,
+numpy quadrature of the lobe's albedo (core/bsdf.py), and Mitsuba 3 path tracing the same scene.
 """
 from __future__ import annotations
 
@@ -13,19 +13,19 @@ import math
 
 import numpy as np
 import pytest
-
-from bake import bsdf
-from bake.bake_dir import Bake, write_json
-from glint.errors import GlintError
 from test_mirror_projection import SCENE, SIZE, mirror_buffer, mirror_dir
 from test_renderer import constant_page, make_bake, material, quad
-from viewer import glsl_eval
-from viewer.camera import ViewCamera
-from viewer.context import headless_context
-from viewer.mirror_camera import MirrorCamera
-from viewer.mirror_projection import lobe_extremes, lobe_mip_level, project, project_sample, texel_index
-from viewer.passes.mirror import mirror_defines
-from viewer.renderer import Renderer
+
+from glint.bench import glsl_eval
+from glint.bench.mirror_projection import lobe_extremes, lobe_mip_level, project, project_sample, texel_index
+from glint.core import bsdf
+from glint.core.bake_dir import Bake, write_json
+from glint.core.errors import GlintError
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import headless_context
+from glint.viewer.mirror_camera import MirrorCamera
+from glint.viewer.passes.mirror import mirror_defines
+from glint.viewer.renderer import Renderer
 
 
 @pytest.fixture(scope="module")
@@ -139,8 +139,8 @@ def test_mirror_pass_draws_what_numpy_predicts_and_nothing_behind_the_plane(ctx,
 def test_mirror_buffer_shows_the_sky_map_along_the_mirrored_rays(ctx, tmp_path):
     """Where the mirror pass draws nothing, its radiance is the sky seen along the main view's ray
     through that pixel reflected about the plane (bake/lights.py's sky convention)."""
-    from bake.lights import SkyLight
-    from bake.scene import Sky
+    from glint.bake.lights import SkyLight
+    from glint.core.scene import Sky
 
     rng = np.random.default_rng(2)
     sky_map = rng.uniform(0.5, 2.0, (6, 12, 3)).astype(np.float32)
@@ -367,7 +367,7 @@ SAMPLE_MIP_BODY = """
 def test_glsl_per_sample_mip_level_matches_numpy(projection_setup):
     """The per-sample level (the planar Eq. 4.16): GLSL against numpy, and numpy's texels per
     steradian against finite differences of the projection itself (uv of w turned by +-h)."""
-    from viewer.mirror_projection import sample_mip_level, texels_per_steradian
+    from glint.bench.mirror_projection import sample_mip_level, texels_per_steradian
 
     cam, vp_m, pos, nrm, defines = projection_setup
     rng = np.random.default_rng(13)
@@ -546,7 +546,7 @@ def test_still_camera_converges_to_the_lobe_albedo_under_a_uniform_sky(ctx, tmp_
 def test_still_camera_across_a_depth_edge_against_ray_tracing(ctx, tmp_path):
     """A glossy floor reflecting an emissive square in front of an emissive back wall (a depth edge
     in the mirror image): the converged still-camera image against the lobe integral ray-traced in
-    numpy (importance samples of bake/bsdf.py, exact geometry). The two-step projection with the
+    numpy (importance samples of core/bsdf.py, exact geometry). The two-step projection with the
     averaged tangent plane stays close; the walkthrough's patterns are printed for comparison."""
     m = 0.05
     wall_L, square_L = np.array([1.0, 1.0, 1.0]), np.array([4.0, 1.0, 0.25])
@@ -629,11 +629,12 @@ def _face(normal):
 
 
 def write_acceptance_scene(path):
-    """The scene as glTF (bake/gltf_writer.py): a 5 x 5 m near-mirror floor (kd 0, one Beckmann
+    """The scene as glTF (scenes/gltf_writer.py): a 5 x 5 m near-mirror floor (kd 0, one Beckmann
     lobe m = 0.005, r0 = 1 (Fresnel 1), alpha = 0.5, which makes Kurt's normalisation that of
     Mitsuba's microfacet model for narrow lobes) and a floating box whose six faces emit six colours."""
-    from bake.gltf_writer import GltfWriter
     from conftest import quad as gltf_quad
+
+    from glint.scenes.gltf_writer import GltfWriter
 
     w = GltfWriter()
     floor = w.add_material("Floor", base_color=(0, 0, 0), roughness=1.0,
@@ -698,12 +699,12 @@ def floor_mask(size):
 
 def test_near_mirror_floor_reflects_the_box_where_mitsuba_does(ctx, tmp_path):
     import mitsuba  # noqa: F401  (a test dependency: missing means a broken install)
+    from conftest import FAST
     from scipy import ndimage
 
-    from bake.gltf_loader import load_scene
-    from bake.pipeline import bake_scene
-    from bake.settings import resolve_settings
-    from conftest import FAST
+    from glint.bake.gltf_loader import load_scene
+    from glint.bake.settings import resolve_settings
+    from glint.services import bake_scene
 
     size, spp = 96, 64
     scene = load_scene(write_acceptance_scene(tmp_path / "mirror.glb"))
@@ -741,6 +742,7 @@ def test_near_mirror_floor_reflects_the_box_where_mitsuba_does(ctx, tmp_path):
 # -- glint capture ----------------------------------------------------------------------------------
 def test_capture_mirror_budget_and_stats(tmp_path, capsys):
     from conftest import write_room
+
     from glint.cli import main
 
     scene = write_room(tmp_path / "room.glb", floor_lobes=[glossy(0.05, r0=0.04, alpha=0.0)])
@@ -793,7 +795,7 @@ def test_guard_scale_is_the_lobe_reach():
     """The guard band (viewer/reflectors.py): the half fields of view widened by twice the lobe
     border's half-vector angle (Eq. 4.10: tan theta = sqrt(ln 100) m at normal view), capped at
     80 degrees, over the view's own, and the scale at 2; written out here from the angles."""
-    from viewer.reflectors import guard_scale, lobe_reach
+    from glint.viewer.reflectors import guard_scale, lobe_reach
 
     cam = ViewCamera.look_at((0, 1, 2), (0, 1, 0), (0, 1, 0), math.radians(62), znear=0.01, zfar=50)
     for m, aspect in ((0.2, 16 / 9), (0.1, 16 / 9), (0.05, 16 / 9), (0.02, 1.0), (0.0, 2.0)):
@@ -808,9 +810,9 @@ def test_guard_scale_is_the_lobe_reach():
 
 def test_wide_lobe_near_the_border_stays_inside_the_guarded_buffer(ctx, tmp_path):
     """A blurry (m = 0.2) wall seen at the right border of the view: the lobe's importance
-    samples (numpy, bake/bsdf.py) at its pixels project into the pass's buffer (the guard band),
+    samples (numpy, core/bsdf.py) at its pixels project into the pass's buffer (the guard band),
     where without it a third of their weight left the view."""
-    from viewer.reflectors import guard_scale, lobe_reach
+    from glint.viewer.reflectors import guard_scale, lobe_reach
 
     n = np.array([-1.0, 0.0, 0.0])
     wall = quad((2.0, 0.0, 1.0), (0.0, 0.0, -3.0), (0.0, 2.0, 0.0))

@@ -1,4 +1,4 @@
-"""viewer/mirror_projection.py: the two-step mirror-buffer sample projection and the MIP level.
+"""bench/mirror_projection.py: the two-step mirror-buffer sample projection and the MIP level.
 
 The mirror buffers here are ray-cast analytically from the mirror camera through
 every texel centre against a few rectangles: a mirror floor (y = 0), a back wall
@@ -9,10 +9,20 @@ import math
 import numpy as np
 import pytest
 
-from viewer.camera import ViewCamera
-from viewer.mirror_camera import MirrorCamera
-from viewer.mirror_projection import (ellipse_mip_level, fetch, lobe_extremes, lobe_mip_level, max_mip_level,
-                                      project, project_sample, texel_centres, texel_index, unproject_rays)
+from glint.bench.mirror_projection import (
+    ellipse_mip_level,
+    fetch,
+    lobe_extremes,
+    lobe_mip_level,
+    max_mip_level,
+    project,
+    project_sample,
+    texel_centres,
+    texel_index,
+    unproject_rays,
+)
+from glint.viewer.camera import ViewCamera
+from glint.viewer.mirror_camera import MirrorCamera
 
 SIZE = (135, 240)  # (H, W) of the mirror buffer
 ASPECT = SIZE[1] / SIZE[0]

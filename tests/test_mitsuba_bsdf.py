@@ -1,4 +1,4 @@
-"""bake/mitsuba_bsdf.py (the section 3.3 BSDF as a Mitsuba 3 plugin) against bake/bsdf.py (numpy).
+"""bench/mitsuba_bsdf.py (the section 3.3 BSDF as a Mitsuba 3 plugin) against core/bsdf.py (numpy).
 
 Everything runs in Mitsuba's scalar_rgb variant (CI has no usable LLVM). The plugin is evaluated
 at real surface interactions: a ray hits a quad in the z = 0 plane whose vertex attributes carry a
@@ -9,20 +9,19 @@ from __future__ import annotations
 
 import math
 
+import mitsuba as mi  # noqa: E402  (the test extra installs it; CI has it)
 import numpy as np
 import pytest
 
-from bake import bsdf as ref
-from bake.lights import LUMA
-from bake.scene import Lobe
-
-import mitsuba as mi  # noqa: E402  (the test extra installs it; CI has it)
+from glint.bake.lights import LUMA
+from glint.core import bsdf as ref
+from glint.core.scene import Lobe
 
 
 @pytest.fixture(scope="module")
 def variant():
     mi.set_variant("scalar_rgb")
-    from bake import mitsuba_bsdf
+    from glint.bench import mitsuba_bsdf
 
     mitsuba_bsdf.register()
     return mitsuba_bsdf
@@ -35,7 +34,7 @@ def quad_interaction(angle: float, sign: float, back: bool = False):
     """A surface interaction on a unit quad at z = 0 (counter-clockwise seen from +z) whose tangent
     is (cos a, sin a, 0) and bitangent sign `sign`; hit from above, or from below when `back`.
     The scene is kept alive (in _SCENES): the interaction points into its mesh's attributes."""
-    from bake import mitsuba_bsdf
+    from glint.bench import mitsuba_bsdf
 
     mesh = mi.Mesh("quad", 4, 2, has_vertex_normals=True)
     params = mi.traverse(mesh)
@@ -84,7 +83,7 @@ def unit(rng, n):
 
 
 def mixture_pdf(kd, lobes, l, v):
-    """The pdf the plugin documents, from bake/bsdf.py's numpy functions: components by luminance."""
+    """The pdf the plugin documents, from core/bsdf.py's numpy functions: components by luminance."""
     w = np.array([np.dot(kd, LUMA)] + [np.dot(lobe.ks, LUMA) for lobe in lobes])
     w = w / w.sum()
     same = (l[:, 2] >= 0) & (v[:, 2] >= 0)
@@ -95,7 +94,7 @@ def mixture_pdf(kd, lobes, l, v):
 
 
 def plugin(kd, lobes, two_sided=False):
-    from bake import mitsuba_bsdf
+    from glint.bench import mitsuba_bsdf
 
     return mi.load_dict({"type": mitsuba_bsdf.PLUGIN, "kd": {"type": "rgb", "value": list(map(float, kd))},
                          "lobes": mitsuba_bsdf.lobes_json(lobes), "two_sided": two_sided})
@@ -196,7 +195,7 @@ def test_sample_weight_is_eval_over_pdf(variant):
 
 
 def numpy_samples(kd, lobes, v, n, rng):
-    """The documented sampling procedure, from bake/bsdf.py: (directions, valid)."""
+    """The documented sampling procedure, from core/bsdf.py: (directions, valid)."""
     w = np.array([np.dot(kd, LUMA)] + [np.dot(lobe.ks, LUMA) for lobe in lobes])
     c = rng.choice(len(w), n, p=w / w.sum())
     x1, x2 = rng.uniform(size=n), rng.uniform(size=n)
@@ -212,9 +211,9 @@ def numpy_samples(kd, lobes, v, n, rng):
 
 @pytest.mark.parametrize("view", [(0.5, 0.2, 0.8), (0.9, -0.3, 0.12)])
 def test_sampling_matches_numpy_and_the_albedo(variant, view):
-    """Histogram of the plugin's sampled directions against bake/bsdf.py's sampling (two-sample
+    """Histogram of the plugin's sampled directions against core/bsdf.py's sampling (two-sample
     chi-square over (cos theta, phi) bins), and the mean sample weight f cos / pdf against the
-    directional albedo kd + sum ks x bake.bsdf.lobe_albedo (numpy QMC), which holds only if the pdf
+    directional albedo kd + sum ks x glint.core.bsdf.lobe_albedo (numpy QMC), which holds only if the pdf
     is the density the samples have. At the grazing view many lobe samples have wo.h <= 0 and must
     be dropped. (The pdf's quadrature over bins is no reference here: it has an integrable
     singularity at wi = -wo.)"""

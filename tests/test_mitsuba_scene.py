@@ -1,27 +1,26 @@
-"""bake/mitsuba_scene.py (a glint Scene as a Mitsuba 3 scene) and `glint bench --mitsuba`.
+"""bench/mitsuba_scene.py (a glint Scene as a Mitsuba 3 scene) and `glint bench --mitsuba`.
 
 All Mitsuba renders here use scalar_rgb (CI has no LLVM that drjit can use). References are
 independent of the converter: Mitsuba's own mitsuba.cornell_box(), a uniform sky's analytic
 radiance (a lone diffuse surface under a constant sky of radiance 1 shows L = kd), and
-bake/bsdf.py's numpy directional albedo for a glossy plane under that sky (furnace-like).
+core/bsdf.py's numpy directional albedo for a glossy plane under that sky (furnace-like).
 """
 from __future__ import annotations
 
 import json
 import math
 
+import mitsuba as mi  # noqa: E402  (the test extra installs it)
 import numpy as np
 import pytest
 
-from bake.scene import Camera, Lobe, Material, Object, Scene, Sky
-
-import mitsuba as mi  # noqa: E402  (the test extra installs it)
+from glint.core.scene import Camera, Lobe, Material, Object, Scene, Sky
 
 
 @pytest.fixture(scope="module")
 def scalar():
     mi.set_variant("scalar_rgb")
-    from bake import mitsuba_scene
+    from glint.bench import mitsuba_scene
 
     return mitsuba_scene
 
@@ -38,7 +37,7 @@ def rel_mae(a, b):
 def test_cornell_box_converts_to_mitsubas_own(scalar):
     """scenes/cornell-box.glb through the bake's loader and the converter renders what Mitsuba's
     mitsuba.cornell_box() renders, within the noise of Mitsuba itself at the same sample count."""
-    from glint.cli import open_scene
+    from glint.services import open_scene
 
     size, spp = 16, 32
     scene, _ = open_scene("cornell-box")
@@ -99,10 +98,10 @@ def test_texture_rows_and_sky(scalar):
 def test_glossy_plane_under_a_constant_sky_is_its_albedo(scalar):
     """A plane with kd, an anisotropic reflection lobe (mx 0.05 along the texture's u = world x,
     my 0.6) and a transmission lobe under a sky of radiance 1 on both sides: each pixel shows the
-    directional albedo kd + ks a_r(wo) + kt a_t(wo), computed by bake.bsdf.lobe_albedo (numpy).
+    directional albedo kd + ks a_r(wo) + kt a_t(wo), computed by glint.core.bsdf.lobe_albedo (numpy).
     Seen along world y at ~70 degrees, the reflection lobe's albedo is 0.44; along x it would be
     0.27, so a wrong tangent frame fails."""
-    from bake import bsdf as ref
+    from glint.core import bsdf as ref
 
     kd = np.float32([0.1, 0.1, 0.1])
     lobes = [Lobe("reflect", (1.0, 1.0, 1.0), 0.05, 0.6, 1.0, 0.0), Lobe("transmit", (0.3, 0.3, 0.3), 0.3, 0.3, 0.04, 0.0)]
@@ -136,7 +135,7 @@ def test_glossy_plane_under_a_constant_sky_is_its_albedo(scalar):
 def test_sky_map_orientation(scalar):
     """An equirectangular sky seen directly: Mitsuba's envmap, as the converter orients it, shows
     the radiance bake/lights.py's SkyLight gives the same directions (its mapping's one home)."""
-    from bake.lights import SkyLight
+    from glint.bake.lights import SkyLight
 
     h, w = 16, 32
     v, u = np.meshgrid((np.arange(h) + 0.5) / h, (np.arange(w) + 0.5) / w, indexing="ij")
@@ -157,8 +156,8 @@ def test_sky_map_orientation(scalar):
 def test_spot_light_has_the_bakes_cone(scalar):
     """The `glint_spot` emitter: a white diffuse plane under a spot light shows kd/pi x E cos, with
     E (the glTF cone, squared) from bake/lights.py's DeltaLights, the bake's own light code."""
-    from bake.lights import DeltaLights
-    from bake.scene import SpotLight
+    from glint.bake.lights import DeltaLights
+    from glint.core.scene import SpotLight
 
     spot = SpotLight(np.array([0.2, 0.1, 2.0]), np.array([0.0, 0.0, -1.0]), np.float32([2.0, 1.5, 1.0]), 0.2, 0.35)
     cam = camera((0, 0, 3), (0, 0, 0), 2 * math.degrees(math.atan(1 / 3)))
@@ -206,11 +205,11 @@ def test_bench_mitsuba_cornell_box(tmp_path, scalar):
     # Mitsuba's error falls as its samples grow (the curve is a curve).
     assert by[("mitsuba", 4)]["regions"]["image"]["rel_mse"] < by[("mitsuba", 1)]["regions"]["image"]["rel_mse"]
     # The Mitsuba images' display transform is the renderer's own.
-    from bake.bake_dir import Bake
-    from viewer.bench_mitsuba import display_srgb
-    from viewer.camera import ViewCamera
-    from viewer.context import headless_context
-    from viewer.renderer import Renderer
+    from glint.bench.mitsuba import display_srgb
+    from glint.core.bake_dir import Bake
+    from glint.viewer.camera import ViewCamera
+    from glint.viewer.context import headless_context
+    from glint.viewer.renderer import Renderer
 
     bake = Bake(tmp_path / "cb.bake")
     ctx = headless_context()
@@ -228,7 +227,7 @@ def test_display_srgb_is_the_tone_map():
     """viewer/bench_mitsuba.display_srgb (the shaders' tone map run on numpy radiance) equals
     shaders/colour.glsl's formulas written in numpy here, to one 8-bit step (the renderer's own
     display: test_bench_mitsuba_cornell_box)."""
-    from viewer.bench_mitsuba import display_srgb
+    from glint.bench.mitsuba import display_srgb
 
     rng = np.random.default_rng(0)
     linear = (rng.lognormal(-1, 2, (6, 5, 3))).astype(np.float32)
@@ -244,8 +243,8 @@ def test_display_srgb_is_the_tone_map():
 def test_missing_mitsuba_is_one_line(monkeypatch):
     import sys
 
-    from glint.errors import GlintError
-    from viewer.bench_mitsuba import choose_variant
+    from glint.bench.mitsuba import choose_variant
+    from glint.core.errors import GlintError
 
     monkeypatch.setitem(sys.modules, "mitsuba", None)
     with pytest.raises(GlintError, match=r"pip install 'glint\[test\]'"):

@@ -5,14 +5,14 @@ import json
 
 import numpy as np
 import pytest
-
-from bake import pipeline
-from bake.bake_dir import Bake
-from bake.gltf_loader import load_scene
-from bake.pipeline import bake_scene
-from bake.settings import resolve_settings
 from conftest import FAST, write_room
-from glint.image_io import read_image
+
+from glint.bake import pipeline
+from glint.bake.gltf_loader import load_scene
+from glint.bake.settings import resolve_settings
+from glint.core.bake_dir import Bake
+from glint.core.image_io import read_image
+from glint.services import bake_scene
 
 
 def bake(path, out, **overrides):
@@ -98,7 +98,7 @@ def test_diffuse_change_rebakes_lightmaps_only(tmp_path, monkeypatch):
     bake(path, out)
     before = lightmap_bytes(out)
     write_room(path, kd=(0.3, 0.3, 0.3))
-    import bake.unwrap as unwrap_module
+    import glint.bake.unwrap as unwrap_module
 
     def no_unwrap(*a, **k):
         raise AssertionError("geometry did not change, the unwrap must be reused")
@@ -124,7 +124,7 @@ def test_interrupted_bake_leaves_previous_bake_intact(tmp_path, monkeypatch):
     before = lightmap_bytes(out)
     manifest = (out / "manifest.json").read_text()
     write_room(path, kd=(0.2, 0.5, 0.2))
-    import bake.lightmap as lightmap_module
+    import glint.bake.lightmap as lightmap_module
 
     def interrupted(*a, **k):
         raise KeyboardInterrupt
@@ -138,7 +138,7 @@ def test_interrupted_bake_leaves_previous_bake_intact(tmp_path, monkeypatch):
 
 
 def test_result_does_not_depend_on_worker_count(room, tmp_path, monkeypatch):
-    import bake.lightmap as lightmap_module
+    import glint.bake.lightmap as lightmap_module
 
     monkeypatch.setattr(lightmap_module, "TILE", 64)  # several jobs, so two workers share them
     bake(room, tmp_path / "a.bake", jobs=1)

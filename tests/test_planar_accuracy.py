@@ -5,7 +5,7 @@ above it: the lobe's upper border directions pass over the wall to infinity, so 
 MIP level for the whole lobe (from its four extreme directions) blurred the checker
 with the black sky; a level per sample, from its share of the lobe's solid angle and
 the projection's texels per steradian at its own look-up, keeps the checker's contrast.
-The expected values come from importance samples of bake/bsdf.py cast against the
+The expected values come from importance samples of core/bsdf.py cast against the
 exact rectangles in numpy, independent of the mirror buffer. The shipped guard band
 (viewer/reflectors.py, capped at s = 2) and the second-moment footprint per sample.
 """
@@ -15,13 +15,13 @@ import math
 
 import numpy as np
 import pytest
-
-from bake import bsdf
 from test_mirror_pass import BLACK, glossy, planar_bake
 from test_renderer import material, quad
-from viewer.camera import ViewCamera
-from viewer.context import headless_context
-from viewer.renderer import Renderer
+
+from glint.core import bsdf
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import headless_context
+from glint.viewer.renderer import Renderer
 
 M = 0.2
 WALL_Z, SQUARE = -1.5, 0.125  # the checker's plane and half size of its squares, m

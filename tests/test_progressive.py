@@ -12,13 +12,13 @@ import math
 
 import numpy as np
 import pytest
-
 from test_renderer import material, quad
 from test_specular import cube_file, direction_colours, lobe, specular_bake
-from viewer.camera import ViewCamera
-from viewer.context import headless_context
-from viewer.progressive import Progressive
-from viewer.renderer import Renderer
+
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import headless_context
+from glint.viewer.progressive import Progressive
+from glint.viewer.renderer import Renderer
 
 SIZE = (24, 16)
 
@@ -145,9 +145,10 @@ def test_view_key_and_sequence_bookkeeping(ctx):
 
 def glossy_furnace(tmp_path, *, m: float, r0: float, size):
     """A black glossy floor (one isotropic lobe) under a constant white cube map, seen from above at
-    `size`: (bake, camera, per-pixel lobe albedo from bake/bsdf.py: the expected radiance)."""
-    from bake import bsdf
+    `size`: (bake, camera, per-pixel lobe albedo from core/bsdf.py: the expected radiance)."""
     from test_specular import constant, pinhole_rays
+
+    from glint.core import bsdf
 
     spec = lobe(m=(m, m), r0=r0)
     bake = specular_bake(tmp_path / "w", [quad((0, 0, 0), (20, 0, 0), (0, 20, 0))],
@@ -184,8 +185,9 @@ def test_filtered_importance_walkthrough_in_a_white_furnace(ctx, tmp_path):
 
 def test_window_refines_while_the_camera_stands_still(bake):
     from test_view import frame, headless_window, press, release
-    from viewer.controls import WalkControls
-    from viewer.window import BLEND_FRAMES, ViewerWindow
+
+    from glint.viewer.controls import WalkControls
+    from glint.viewer.window import BLEND_FRAMES, ViewerWindow
 
     wnd = headless_window()
     try:
@@ -215,8 +217,9 @@ def test_capture_converge_is_deterministic(tmp_path):
     import json
 
     from conftest import write_room
+
     from glint.cli import main
-    from glint.image_io import read_image
+    from glint.core.image_io import read_image
 
     lobes = [{"kind": "reflect", "ks": [1, 1, 1], "mx": 0.2, "my": 0.2, "r0": 0.5}]
     scene = write_room(tmp_path / "room.glb", floor_lobes=lobes, sidecar='[objects."Floor"]\nrole = "curved"\n')

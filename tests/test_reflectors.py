@@ -3,13 +3,21 @@ import math
 
 import numpy as np
 import pytest
-
-from bake.scene import Object
 from conftest import quad
-from viewer.camera import ViewCamera
-from viewer.mirror_camera import MirrorCamera
-from viewer.reflectors import (OcclusionResults, Reflector, SkipReason, box_outside_frustum,
-                               frustum_planes, plan_mirror_passes, projected_area, reflectors_of)
+
+from glint.core.scene import Object
+from glint.viewer.camera import ViewCamera
+from glint.viewer.mirror_camera import MirrorCamera
+from glint.viewer.reflectors import (
+    OcclusionResults,
+    Reflector,
+    SkipReason,
+    box_outside_frustum,
+    frustum_planes,
+    plan_mirror_passes,
+    projected_area,
+    reflectors_of,
+)
 
 ASPECT = 16 / 9
 

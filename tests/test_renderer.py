@@ -15,14 +15,14 @@ import numpy as np
 import pyrr
 import pytest
 
-from bake.bake_dir import FORMAT_VERSION, Bake, save_meshes, write_json
-from glint.image_io import write_image
-from viewer.camera import ViewCamera, camera_path_at, gl_bytes
-from viewer.context import headless_context
-from viewer.passes.gbuffer import in_frustum
-from viewer.passes.resolve import ResolvePass
-from viewer.passes.tonemap import TonemapPass
-from viewer.renderer import Renderer
+from glint.core.bake_dir import FORMAT_VERSION, Bake, save_meshes, write_json
+from glint.core.image_io import write_image
+from glint.viewer.camera import ViewCamera, camera_path_at, gl_bytes
+from glint.viewer.context import headless_context
+from glint.viewer.passes.gbuffer import in_frustum
+from glint.viewer.passes.resolve import ResolvePass
+from glint.viewer.passes.tonemap import TonemapPass
+from glint.viewer.renderer import Renderer
 
 KD = (0.5, 0.25, 0.8)
 E = (2.0, 1.0, 0.5)
@@ -276,7 +276,7 @@ def test_camera_path_catmull_rom():
     v_start, v_end = (e(1e-6) - e(0)) / 1e-6, (e(4) - e(4 - 1e-6)) / 1e-6
     np.testing.assert_allclose(v_start, v_end, atol=1e-4)
     # yfov linear between keys: key 0 and 2 use the default.
-    from viewer.camera import DEFAULT_YFOV
+    from glint.viewer.camera import DEFAULT_YFOV
 
     assert camera_path_at(path, 0.5).yfov == pytest.approx((DEFAULT_YFOV + 1.0) / 2)
 
@@ -324,8 +324,8 @@ def test_back_faces_single_sided_black_two_sided_lit_emission_front_only(ctx, tm
 
 
 def test_sky_map_follows_the_bake_convention(ctx, tmp_path):
-    from bake.lights import SkyLight
-    from bake.scene import Sky
+    from glint.bake.lights import SkyLight
+    from glint.core.scene import Sky
 
     rng = np.random.default_rng(1)
     sky_map = rng.uniform(0.5, 2.0, (6, 12, 3)).astype(np.float32)
@@ -444,7 +444,7 @@ def test_supersampled_edge_is_the_covered_fraction(ctx, tmp_path):
 
 # -- shader sources -------------------------------------------------------------------------------
 def test_includes_resolve_once_and_errors_name_the_file(ctx, monkeypatch):
-    from viewer import shader_source
+    from glint.viewer import shader_source
 
     files = {"main.comp": '#include "a.glsl"\n#include "b.glsl"\nlayout(local_size_x = 1) in;\n'
                           'void main() { f(); g(); }\n',

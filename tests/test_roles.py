@@ -3,11 +3,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from bake.gltf_loader import load_scene
-from bake.gltf_writer import GltfWriter
-from bake.roles import assign_roles, is_planar, plane_of
-from bake.scene import Lobe, Material, Object, Scene
-from glint.errors import GlintError
+from glint.bake.gltf_loader import load_scene
+from glint.bake.roles import assign_roles, is_planar
+from glint.core.errors import GlintError
+from glint.core.geometry import plane_of
+from glint.core.scene import Lobe, Material, Object, Scene
+from glint.scenes.gltf_writer import GltfWriter
 
 GLOSSY = Material("Glossy", lobes=[Lobe("reflect", mx=0.05, my=0.05)])
 MATTE = Material("Matte")

@@ -3,6 +3,7 @@ and the committed files against a fresh run of scenes/generate.py."""
 import json
 import math
 import struct
+
 try:
     import tomllib
 except ModuleNotFoundError:  # Python 3.10
@@ -13,8 +14,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from scenes import BUILTIN, builtin_path, teapot
-from scenes.generate import generate
+from glint.scenes import BUILTIN, builtin_path, teapot
+from glint.scenes.generate import generate
 
 SCENES = Path(builtin_path("cornell-box")).parent
 
@@ -370,9 +371,9 @@ def test_committed_scenes_are_reproduced_by_the_generator(tmp_path):
     assert {p.name for p in written} >= {BUILTIN[name][0] for name in BUILTIN}
     for path in written:
         committed = SCENES / path.name
-        assert committed.exists(), f"{path.name} not committed: run python3 -m scenes.generate"
+        assert committed.exists(), f"{path.name} not committed: run python3 -m glint.scenes.generate"
         assert committed.read_bytes() == path.read_bytes(), (
-            f"scenes/{path.name} is out of date: run python3 -m scenes.generate")
+            f"scenes/{path.name} is out of date: run python3 -m glint.scenes.generate")
 
 
 # -- material-classes ------------------------------------------------------------------------

@@ -1,8 +1,8 @@
 """Bake settings: preset < sidecar [bake] < command line, and clear errors for bad values."""
 import pytest
 
-from bake.settings import PRESETS, resolve_settings
-from glint.errors import GlintError
+from glint.bake.settings import PRESETS, resolve_settings
+from glint.core.errors import GlintError
 
 
 def test_precedence():

@@ -16,18 +16,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from bake.bake_dir import Bake
-from bake.gltf_writer import GltfWriter
-from bake.skipped import NO_LOBE, PLANAR, last_bake
 from conftest import quad, write_room
-from glint.cli import main
 from test_pipeline import bake
 from test_specular import pinhole_rays
-from viewer.camera import ViewCamera
-from viewer.context import headless_context
-from viewer.renderer import Renderer
-from viewer.skipping import skipping_section
+
+from glint.cli import main
+from glint.core.bake_dir import Bake
+from glint.core.skipped import NO_LOBE, PLANAR, last_bake
+from glint.scenes.gltf_writer import GltfWriter
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import headless_context
+from glint.viewer.renderer import Renderer
+from glint.viewer.skipping import skipping_section
 
 TILE = 8  # the shading pass's tiles (shaders: LOCAL_SIZE)
 GLOSSY = [{"kind": "reflect", "ks": [1, 1, 1], "mx": 0.1, "my": 0.1, "r0": 0.04}]

@@ -2,7 +2,7 @@
 cube maps of known content, checked against numpy.
 
 Expected values come from outside the viewer: the lobe's directional albedo by numpy quadrature
-(bake.bsdf.lobe_albedo), the mirror direction and the OpenGL cube-map face rules written out
+(glint.core.bsdf.lobe_albedo), the mirror direction and the OpenGL cube-map face rules written out
 here from the GL specification (section 8.13, table 8.19), a ray-plane intersection in numpy,
 and pixel coverage by a pinhole model written out from the camera's basis.
 """
@@ -13,16 +13,16 @@ import math
 
 import numpy as np
 import pytest
-
-from bake import bsdf
-from bake.bake_dir import Bake, write_json
-from glint.image_io import write_image
 from test_renderer import KD, constant_page, make_bake, material, quad
-from viewer.camera import ViewCamera
-from viewer.context import headless_context
-from viewer.cubemaps import read_cubemap
-from viewer.gpu_scene import axis_tangents
-from viewer.renderer import Renderer
+
+from glint.core import bsdf
+from glint.core.bake_dir import Bake, write_json
+from glint.core.image_io import write_image
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import headless_context
+from glint.viewer.cubemaps import read_cubemap
+from glint.viewer.gpu_scene import axis_tangents
+from glint.viewer.renderer import Renderer
 
 
 @pytest.fixture(scope="module")
@@ -292,8 +292,8 @@ def test_cube_map_lookups_filter_across_face_edges(tmp_path):
     takes half its texels from each face; without it, one face's colour alone would show."""
     from types import SimpleNamespace
 
-    from viewer import glsl_eval
-    from viewer.cubemaps import CubeMaps
+    from glint.bench import glsl_eval
+    from glint.viewer.cubemaps import CubeMaps
 
     (tmp_path / "cubemaps").mkdir()
     write_image(tmp_path / "cubemaps/0.exr", cube_file(face_colours, 4), channels=("R", "G", "B", "A"))
@@ -330,8 +330,8 @@ def plane_lookup(p, d, centre, planes):
 
 def test_bounding_plane_lookup_matches_numpy():
     """shaders/cubemaps.glsl bounding_plane_direction over random rays, floor and ceiling planes."""
-    from viewer import glsl_eval
-    from viewer.cubemaps import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, CUBE_OBJECT_DTYPE, PLANE_DTYPE
+    from glint.bench import glsl_eval
+    from glint.viewer.cubemaps import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, CUBE_OBJECT_DTYPE, PLANE_DTYPE
 
     rng = np.random.default_rng(4)
     centre = np.array([0.3, 1.0, -0.2])

@@ -4,7 +4,7 @@ llvmpipe: hand-made bake directories with cube maps or a sky of known content.
 Expected values come from outside the method: the lobe's directional albedo and the prefilter's
 convolution by a deterministic quadrature over the half vector written out here (Gauss-Legendre
 in tan(theta_h) scaled to the lobe's width, uniform in phi_h; the integrand is the numpy BSDF of
-bake/bsdf.py, not its importance sampling, which the method's LUT uses), the OpenGL cube-map
+core/bsdf.py, not its importance sampling, which the method's LUT uses), the OpenGL cube-map
 face rules of tests/test_specular.py, and analytic radiance functions.
 """
 from __future__ import annotations
@@ -13,15 +13,25 @@ import math
 
 import numpy as np
 import pytest
-
-from bake import bsdf
 from test_mirror_pass import BLACK, glossy, planar_bake
 from test_renderer import material, quad
-from test_specular import (EXTREMES, FLOOR, cube_file, constant, gl_texel_directions, lobe, orbit, pinhole_rays,
-                           specular_bake, view)
-from viewer.camera import ViewCamera
-from viewer.context import headless_context
-from viewer.renderer import Renderer
+from test_specular import (
+    EXTREMES,
+    FLOOR,
+    constant,
+    cube_file,
+    gl_texel_directions,
+    lobe,
+    orbit,
+    pinhole_rays,
+    specular_bake,
+    view,
+)
+
+from glint.core import bsdf
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import headless_context
+from glint.viewer.renderer import Renderer
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""The stress suite (issue 6): scenes/stress.py's cases at test size, checked by viewer/stress.py's
+"""The stress suite (issue 6): scenes/stress.py's cases at test size, checked by bench/stress.py's
 measurements against expectations that do not come from the renderer: the furnace's
 Le / (1 - kd) (the rendering equation's Neumann series), the scale invariance of a scene whose
 emission is radiance (1 mm and 10 km rooms must give the 1 m room's image), finite values and
@@ -10,16 +10,16 @@ import math
 import numpy as np
 import pytest
 
-from bake.bake_dir import Bake
-from scenes import stress as scenes
-from viewer import stress
+from glint.bench import stress
+from glint.core.bake_dir import Bake
+from glint.scenes import stress as scenes
 
 SIZE = (64, 36)
 
 
 @pytest.fixture(scope="module")
 def ctx():
-    from viewer.context import headless_context
+    from glint.viewer.context import headless_context
 
     c = headless_context()
     yield c
@@ -68,16 +68,15 @@ def test_1mm_and_10km_rooms_give_the_1m_image(ctx, rooms):
 
 
 def test_views_without_clip_planes_scale_with_the_scene(ctx, rooms):
-    """`glint capture --path` views get their near/far planes from the scene (viewer/capture.py
-    _clip_range): a fixed 1 cm near plane showed nothing of a 1 mm room."""
-    from viewer.camera import camera_path_at
-    from viewer.capture import _clip_range
-    from viewer.renderer import Renderer
+    """`glint capture --path` views get their near/far planes from the scene (glint/capture.py
+    clip_range): a fixed 1 cm near plane showed nothing of a 1 mm room."""
+    from glint.viewer.camera import camera_path_at, clip_range
+    from glint.viewer.renderer import Renderer
 
     images = {}
     for name in ("scale-1mm", "scale-1m", "scale-10km"):
         bake = rooms[name][1]
-        near, far = _clip_range(bake.manifest)
+        near, far = clip_range(bake.manifest)
         path = bake.manifest["camera_paths"][0]
         with Renderer(ctx, bake) as r:
             r.render(camera_path_at(path, 2.0, znear=near, zfar=far), *SIZE)
@@ -89,8 +88,8 @@ def test_views_without_clip_planes_scale_with_the_scene(ctx, rooms):
 
 def test_unwrap_is_scale_free():
     """A 1 mm sphere at 8000 texels/m gets the texels of a 1 m sphere at 8 (xatlas in texel units)."""
-    from bake.scene import Object
-    from bake.unwrap import achieved_density, unwrap
+    from glint.bake.unwrap import achieved_density, unwrap
+    from glint.core.scene import Object
 
     mesh = scenes.uv_sphere(0.3, 16, 8)
     for s in (1e-3, 1.0, 1e4):
@@ -115,8 +114,8 @@ def test_furnace_gives_le_over_one_minus_kd(ctx, tmp_path):
 def test_1e5_emitters_stay_finite(ctx, tmp_path):
     """Radiance 1e5 > 65504: the cube map that sees the lamp is float32, the frames are finite and
     hold the lamp's radiance, the mirror buffer is finite and at most the largest half float."""
-    from viewer.camera import ViewCamera
-    from viewer.renderer import Renderer
+    from glint.viewer.camera import ViewCamera
+    from glint.viewer.renderer import Renderer
 
     case = scenes.emitters(tmp_path / "scenes")
     bake = baked(case, tmp_path)
@@ -168,7 +167,7 @@ def test_walkthrough_no_growth_no_drift(ctx, rooms):
     assert walk["rss_growth"] <= stress.RSS_GROWTH_BOUND
     assert walk["allocated_growth"] == 0 and walk["end"]["allocated_bytes"] > 0
     assert walk["frame0_drift"] <= stress.DRIFT_TOLERANCE
-    from viewer.camera import ViewCamera
+    from glint.viewer.camera import ViewCamera
 
     camera = ViewCamera.from_manifest(bake.manifest["cameras"][0])
     walk["accumulation_drift"] = stress.accumulation_drift(ctx, bake, camera, frames=128)

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from bake.dilate import dilate, dilate_to_fill
-from bake.scene import Object
-from bake.texels import rasterize_texels, sample_bilinear
-from bake.unwrap import unwrap
+from glint.bake.dilate import dilate, dilate_to_fill
+from glint.bake.texels import rasterize_texels, sample_bilinear
+from glint.bake.unwrap import unwrap
+from glint.core.scene import Object
 
 DENSITY = 16.0
 
@@ -145,10 +145,10 @@ def test_rasterisation_is_deterministic(scene, baked):
 
 
 def test_batches_do_not_change_the_result(scene, baked, monkeypatch):
-    import bake.texels
+    import glint.bake.texels
 
     atlas, (page,) = baked
-    monkeypatch.setattr(bake.texels, "BATCH", 64)  # hundreds of batches instead of one
+    monkeypatch.setattr(glint.bake.texels, "BATCH", 64)  # hundreds of batches instead of one
     (small,) = rasterize_texels(scene, atlas)
     for field in ("position", "normal", "object", "triangle"):
         assert getattr(page, field).tobytes() == getattr(small, field).tobytes()

@@ -5,10 +5,10 @@ import trimesh
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from bake.scene import Object
-from bake.texels import rasterize_texels
-from bake.unwrap import unwrap
-from glint.errors import GlintError
+from glint.bake.texels import rasterize_texels
+from glint.bake.unwrap import unwrap
+from glint.core.errors import GlintError
+from glint.core.scene import Object
 
 DENSITY = 16.0
 PADDING = 2
@@ -212,7 +212,7 @@ def _crash_first_time(marker):
 
 
 def test_a_crashing_unwrap_is_retried_and_errors_are_passed_on(tmp_path):
-    from bake.unwrap import _isolated
+    from glint.bake.unwrap import _isolated
 
     assert _isolated(_crash_first_time, str(tmp_path / "marker")) == "charts"
     with pytest.raises(ZeroDivisionError):

@@ -10,10 +10,10 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import FAST, write_room
-from viewer.camera import ViewCamera
-from viewer.controls import LOOK_SENSITIVITY, MAX_DT, MAX_PITCH, RUN_FACTOR, SPEED_STEP, WalkControls
+
+from glint.viewer.camera import ViewCamera
+from glint.viewer.controls import LOOK_SENSITIVITY, MAX_DT, MAX_PITCH, RUN_FACTOR, SPEED_STEP, WalkControls
 
 SPEED = 2.0
 CAMERAS = [
@@ -200,7 +200,7 @@ def test_action_keys():
 
 # -- overlay text and screenshot names ----------------------------------------------------------
 def test_overlay_lines():
-    from viewer.overlay import overlay_lines
+    from glint.viewer.overlay import overlay_lines
 
     lines = overlay_lines(50.0, {"gbuffer": 1.5, "shading": 2.25, "total": 3.75}, "from north")
     assert "50.0 fps" in lines[0] and "20.0 ms" in lines[0]
@@ -211,7 +211,7 @@ def test_overlay_lines():
 
 
 def test_screenshot_names_are_unique(tmp_path):
-    from viewer.window import screenshot_path
+    from glint.viewer.window import screenshot_path
 
     names = {screenshot_path(tmp_path, "room") for _ in range(3)}
     assert len(names) == 3 and all(p.exists() and p.suffix == ".png" and p.parent == tmp_path for p in names)
@@ -276,10 +276,10 @@ target = [0.0, 1.0, 0.0]
 
 @pytest.fixture(scope="module")
 def room_bake(tmp_path_factory):
-    from bake.bake_dir import Bake
-    from bake.gltf_loader import load_scene
-    from bake.pipeline import bake_scene
-    from bake.settings import resolve_settings
+    from glint.bake.gltf_loader import load_scene
+    from glint.bake.settings import resolve_settings
+    from glint.core.bake_dir import Bake
+    from glint.services import bake_scene
 
     path = write_room(tmp_path_factory.mktemp("room") / "room.glb", sidecar=SIDECAR)
     scene = load_scene(path)
@@ -292,7 +292,7 @@ def headless_window(size=(96, 64)):
     from moderngl_window.context.base import BaseKeys
     from moderngl_window.context.headless import Window
 
-    from viewer.window import GL_VERSION
+    from glint.viewer.window import GL_VERSION
 
     class Keys(BaseKeys):  # the headless backend has no keyboard: give it codes to simulate one
         ACTION_PRESS, ACTION_RELEASE = "press", "release"
@@ -333,8 +333,8 @@ def window_pixels(wnd) -> np.ndarray:
 
 
 def test_window_renders_walks_and_screenshots(room_bake, tmp_path):
-    from viewer.overlay import MARGIN
-    from viewer.window import ViewerWindow
+    from glint.viewer.overlay import MARGIN
+    from glint.viewer.window import ViewerWindow
 
     wnd = headless_window((128, 160))
     manifest = room_bake.manifest
@@ -399,7 +399,7 @@ def test_window_renders_walks_and_screenshots(room_bake, tmp_path):
 
 
 def test_window_resizes_with_the_window(room_bake):
-    from viewer.window import ViewerWindow
+    from glint.viewer.window import ViewerWindow
 
     wnd = headless_window((64, 48))
     manifest = room_bake.manifest
@@ -418,7 +418,7 @@ def test_window_resizes_with_the_window(room_bake):
 
 
 def test_main_loop_runs_until_escape(room_bake):
-    from viewer.window import ViewerWindow, run
+    from glint.viewer.window import ViewerWindow, run
 
     class Scripted(ViewerWindow):
         """Presses Esc from inside the loop after a few frames, as a user would."""

@@ -187,10 +187,30 @@ def _hermite(p: np.ndarray, times: np.ndarray, i: int, s: float, closed: bool) -
 def find_named(entries: list[dict], name: str, what: str = "camera",
                none: str = "the scene has no cameras") -> dict:
     """The manifest entry called `name`, or a one-line GlintError listing the names there are."""
-    from glint.errors import GlintError
+    from glint.core.errors import GlintError
 
     entry = next((e for e in entries if e["name"] == name), None)
     if entry is None:
         have = ", ".join(e["name"] for e in entries)
         raise GlintError(f"unknown {what} '{name}'; " + (f"the scene has: {have}" if have else none))
     return entry
+
+
+def scene_bounds(manifest: dict) -> tuple[np.ndarray, np.ndarray]:
+    """The box round every object with triangles in a bake manifest (a unit cube round the origin
+    when there is none)."""
+    boxes = np.array([o["bounds"] for o in manifest.get("objects", []) if o.get("triangles")], np.float64)
+    if not len(boxes):
+        return np.full(3, -1.0), np.full(3, 1.0)
+    return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
+
+
+def clip_range(manifest: dict, eye=None) -> tuple[float, float]:
+    """Near and far planes for views the scene does not define: far enough to hold the whole
+    scene from wherever the eye is (at least 1 km); near 1 cm, less in a scene under 2 m across
+    (1 % of its radius: a 1 mm model still shows) and 2e-5 of its reach in one over about 1 km (so
+    24-bit depth still separates its surfaces: glint bench --stress, the 10 km room)."""
+    lo, hi = scene_bounds(manifest)
+    centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+    reach = radius * 2 + (float(np.linalg.norm(np.asarray(eye) - centre)) if eye is not None else 0.0)
+    return max(min(0.01, 0.01 * radius), 2e-5 * reach), max(1000.0, 2 * reach)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import moderngl
 
-from glint.errors import GlintError
+from glint.core.errors import GlintError
 
 GL_REQUIRED = 430  # compute shaders and shader storage buffers (DESIGN.md "Viewer")
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from viewer.camera import DEFAULT_YFOV, ViewCamera, camera_path_at, path_span
+from glint.viewer.camera import DEFAULT_YFOV, ViewCamera, camera_path_at, path_span
 
 KEY_HELP = """\
     W A S D         walk forward / left / back / right (in the horizontal plane);

@@ -39,7 +39,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
-from glint.errors import GlintError
+from glint.core.errors import GlintError
 
 CUBE_OBJECT_BINDING, BOUNDING_PLANE_BINDING = 4, 5
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")  # GL's face order (GL_TEXTURE_CUBE_MAP_POSITIVE_X + k)
@@ -67,7 +67,7 @@ def read_cubemap(path: str | Path) -> np.ndarray:
     """The one reader of the bake's cube-map files: (6, S, S, 4) float32 in GL face order, each
     face's row 0 at t = 0 (see the module docstring); alpha = 1 where the file has none.
     Non-finite or negative radiance becomes 0."""
-    from glint.image_io import read_image
+    from glint.core.image_io import read_image
 
     image = read_image(path, "cube map")
     h, w, c = image.shape

@@ -39,9 +39,9 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
-from glint.errors import GlintError
-from viewer.cubemaps import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, CubeMaps
-from viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
+from glint.core.errors import GlintError
+from glint.viewer.cubemaps import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, CubeMaps
+from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
 HALF_MAX = 65504.0
 
@@ -173,7 +173,7 @@ class GpuScene:
 
     # -- materials -------------------------------------------------------------------------------
     def _materials(self, bake) -> None:
-        from glint.image_io import read_image
+        from glint.core.image_io import read_image
 
         entries = bake.manifest["materials"]
         mats = np.zeros(max(len(entries), 1), MATERIAL_DTYPE)
@@ -308,7 +308,7 @@ class GpuScene:
             return
         self.sky_scale = _clean(sky.get("radiance", (1, 1, 1))).astype(np.float32)
         if sky.get("map"):
-            from glint.image_io import read_image
+            from glint.core.image_io import read_image
 
             image = _clean(read_image(bake.path / sky["map"])[..., :3])
             h, w = image.shape[:2]

@@ -6,7 +6,7 @@ pixel's lobe by Eq. 4.12-4.13 (`pattern_direction`), filters each look-up at the
 of Eq. 4.16-4.17 for the footprint of `pattern_footprint_area` (the lobe's second moment;
 the thesis' A / n of Eq. 4.14-4.15 for transmission lobes), and weights them by Eq. 4.25 (or 4.24). Every function of
 lobe_sampling.glsl has its float64 numpy twin below, written from the thesis, with the
-BSDF itself from bake/bsdf.py; tests/test_lobe_patterns.py holds the two equal.
+BSDF itself from core/bsdf.py; tests/test_lobe_patterns.py holds the two equal.
 
 Which pattern, how many samples
 -------------------------------
@@ -115,7 +115,7 @@ anisotropic ones keep the line patterns, whose samples are already evenly spaced
 towards the ends (the thesis says the same). `samples_for_lobe(..., planar=True)`: 1, 3, 5
 as for the ring, and 10 (centre + 5 + 4) from m = 0.05 on.
 
-Measured (docs/measure_multi_ring.py): the step response of the estimate across a straight
+Measured (bench/measure_multi_ring.py): the step response of the estimate across a straight
 edge in the reflected scene (radiance 1 beyond the edge, 0 before it; the edge at offsets
 -1.5 .. 1.5 lobe radii in the tangent plane at unit distance, 8 orientations; views
 theta_o = 0, 30, 60, 75 deg; r0 = 0.04), against the exact response (the lobe's f cos
@@ -140,7 +140,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from bake import bsdf
+from glint.core import bsdf
 
 XI1_BORDER = 0.01      # Eq. 4.10, the thesis' empirical lobe border
 RING_RADIUS = 0.6      # xi1 of the ring: "radius = 0.6 (= 40% off-center)"
@@ -247,7 +247,7 @@ def _roughness(mx, my):
 
 
 def pattern_phi(xi2, mx, my):
-    """phi_h = arctan(my/mx tan(2 pi xi2)) (Eq. 4.12), quadrant-correct as bake.bsdf.sample_half_vector."""
+    """phi_h = arctan(my/mx tan(2 pi xi2)) (Eq. 4.12), quadrant-correct as glint.core.bsdf.sample_half_vector."""
     mx, my = _roughness(mx, my)
     a = 2.0 * np.pi * np.asarray(xi2, dtype=float)
     return np.arctan2(my * np.sin(a), mx * np.cos(a))

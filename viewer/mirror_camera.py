@@ -29,7 +29,7 @@ R X. Two consequences the renderer relies on:
   (`MirrorCamera.flip_winding` is True).
 
 World-space positions and normals written by the mirror pass are those of the
-*unmirrored* scene (model matrix only, no R): `viewer/mirror_projection.py`
+*unmirrored* scene (model matrix only, no R): `bench/mirror_projection.py`
 intersects rays from the real reflector with them.
 
 Clipping at the plane
@@ -71,7 +71,7 @@ from typing import Any, Hashable, Sequence
 
 import numpy as np
 
-from viewer.camera import ViewCamera
+from glint.viewer.camera import ViewCamera
 
 GROUP_ANGLE_DEG = 0.5  # planes closer than this in normal direction ...
 GROUP_OFFSET = 5e-3  # ... and this in offset (m) share one mirror pass
@@ -210,7 +210,7 @@ class MirrorCamera:
         return oblique_projection(self.camera.projection_matrix(aspect), self.clip_plane_eye(bias)).astype(np.float32)
 
     def view_projection(self, aspect: float, *, oblique: bool = False) -> np.ndarray:
-        """Projection @ V @ R, float32 -- what `viewer/mirror_projection.py` projects with
+        """Projection @ V @ R, float32 -- what `bench/mirror_projection.py` projects with
         (the oblique variant differs only in depth)."""
         proj = (self.oblique_projection_matrix(aspect) if oblique else self.projection_matrix(aspect))
         return (proj.astype(np.float64) @ self.view_matrix64()).astype(np.float32)

@@ -24,7 +24,7 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from viewer.passes.accumulate import AccumulatePass
+from glint.viewer.passes.accumulate import AccumulatePass
 
 DEFAULT_SAMPLES_PER_FRAME = 8
 DEFAULT_MAX_FRAMES = 512       # 4096 samples per lobe and pixel at the default K

@@ -66,8 +66,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from viewer.camera import ViewCamera
-from viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HEIGHT, MirrorCamera, group_coplanar
+from glint.viewer.camera import ViewCamera
+from glint.viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HEIGHT, MirrorCamera, group_coplanar
 
 DEFAULT_BUDGET = 4  # mirror passes per frame
 GUARD_MAX_HALF_ANGLE = np.radians(80.0)  # the widened half field of view at most (tan 80 deg = 5.7)
@@ -102,8 +102,8 @@ class Reflector:
 
     @classmethod
     def from_object(cls, obj) -> "Reflector":
-        """From a `bake.scene.Object` whose role is `planar` (plane by `bake.roles.plane_of`)."""
-        from bake.roles import plane_of
+        """From a `glint.core.scene.Object` whose role is `planar` (plane by `glint.core.geometry.plane_of`)."""
+        from glint.core.geometry import plane_of
 
         point, normal = plane_of(obj)
         return cls(obj.name, point, normal, obj.bounds, obj.area)
@@ -325,5 +325,5 @@ def plan_mirror_passes(reflectors: Sequence[Reflector], camera: ViewCamera, aspe
 
 
 def reflectors_of(objects: Iterable) -> list[Reflector]:
-    """`Reflector`s of the `planar` objects among `objects` (bake.scene.Object)."""
+    """`Reflector`s of the `planar` objects among `objects` (glint.core.scene.Object)."""
     return [Reflector.from_object(o) for o in objects if getattr(o, "role", None) == "planar"]

@@ -37,20 +37,20 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from glint.errors import GlintError
-from viewer.camera import ViewCamera
-from viewer.context import check_context, describe
-from viewer.gpu_scene import GpuScene, shader_defines
-from viewer.passes.gbuffer import GBufferPass
-from viewer.passes.mirror import MirrorPasses, mirror_defines
-from viewer.passes.resolve import ResolvePass
-from viewer.passes.shading import SKY_UNIT, ShadingPass, mirror_first_unit
-from viewer.passes.tonemap import TonemapPass
-from viewer.progressive import DEFAULT_MAX_FRAMES, DEFAULT_SAMPLES_PER_FRAME, Progressive
-from viewer.reflectors import DEFAULT_BUDGET
-from viewer.shader_source import set_uniforms
-from viewer.split_sum import SplitSum
-from viewer.timing import PassTimer
+from glint.core.errors import GlintError
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import check_context, describe
+from glint.viewer.gpu_scene import GpuScene, shader_defines
+from glint.viewer.passes.gbuffer import GBufferPass
+from glint.viewer.passes.mirror import MirrorPasses, mirror_defines
+from glint.viewer.passes.resolve import ResolvePass
+from glint.viewer.passes.shading import SKY_UNIT, ShadingPass, mirror_first_unit
+from glint.viewer.passes.tonemap import TonemapPass
+from glint.viewer.progressive import DEFAULT_MAX_FRAMES, DEFAULT_SAMPLES_PER_FRAME, Progressive
+from glint.viewer.reflectors import DEFAULT_BUDGET
+from glint.viewer.shader_source import set_uniforms
+from glint.viewer.split_sum import SplitSum
+from glint.viewer.timing import PassTimer
 
 MAX_SUPERSAMPLE = 8
 MODES = ("walkthrough", "converge", "auto")

@@ -21,7 +21,7 @@ from importlib import resources
 import moderngl
 
 GLSL_VERSION = "#version 430 core"
-PACKAGE = "shaders"
+PACKAGE = "glint.shaders"
 LOCAL_SIZE = 8  # compute work groups are LOCAL_SIZE x LOCAL_SIZE (a define of every compute shader)
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*(//.*)?$')

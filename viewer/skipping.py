@@ -12,7 +12,7 @@ One fixed shape (every key always present), built only here, for `glint capture 
     mirror       planar reflectors, passes run, reflectors skipped per reason
                  (viewer/reflectors.py SkipReason; "budget 0" where the budget turned the
                  passes off), reflectors merged into another's pass (same plane)
-    cube_maps    objects, cube maps baked, objects without one per reason (bake/skipped.py)
+    cube_maps    objects, cube maps baked, objects without one per reason (core/skipped.py)
     bake         this command's bake step, and what the bake that wrote the directory redid
                  and reused and why (manifest statistics.last_bake; null for older bake dirs)
 
@@ -21,8 +21,8 @@ named); the fraction is count / of, 0 when there is nothing to count.
 """
 from __future__ import annotations
 
-from bake.skipped import DIFFUSE_ROLE, NO_LOBE, NOT_BAKED, PLANAR, cube_map_skips, last_bake
-from viewer.reflectors import SkipReason
+from glint.core.skipped import DIFFUSE_ROLE, NO_LOBE, NOT_BAKED, PLANAR, cube_map_skips, last_bake
+from glint.viewer.reflectors import SkipReason
 
 BUDGET_OFF = "budget 0"
 MIRROR_REASONS = {

@@ -33,7 +33,7 @@ An anisotropic lobe is prefiltered as the isotropic one of m = sqrt(mx my), as e
 (the chain has one roughness per level); only the albedo factor knows its anisotropy.
 
 Albedo (`albedo_lut`): per lobe of the scene, its directional albedo int f cos dw (Eq. 3.4-3.5,
-Fresnel, shadowing, transmission and all) by bake.bsdf.lobe_albedo (ALBEDO_SAMPLES quasi-random
+Fresnel, shadowing, transmission and all) by glint.core.bsdf.lobe_albedo (ALBEDO_SAMPLES quasi-random
 importance samples) on a grid of LUT_COS values of sqrt(cos theta_v) (dense towards grazing,
 where it changes fastest) by LUT_PHI view azimuths in [0, pi/2] (the lobe is symmetric under
 x -> -x and y -> -y, so that quarter is all there is), read bilinearly. Per lobe rather than a
@@ -62,18 +62,32 @@ import time
 import moderngl
 import numpy as np
 
-from viewer.cubemaps import (GL_CLAMP_TO_EDGE, GL_FLOAT, GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR, GL_RGBA, GL_RGBA16F,
-                             GL_RGBA32F, GL_TEXTURE0, GL_TEXTURE_CUBE_MAP_ARRAY, GL_TEXTURE_MAG_FILTER,
-                             GL_TEXTURE_MIN_FILTER, GL_TEXTURE_WRAP_R, GL_TEXTURE_WRAP_S, GL_TEXTURE_WRAP_T, _GL,
-                             gl_functions)
-from viewer.shader_source import LOCAL_SIZE, compute_program, set_uniforms
+from glint.viewer.cubemaps import (
+    _GL,
+    GL_CLAMP_TO_EDGE,
+    GL_FLOAT,
+    GL_LINEAR,
+    GL_LINEAR_MIPMAP_LINEAR,
+    GL_RGBA,
+    GL_RGBA16F,
+    GL_RGBA32F,
+    GL_TEXTURE0,
+    GL_TEXTURE_CUBE_MAP_ARRAY,
+    GL_TEXTURE_MAG_FILTER,
+    GL_TEXTURE_MIN_FILTER,
+    GL_TEXTURE_WRAP_R,
+    GL_TEXTURE_WRAP_S,
+    GL_TEXTURE_WRAP_T,
+    gl_functions,
+)
+from glint.viewer.shader_source import LOCAL_SIZE, compute_program, set_uniforms
 
 PREFILTER_SAMPLES = 64    # importance samples per texel of level 1, doubled per level ...
 PREFILTER_SAMPLES_MAX = 512  # ... up to this: wider lobes on fewer texels (converged: see tests)
 LOWEST_FACE = 4           # texels per side of the chain's last level
 M_MAX = 1.0               # the roughness of the last level
 LUT_COS, LUT_PHI = 32, 8  # albedo grid: sqrt(cos theta_v) x view azimuth in [0, pi/2]
-ALBEDO_SAMPLES = 4096     # per albedo (bake.bsdf.lobe_albedo)
+ALBEDO_SAMPLES = 4096     # per albedo (glint.core.bsdf.lobe_albedo)
 PREFILTER_UNIT = 0        # source cube maps' first texture unit while prefiltering
 IMAGE_UNIT = 0
 
@@ -111,7 +125,7 @@ def lut_views() -> np.ndarray:
 def albedo_lut(lobe_table: np.ndarray, samples: int = ALBEDO_SAMPLES) -> np.ndarray:
     """(lobes, LUT_COS, LUT_PHI) float32: each lobe's directional albedo (without ks) at the grid's
     views. Lobes with the same parameters are computed once; isotropic ones for one azimuth."""
-    from bake import bsdf
+    from glint.core import bsdf
 
     views = lut_views()
     out = np.zeros((max(len(lobe_table), 1), LUT_COS, LUT_PHI), np.float32)
@@ -146,7 +160,7 @@ class SplitSum:
     per-lobe albedo LUT of a GpuScene."""
 
     def __init__(self, ctx, scene, samples: int = PREFILTER_SAMPLES):
-        from viewer.gpu_scene import shader_defines
+        from glint.viewer.gpu_scene import shader_defines
 
         self.ctx = ctx
         self.samples = int(samples)

@@ -26,12 +26,12 @@ import moderngl_window
 from moderngl_window.context.base import BaseWindow
 from PIL import Image
 
-from glint.errors import warn
-from viewer.context import GL_REQUIRED, check_context
-from viewer.controls import WalkControls
-from viewer.overlay import Overlay
-from viewer.renderer import Renderer
-from viewer.shader_source import raster_program
+from glint.core.errors import warn
+from glint.viewer.context import GL_REQUIRED, check_context
+from glint.viewer.controls import WalkControls
+from glint.viewer.overlay import Overlay
+from glint.viewer.renderer import Renderer
+from glint.viewer.shader_source import raster_program
 
 GL_VERSION = (GL_REQUIRED // 100, GL_REQUIRED % 100 // 10)
 BLEND_FRAMES = 4  # from the walkthrough image to the running mean when the camera stops
@@ -126,7 +126,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
 
         if self.overlay.visible and self.overlay.due(frame_time):
             # stats waits for the GPU's timer queries: read it only when the text is redrawn
-            from viewer.skipping import frame_section, one_line
+            from glint.viewer.skipping import frame_section, one_line
 
             stats = self.renderer.stats
             self.overlay.update(stats["gpu_ms_median"], self.controls.status, [one_line(frame_section(stats))])

@@ -27,10 +27,7 @@ def cornell_box(size: int = 128, spp: int = 16384) -> np.ndarray:
 
 
 if __name__ == "__main__":
-    import sys
-
-    sys.path.insert(0, str(HERE.parents[1]))
-    from glint.image_io import write_image
+    from glint.core.image_io import write_image
 
     image = cornell_box()
     write_image(HERE / "cornell_box_128.exr", image, half=False)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import moderngl
 
-from viewer.shader_source import compute_program, dispatch, set_uniforms
+from glint.viewer.shader_source import compute_program, dispatch, set_uniforms
 
 FRAME_UNIT, BASE_UNIT = 0, 1
 SUM_IMAGE, SHOWN_IMAGE = 0, 1

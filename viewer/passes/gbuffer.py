@@ -9,8 +9,8 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from viewer.camera import ViewCamera, gl_bytes
-from viewer.shader_source import raster_program, set_uniforms
+from glint.viewer.camera import ViewCamera, gl_bytes
+from glint.viewer.shader_source import raster_program, set_uniforms
 
 GB_ATTACHMENTS = {"GB_DIFFUSE": 0, "GB_NORMAL": 1, "GB_TANGENT": 2, "GB_MATERIAL": 3}
 LIGHTMAP_UNIT, KD_TEXTURE_UNIT = 0, 1

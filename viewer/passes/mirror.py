@@ -23,7 +23,7 @@ Per frame, before the G-buffer:
    at the render size (supersampled), over the mirrored view widened by the pass's guard band
    (viewer/reflectors.py: x and y of the projection divided by s >= 1, from the reach of its
    widest lobe, so lobes near the border of the view still find what they see; with s = 1 the
-   buffer lines up pixel for pixel with the main view). viewer/mirror_projection.py states the
+   buffer lines up pixel for pixel with the main view). bench/mirror_projection.py states the
    conventions (texel row 0 = the bottom); the shaders project with the slot's matrix.
    The PassTimer sections are "mirror_passes" (the raster passes and their sky) and
    "mirror_mips" (the MIP chains).
@@ -45,14 +45,20 @@ import ctypes
 import moderngl
 import numpy as np
 
-from viewer.camera import ViewCamera, gl_bytes
-from viewer.cubemaps import gl_functions
-from viewer.gpu_scene import SKY_MODES
-from viewer.mirror_camera import group_coplanar
-from viewer.passes.gbuffer import KD_TEXTURE_UNIT, LIGHTMAP_UNIT, draw_object, in_frustum
-from viewer.reflectors import (DEFAULT_BUDGET, MirrorPlan, OcclusionResults, Reflector, lobe_reach,
-                               plan_mirror_passes)
-from viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
+from glint.viewer.camera import ViewCamera, gl_bytes
+from glint.viewer.cubemaps import gl_functions
+from glint.viewer.gpu_scene import SKY_MODES
+from glint.viewer.mirror_camera import group_coplanar
+from glint.viewer.passes.gbuffer import KD_TEXTURE_UNIT, LIGHTMAP_UNIT, draw_object, in_frustum
+from glint.viewer.reflectors import (
+    DEFAULT_BUDGET,
+    MirrorPlan,
+    OcclusionResults,
+    Reflector,
+    lobe_reach,
+    plan_mirror_passes,
+)
+from glint.viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
 
 # Storage buffers 0-5: viewer/gpu_scene.py and cubemaps.py; 6-7: glsl_eval.py; 8-9: shading.py.
 MIRROR_SLOT_BINDING, MIRROR_OBJECT_BINDING = 10, 11
@@ -83,7 +89,7 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
     others have nothing to read a mirror buffer for: the cube-map bake renders without lobes):
     its `plane` entry (bake/pipeline.py), or the best-fit plane of its mesh for a manifest
     without one. Names are made unique (the occlusion results are kept by name)."""
-    from bake.roles import fit_plane
+    from glint.core.geometry import fit_plane
 
     out, seen = [], set()
     materials = bake.manifest["materials"]
@@ -407,7 +413,7 @@ class MirrorPasses:
 
     def read(self, slot: int, target: str = "radiance") -> np.ndarray:
         """(H, W, 4) float32 of one slot's target at level 0, GL orientation (row 0 = bottom),
-        as viewer/mirror_projection.py indexes images. For tests and debugging (waits for the GPU)."""
+        as bench/mirror_projection.py indexes images. For tests and debugging (waits for the GPU)."""
         tex = self.targets[target]
         w, h, layers = tex.width, tex.height, tex.layers
         dtype = np.float32 if target == "position" else np.float16

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import moderngl
 
-from viewer.shader_source import compute_program, dispatch, set_uniforms
+from glint.viewer.shader_source import compute_program, dispatch, set_uniforms
 
 SOURCE_UNIT, IMAGE_UNIT = 0, 0
 

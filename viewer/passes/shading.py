@@ -25,15 +25,15 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
-from viewer.camera import ViewCamera
-from viewer.passes.mirror import PLANE_NORMAL_IMAGE, PLANE_POSITION_IMAGE
-from viewer.shader_source import LOCAL_SIZE, compute_program, dispatch, set_uniforms
+from glint.viewer.camera import ViewCamera
+from glint.viewer.passes.mirror import PLANE_NORMAL_IMAGE, PLANE_POSITION_IMAGE
+from glint.viewer.shader_source import LOCAL_SIZE, compute_program, dispatch, set_uniforms
 
 GBUFFER_UNITS = {"gb_diffuse": 0, "gb_normal": 1, "gb_tangent": 2, "gb_material": 3, "gb_depth": 4}
 SKY_UNIT = 5
 CUBE_FIRST_UNIT = 6  # cube-map classes on units 6, 7, ...
 IMAGE_UNIT = 0
-# Storage buffers 0-5: viewer/gpu_scene.py and viewer/cubemaps.py; 6-7: viewer/glsl_eval.py.
+# Storage buffers 0-5: viewer/gpu_scene.py and viewer/cubemaps.py; 6-7: bench/glsl_eval.py.
 SPECULAR_WORK_BINDING, SPECULAR_FLAGS_BINDING = 8, 9
 SPECULAR_MODES = {"SPECULAR_PATTERNS": 0, "SPECULAR_QMC": 1, "SPECULAR_FILTERED_IS": 2, "SPECULAR_SPLIT_SUM": 3}
 MIRROR_UNITS = 3  # the mirror buffers' texture arrays (viewer/passes/mirror.py mirror_defines)

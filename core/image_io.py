@@ -6,13 +6,13 @@ crash never leaves a half-written image behind.
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
 
-from glint.errors import GlintError
+from glint.core.atomic import atomic_path
+from glint.core.errors import GlintError
 
 HALF_MAX = 65504.0
 
@@ -62,15 +62,14 @@ def write_image(path: str | Path, pixels: np.ndarray, *, half: bool | None = Non
     spec.attribute("DateTime", "")  # no timestamp: the same pixels give a byte-identical file
     if ext == ".exr":
         spec.attribute("compression", "zip")
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp{path.suffix}")
-    out = oiio.ImageOutput.create(str(tmp))
-    if out is None or not out.open(str(tmp), spec):
-        raise GlintError(f"{path}: cannot write image: {oiio.geterror().strip()}")
-    try:
-        ok = out.write_image(np.ascontiguousarray(data))
-        if not ok:
-            raise GlintError(f"{path}: cannot write image: {out.geterror().strip()}")
-    finally:
-        out.close()
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        out = oiio.ImageOutput.create(str(tmp))
+        if out is None or not out.open(str(tmp), spec):
+            raise GlintError(f"{path}: cannot write image: {oiio.geterror().strip()}")
+        try:
+            ok = out.write_image(np.ascontiguousarray(data))
+            if not ok:
+                raise GlintError(f"{path}: cannot write image: {out.geterror().strip()}")
+        finally:
+            out.close()
     return kind

@@ -8,21 +8,21 @@ For each camera: a high-sample Mitsuba reference (--mitsuba-reference-spp), Mits
 viewer's walkthrough frame (median frame time over --frames after --warmup, as `glint bench`
 times frames) and its converged still-camera image (--reference-samples samples per lobe and
 pixel, its total wall-clock seconds). Each image's error against the Mitsuba reference: rel MSE
-and PSNR as viewer/bench.py defines them (its functions), FLIP when installed, over the whole
-image and over the viewer's view-dependent pixels and materials (viewer/bench.py
+and PSNR as bench/bench.py defines them (its functions), FLIP when installed, over the whole
+image and over the viewer's view-dependent pixels and materials (bench/bench.py
 `region_masks`). Results: mitsuba.csv, mitsuba.json and mitsuba.png (log-log: rel MSE against
 seconds, Mitsuba's curve and the viewer's two points) in the output directory; with --images
 also every image as PNG in DIR/images.
 
-Same scene: bake/mitsuba_scene.py converts the Scene that the bake loaded (bake/gltf_loader.py
+Same scene: bench/mitsuba_scene.py converts the Scene that the bake loaded (bake/gltf_loader.py
 with the sidecar: the same materials), with the section 3.3 BSDF as a Mitsuba plugin
-(bake/mitsuba_bsdf.py). The viewer's error against it is everything the viewer approximates:
+(bench/mitsuba_bsdf.py). The viewer's error against it is everything the viewer approximates:
 light maps (diffuse transport only, no glossy bounces), cube maps and mirror buffers in place
 of the scene, the lobe integration.
 
 Pixels: both sides integrate over the pixel's area (Mitsuba: box filter; the viewer:
 --supersample N x N, box-filtered). Displayed images: Mitsuba's linear radiance goes through the
-viewer's own tone map (shaders/colour.glsl, exposure, ACES fit, sRGB, run by viewer/glsl_eval.py),
+viewer's own tone map (shaders/colour.glsl, exposure, ACES fit, sRGB, run by bench/glsl_eval.py),
 so PSNR compares like with like.
 
 Mitsuba variant (--mitsuba-variant, default auto): the fastest that works here, cuda_ad_rgb >
@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glint.errors import GlintError
+from glint.core.errors import GlintError
 
 VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")  # fastest first
 DEFAULT_REFERENCE_SPP = 4096
@@ -69,7 +69,7 @@ _PROBE = ("import sys, mitsuba as mi; mi.set_variant(sys.argv[1]); "
 
 
 def add_mitsuba_options(p) -> None:
-    """The options of --mitsuba (the flag itself is viewer/bench.py's)."""
+    """The options of --mitsuba (the flag itself is bench/bench.py's)."""
     g = p.add_argument_group("--mitsuba: against Mitsuba 3")
     g.add_argument("--mitsuba-reference-spp", default=str(DEFAULT_REFERENCE_SPP), metavar="N",
                    help=f"samples per pixel of Mitsuba's reference (default {DEFAULT_REFERENCE_SPP})")
@@ -150,9 +150,9 @@ def curve_spps(max_spp: int) -> list[int]:
 # -- displayed images: the viewer's tone map ------------------------------------------------------
 def display_srgb(linear: np.ndarray, exposure: float, ctx=None) -> np.ndarray:
     """(H, W, 3) uint8: shaders/colour.glsl's aces_narkowicz and srgb_oetf of radiance x 2^EV, run by
-    viewer/glsl_eval.py in `ctx` (default: its own), rounded as an rgba8 image store does (what
+    bench/glsl_eval.py in `ctx` (default: its own), rounded as an rgba8 image store does (what
     Renderer.read_srgb returns)."""
-    from viewer import glsl_eval
+    from glint.bench import glsl_eval
 
     h, w = linear.shape[:2]
     L = np.nan_to_num(np.asarray(linear, np.float32).reshape(-1, 3), nan=0.0, posinf=0.0, neginf=0.0)
@@ -168,10 +168,10 @@ def display_srgb(linear: np.ndarray, exposure: float, ctx=None) -> np.ndarray:
 
 # -- the command --------------------------------------------------------------------------------
 def check_mitsuba_arguments(args) -> dict:
-    from viewer.capture import _number
+    from glint.services import number
 
-    ref = _number(args.mitsuba_reference_spp, "--mitsuba-reference-spp", whole=True, lo=1, hi=MAX_SPP)
-    top = _number(args.mitsuba_max_spp, "--mitsuba-max-spp", whole=True, lo=1, hi=MAX_SPP)
+    ref = number(args.mitsuba_reference_spp, "--mitsuba-reference-spp", whole=True, lo=1, hi=MAX_SPP)
+    top = number(args.mitsuba_max_spp, "--mitsuba-max-spp", whole=True, lo=1, hi=MAX_SPP)
     if ref < 2 * top:
         raise GlintError(f"--mitsuba-reference-spp {ref} must be at least twice --mitsuba-max-spp {top}: the "
                          "reference's own noise adds to every error of the curve")
@@ -186,7 +186,7 @@ def render_batches(spp: int, pixels: int) -> list[int]:
 
 def render_mitsuba(mi_scene, sensor: int, spp: int, seed: int, pixels: int, progress=None) -> np.ndarray:
     """Mean of `render_batches` renders (seeds seed, seed + 1, ...), a progress step after each."""
-    from bake.mitsuba_scene import render
+    from glint.bench.mitsuba_scene import render
 
     total = 0.0
     for k, n in enumerate(render_batches(spp, pixels)):
@@ -220,11 +220,11 @@ def glint_images(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict,
     """(walkthrough image, its timing, converged image, its seconds + regions) of one camera.
 
     Walkthrough: the median frame time after --warmup frames, as `glint bench` times. Converged:
-    the wall-clock seconds of its --reference-samples still-camera frames (viewer/bench.py
+    the wall-clock seconds of its --reference-samples still-camera frames (bench/bench.py
     `reference_batches`), after one untimed frame that compiles and uploads everything (Mitsuba's
     kernels are compiled before its timings too)."""
-    from viewer.bench import reference_batches, region_masks
-    from viewer.renderer import Renderer
+    from glint.bench.bench import reference_batches, region_masks
+    from glint.viewer.renderer import Renderer
 
     batch, frames = reference_batches(parsed["reference"])
     renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
@@ -263,10 +263,18 @@ def glint_images(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict,
 def cmd_bench_mitsuba(args) -> int:
     from tqdm import tqdm
 
-    from bake.bake_dir import Bake
-    from glint.cli import open_scene, run_bake
-    from viewer.bench import _slug, _write_png, check_arguments, choose_cameras, errors, flip_module, reference_batches
-    from viewer.context import describe, headless_context
+    from glint.bench.bench import (
+        _slug,
+        _write_png,
+        check_arguments,
+        choose_cameras,
+        errors,
+        flip_module,
+        reference_batches,
+    )
+    from glint.core.bake_dir import Bake
+    from glint.services import open_scene, run_bake
+    from glint.viewer.context import describe, headless_context
 
     # The sweep's --lobe-samples play no part here (the walkthrough uses the default patterns).
     parsed = check_arguments(argparse.Namespace(**{**vars(args), "lobe_samples": "1"}))
@@ -274,7 +282,7 @@ def cmd_bench_mitsuba(args) -> int:
     setup_variant = choose_variant(args.mitsuba_variant)
     import mitsuba as mi
 
-    from bake import mitsuba_scene
+    from glint.bench import mitsuba_scene
 
     report = run_bake(args, progress=sys.stderr.isatty())
     bake = Bake(report.bake_dir)
@@ -349,8 +357,8 @@ def cmd_bench_mitsuba(args) -> int:
                   "converged": f"still camera, {parsed['reference']} samples per lobe and pixel; wall-clock "
                                "seconds of all its frames"},
         "metrics": {"reference": f"Mitsuba, {ref_spp} spp",
-                    "rel_mse": "viewer/bench.py rel_mse on linear radiance",
-                    "psnr_db": "viewer/bench.py psnr_db of the displayed images (the viewer's tone map for both)",
+                    "rel_mse": "bench/bench.py rel_mse on linear radiance",
+                    "psnr_db": "bench/bench.py psnr_db of the displayed images (the viewer's tone map for both)",
                     "flip": "mean LDR-FLIP" if flip is not None else "not measured (pip install flip-evaluator)"},
         "per_camera": per_camera,
     }
@@ -366,7 +374,7 @@ CSV_COLUMNS = ("scene", "camera", "method", "spp", "seconds", "region", "pixels"
 
 
 def write_results(out: Path, setup: dict, results: list) -> None:
-    from viewer.bench import _atomic, _json_safe, _num
+    from glint.bench.bench import _atomic, _json_safe, _num
 
     out.mkdir(parents=True, exist_ok=True)
     _atomic(out / "mitsuba.json", json.dumps(_json_safe({**setup, "results": results}), indent=1) + "\n")

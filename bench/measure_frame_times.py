@@ -1,6 +1,6 @@
 """Frame time per pass of the built-in scenes at several sizes (issues 3-5; thesis Table 4.2).
 
-    python3 docs/measure_frame_times.py [--sizes 1920x1080,3840x2160] [--supersample 1,2] [--frames 60]
+    python3 -m glint.bench.measure_frame_times [--sizes 1920x1080,3840x2160] [--supersample 1,2] [--frames 60]
                                         [--scenes living-room,...] [--bake-root DIR] [--out DIR]
 
 For every scene, camera, size and supersampling factor: --warmup untimed frames, then --frames
@@ -17,20 +17,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
 
 def load_bake(scene: str, bake_root: Path | None):
-    from bake.bake_dir import Bake, default_bake_dir
-    from bake.pipeline import bake_scene
-    from bake.settings import resolve_settings
-    from glint.cli import open_scene
+    from glint.bake.settings import resolve_settings
+    from glint.core.bake_dir import Bake, default_bake_dir
+    from glint.services import bake_scene, open_scene
 
     loaded, builtin = open_scene(scene)
     out = bake_root / f"{scene}.bake" if bake_root else default_bake_dir(loaded.source, builtin)
@@ -66,9 +62,9 @@ def main() -> None:
     ap.add_argument("--bake-root", type=Path)
     ap.add_argument("--out", type=Path, default=Path("/tmp/glint-frame-times"))
     args = ap.parse_args()
-    from viewer.camera import ViewCamera
-    from viewer.context import describe, headless_context
-    from viewer.renderer import Renderer
+    from glint.viewer.camera import ViewCamera
+    from glint.viewer.context import describe, headless_context
+    from glint.viewer.renderer import Renderer
 
     sizes = [tuple(int(x) for x in s.lower().split("x")) for s in args.sizes.split(",")]
     factors = [int(s) for s in args.supersample.split(",")]

@@ -11,15 +11,14 @@ import os
 import sys
 import textwrap
 
-from glint.errors import GlintError
+from glint.core.errors import GlintError
 
 DEFAULT_SIZE = "1280x720"
 
 
 def add_view_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    from glint.cli import SCENE_HELP, add_bake_options  # here: glint.cli imports this module
-
-    from viewer.controls import KEY_HELP
+    from glint.services import SCENE_HELP, add_bake_options
+    from glint.viewer.controls import KEY_HELP
     p = subparsers.add_parser(
         "view", parents=[common_parent], help="walk through a scene in a window (bakes first if needed)",
         description=textwrap.fill("Open a window on a scene and walk through it. The scene is baked first "
@@ -57,7 +56,7 @@ def home_camera(manifest: dict, aspect: float):
     """A view of the whole scene, for scenes without cameras."""
     import numpy as np
 
-    from viewer.camera import ViewCamera
+    from glint.viewer.camera import ViewCamera
 
     bounds = np.array([o["bounds"] for o in manifest["objects"] if o.get("triangles")],
                       np.float64).reshape(-1, 2, 3)
@@ -67,9 +66,10 @@ def home_camera(manifest: dict, aspect: float):
 
 
 def cmd_view(args) -> int:
-    from glint.cli import run_bake
-
-    from viewer.capture import parse_size  # the same WxH rules and message as `glint capture`
+    from glint.services import (
+        parse_size,  # the same WxH rules and message as `glint capture`
+        run_bake,
+    )
 
     width, height = parse_size(args.size)
     reason = missing_display()
@@ -80,9 +80,9 @@ def cmd_view(args) -> int:
     if report.status != "up-to-date":
         print(report.summary, flush=True)
 
-    from bake.bake_dir import Bake
-    from viewer.camera import find_named
-    from viewer.controls import WalkControls
+    from glint.core.bake_dir import Bake
+    from glint.viewer.camera import find_named
+    from glint.viewer.controls import WalkControls
 
     bake = Bake(report.bake_dir)
     manifest = bake.manifest
@@ -91,7 +91,7 @@ def cmd_view(args) -> int:
     controls = WalkControls(manifest["cameras"], manifest["camera_paths"], home_camera(manifest, width / height),
                             start=args.camera)
 
-    from viewer.window import ViewerWindow, create_window, run
+    from glint.viewer.window import ViewerWindow, create_window, run
 
     name = manifest["scene"]["name"]
     try:

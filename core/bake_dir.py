@@ -3,7 +3,7 @@
     manifest.json          versioned description (see `FORMAT_VERSION`): scene hash, per-stage
                            input hashes, settings, statistics, materials, lights, cameras, objects;
                            optional `statistics.last_bake`: what the bake that wrote it redid and
-                           reused and why (bake/skipped.py; absent in older bake dirs, which stay
+                           reused and why (core/skipped.py; absent in older bake dirs, which stay
                            readable: no version change)
     meshes.npz             per object o<i>_*: positions, normals, uvs (texture), lm_uv, lm_page,
                            indices -- vertices already split along light-map chart seams
@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from glint.errors import GlintError
+from glint.core.atomic import atomic_write_text
+from glint.core.errors import GlintError
 
 FORMAT_VERSION = 1
 MANIFEST = "manifest.json"
@@ -61,9 +62,7 @@ def read_manifest(bake_dir: Path) -> dict | None:
 
 
 def write_json(path: Path, data: dict) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, sort_keys=False))
-    os.replace(tmp, path)
+    atomic_write_text(path, json.dumps(data, indent=1, sort_keys=False))
 
 
 def save_meshes(path: Path, meshes: list[dict]) -> None:
@@ -151,7 +150,7 @@ class Bake:
     def lightmap(self, page: int) -> np.ndarray:
         """(H, W, 4) float32: irradiance RGB and A = 1 where path traced."""
         if page not in self._pages:
-            from glint.image_io import read_image
+            from glint.core.image_io import read_image
 
             self._pages[page] = read_image(self.path / self.manifest["lightmaps"][page])
         return self._pages[page]
@@ -159,7 +158,7 @@ class Bake:
     def irradiance(self, obj: int, triangles: np.ndarray, barycentric: np.ndarray) -> np.ndarray:
         """Bilinear light-map look-up at points given by triangle index and barycentrics (K, 3)
         of object `obj` -- what the viewer's texture unit does (GL_LINEAR, clamp to edge)."""
-        from bake.texels import sample_bilinear
+        from glint.bake.texels import sample_bilinear
 
         mesh = self.meshes[obj]
         corners = mesh["indices"][np.asarray(triangles)].astype(np.int64)  # (K, 3)

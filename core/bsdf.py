@@ -161,7 +161,7 @@ def bsdf(wi, wo, kd, lobes):
     """The full BSDF f_s(wi, wo) of Eq. 3.6 as (..., 3) RGB.
 
     kd/pi (wi and wo on the same, +n, side) + sum_n ks_n f_r,lobe_n
-    + sum_m kt_m f_t,lobe_m, with `lobes` a list of bake.scene.Lobe (ks is RGB).
+    + sum_m kt_m f_t,lobe_m, with `lobes` a list of glint.core.scene.Lobe (ks is RGB).
     """
     wi = np.asarray(wi, dtype=float)
     wo = np.asarray(wo, dtype=float)

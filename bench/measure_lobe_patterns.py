@@ -1,14 +1,14 @@
 """The measurement behind viewer/lobe_patterns.py's rules: which pattern, how many samples.
 
-    python3 docs/measure_lobe_patterns.py                 # all three tables of the module docstring
-    python3 docs/measure_lobe_patterns.py samples --pattern ring
-    python3 docs/measure_lobe_patterns.py samples --pattern line --ms 0.02,0.03,0.05
-    python3 docs/measure_lobe_patterns.py threshold
-    python3 docs/measure_lobe_patterns.py fis            # patterns against filtered importance sampling
-    python3 docs/measure_lobe_patterns.py samples --seed 5 --envs 30   # another set of environments
+    python3 -m glint.bench.measure_lobe_patterns                 # all three tables of the module docstring
+    python3 -m glint.bench.measure_lobe_patterns samples --pattern ring
+    python3 -m glint.bench.measure_lobe_patterns samples --pattern line --ms 0.02,0.03,0.05
+    python3 -m glint.bench.measure_lobe_patterns threshold
+    python3 -m glint.bench.measure_lobe_patterns fis            # patterns against filtered importance sampling
+    python3 -m glint.bench.measure_lobe_patterns samples --seed 5 --envs 30   # another set of environments
 
 Set-up (numpy only, no GPU; the functions measured are viewer/lobe_patterns.py's and
-bake/bsdf.py's, i.e. the float64 twins of the shaders):
+core/bsdf.py's, i.e. the float64 twins of the shaders):
 - Environment: 6 spherical Gaussians G(w) = a exp(lam (mu.w - 1)) at random directions, lam
   log-uniform in [1, 1e4], each of unit energy (a = lam / 2 pi): sky-like light and lamps of
   ~0.6 degrees, the small ones bright, as in a room.
@@ -44,10 +44,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from bake import bsdf  # noqa: E402
-from viewer import lobe_patterns as P  # noqa: E402
+from glint.core import bsdf
+from glint.viewer import lobe_patterns as P
 
 NS = (1, 3, 5, 7, 9, 11, 15, 19)       # measured
 SHOWN = (1, 3, 5, 7, 11, 19)           # columns of the printed tables

@@ -1,7 +1,7 @@
 """Raster fill rate of the GL device against the G-buffer pass: is the G-buffer bound by the
 hardware's raster back end or by our shader?
 
-    python3 docs/measure_fill_rate.py [--size 1920x1080] [--frames 60]
+    python3 -m glint.bench.measure_fill_rate [--size 1920x1080] [--frames 60]
 
 Times (GPU timer queries; glFinish wall clock on llvmpipe), medians of --frames after 5 warm-up
 frames, one full-screen triangle each:
@@ -9,18 +9,14 @@ frames, one full-screen triangle each:
 - "gbuffer targets": constant values into the G-buffer's own targets (viewer/passes/gbuffer.py:
   RGBA32F + 2 x RGBA16F + R32UI + depth), no texture reads: the cost of the G-buffer's bytes;
 - "compute write": a compute shader writing the same bytes into the same textures as images.
-The G-buffer pass of a real scene (docs/measure_frame_times.py) minus "gbuffer targets" is the
+The G-buffer pass of a real scene (bench/measure_frame_times.py) minus "gbuffer targets" is the
 part our vertex/fragment work adds.
 """
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 from statistics import median
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 VS = """#version 430
 void main() { vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2); gl_Position = vec4(p * 2.0 - 1.0, 0.5, 1.0); }"""
@@ -68,8 +64,8 @@ def main() -> None:
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--frames", type=int, default=60)
     args = ap.parse_args()
-    from viewer.context import describe, headless_context
-    from viewer.timing import default_method
+    from glint.viewer.context import describe, headless_context
+    from glint.viewer.timing import default_method
 
     w, h = (int(x) for x in args.size.lower().split("x"))
     ctx = headless_context()

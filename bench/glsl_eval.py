@@ -22,9 +22,9 @@ import re
 import moderngl
 import numpy as np
 
-from viewer import shader_source
-from viewer.context import headless_context
-from viewer.gpu_scene import shader_defines
+from glint.viewer import shader_source
+from glint.viewer.context import headless_context
+from glint.viewer.gpu_scene import shader_defines
 
 IN_BINDING, OUT_BINDING = 6, 7
 GROUP_SIZE = 64

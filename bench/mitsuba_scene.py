@@ -1,15 +1,15 @@
-"""A glint Scene (bake/scene.py, as bake/gltf_loader.py loads it with its sidecar) as a Mitsuba 3 scene.
+"""A glint Scene (core/scene.py, as bake/gltf_loader.py loads it with its sidecar) as a Mitsuba 3 scene.
 
 The same scene for an independent path tracer: the end-to-end comparison of `glint bench
---mitsuba` (viewer/bench_mitsuba.py) renders it with Mitsuba and holds the viewer's images
+--mitsuba` (bench/mitsuba.py) renders it with Mitsuba and holds the viewer's images
 against it. What maps to what:
 
 - Objects: one `mi.Mesh` each, built from the loader's world-space arrays: positions,
   counter-clockwise faces (Mitsuba's front side too), the vertex normals (Mitsuba's shading
   frame, as the viewer interpolates them) and TEXCOORD_0 as Mitsuba's uv. Per-vertex tangents
-  for anisotropic lobes (mesh attributes read by bake/mitsuba_bsdf.py), from the viewer's own
+  for anisotropic lobes (mesh attributes read by bench/mitsuba_bsdf.py), from the viewer's own
   functions (viewer/gpu_scene.py `tangents`, `axis_tangents`).
-- Materials: bake/mitsuba_bsdf.py's plugin (the section 3.3 BSDF) with kd, the lobes and the
+- Materials: bench/mitsuba_bsdf.py's plugin (the section 3.3 BSDF) with kd, the lobes and the
   side rule. A base-colour texture becomes a `bitmap` of kd x texture, linear (`raw`: the loader
   already decoded sRGB), bilinear and repeating like the viewer's sampler; glTF's uv (0, 0) is
   the first row of the image, which is also Mitsuba's bitmap convention (checked by a test).
@@ -37,8 +37,8 @@ import math
 
 import numpy as np
 
-from bake import mitsuba_bsdf
-from bake.scene import Scene
+from glint.bench import mitsuba_bsdf
+from glint.core.scene import Scene
 
 SPOT_PLUGIN = "glint_spot"
 _spot_registered: set[str] = set()
@@ -81,7 +81,7 @@ def mesh(obj, bsdf, emitter=None):
     """One object as an `mi.Mesh` with its BSDF (and area emitter), world space."""
     import mitsuba as mi
 
-    from viewer.gpu_scene import axis_tangents, tangents
+    from glint.viewer.gpu_scene import axis_tangents, tangents
 
     positions = np.asarray(obj.positions, np.float64).reshape(-1, 3)
     normals = np.asarray(obj.normals, np.float32).reshape(-1, 3)
@@ -128,7 +128,7 @@ def sky_dict(sky) -> dict | None:
 
 
 def sensor_dict(camera, width: int, height: int, spp: int = 16, seed: int = 0) -> dict:
-    """A viewer camera (viewer/camera.py ViewCamera, or bake.scene.Camera) as a `perspective` sensor."""
+    """A viewer camera (viewer/camera.py ViewCamera, or glint.core.scene.Camera) as a `perspective` sensor."""
     import mitsuba as mi
 
     eye = np.asarray(camera.eye, np.float64)

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glint.errors import GlintError
+from glint.core.errors import GlintError
 
 STRESS_SIZE = (96, 54)
 WALKTHROUGH_SIZE = (48, 27)
@@ -108,7 +108,7 @@ def allocated_bytes(root) -> int:
     ctypes (their size from their class: faces, layers, MIP levels, texel format)."""
     import moderngl
 
-    from viewer.cubemaps import CubeClass
+    from glint.viewer.cubemaps import CubeClass
 
     seen, total, stack = set(), 0, [root]
     texel = {"f1": 1, "f2": 2, "f4": 4, "u1": 1, "u2": 2, "u4": 4, "i1": 1, "i2": 2, "i4": 4}
@@ -130,7 +130,7 @@ def allocated_bytes(root) -> int:
             stack.extend(obj.values())
         elif isinstance(obj, (list, tuple, set)):
             stack.extend(obj)
-        elif hasattr(obj, "__dict__") and type(obj).__module__.split(".")[0] in ("viewer", "bake"):
+        elif hasattr(obj, "__dict__") and type(obj).__module__.startswith("glint."):
             stack.extend(vars(obj).values())
     return total
 
@@ -142,7 +142,7 @@ def gpu_memory(ctx, renderer=None) -> dict:
     if "GL_NVX_gpu_memory_info" in ctx.extensions:
         import ctypes
 
-        from viewer.cubemaps import gl_functions
+        from glint.viewer.cubemaps import gl_functions
 
         get = gl_functions(ctx)("glGetIntegerv", None, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))
         total, free = ctypes.c_int(0), ctypes.c_int(0)
@@ -165,9 +165,9 @@ def energy_bound(case) -> float:
 
 # -- one case ---------------------------------------------------------------------------------------
 def bake_case(case, out: Path, jobs: int | None, denoise: bool | None = None):
-    from bake.gltf_loader import load_scene
-    from bake.pipeline import bake_scene
-    from bake.settings import resolve_settings
+    from glint.bake.gltf_loader import load_scene
+    from glint.bake.settings import resolve_settings
+    from glint.services import bake_scene
 
     scene = load_scene(case.path)
     settings = resolve_settings(scene.bake_settings, quality="draft", jobs=jobs, denoise=denoise)
@@ -179,8 +179,8 @@ def bake_case(case, out: Path, jobs: int | None, denoise: bool | None = None):
 def render_case(ctx, bake, size=STRESS_SIZE) -> dict:
     """Walkthrough and still-camera images of every camera: {camera: {"walk", "still"}} and the
     renderer's statistics."""
-    from viewer.camera import ViewCamera
-    from viewer.renderer import Renderer
+    from glint.viewer.camera import ViewCamera
+    from glint.viewer.renderer import Renderer
 
     images = {}
     with Renderer(ctx, bake, samples_per_frame=8, max_frames=STILL_FRAMES) as r:
@@ -232,13 +232,12 @@ def check_case(case, rendered: dict, bake_counts: dict, reference: dict | None) 
 def walkthrough(ctx, bake, path_name: str, frames: int, size=WALKTHROUGH_SIZE, progress=None) -> dict:
     """`frames` walkthrough frames cycling along the camera path `path_name`; memory at frame
     WARMUP_FRAMES and at the end, and frame 0's view rendered again at the end."""
-    from viewer.camera import camera_path_at, find_named, path_span
-    from viewer.capture import _clip_range
-    from viewer.renderer import Renderer
+    from glint.viewer.camera import camera_path_at, clip_range, find_named, path_span
+    from glint.viewer.renderer import Renderer
 
     path = find_named(bake.manifest.get("camera_paths") or [], path_name, "camera path")
     t0, t1 = path_span(path)
-    near, far = _clip_range(bake.manifest)
+    near, far = clip_range(bake.manifest)
     period = max(min(frames, 600), 2)  # frames per trip along the path
 
     def view(k):
@@ -276,7 +275,7 @@ def walkthrough(ctx, bake, path_name: str, frames: int, size=WALKTHROUGH_SIZE, p
 def accumulation_drift(ctx, bake, camera, frames: int = DRIFT_FRAMES, size=WALKTHROUGH_SIZE) -> float:
     """Largest relative difference between the still camera's mean of `frames` one-sample frames
     and that of frames / 64 frames of 64 samples: the same samples, so equal up to rounding."""
-    from viewer.renderer import Renderer
+    from glint.viewer.renderer import Renderer
 
     images = []
     for per_frame in (1, 64):
@@ -290,8 +289,8 @@ def accumulation_drift(ctx, bake, camera, frames: int = DRIFT_FRAMES, size=WALKT
 
 # -- the command ------------------------------------------------------------------------------------
 def add_stress_options(p) -> None:
-    """`glint bench --stress` and its options (viewer/bench.py's parser)."""
-    from scenes.stress import CASES
+    """`glint bench --stress` and its options (bench/bench.py's parser)."""
+    from glint.scenes.stress import CASES
 
     g = p.add_argument_group("stress suite (--stress: no SCENE; the scenes of scenes/stress.py)")
     g.add_argument("--stress", action="store_true",
@@ -311,7 +310,7 @@ def add_stress_options(p) -> None:
 
 
 def parse_cases(text: str | None) -> list[str]:
-    from scenes.stress import CASES
+    from glint.scenes.stress import CASES
 
     if not text:
         return list(CASES)
@@ -327,10 +326,10 @@ def parse_cases(text: str | None) -> list[str]:
 def run_stress(args) -> int:
     from tqdm import tqdm
 
-    from bake.bake_dir import Bake
-    from scenes import stress
-    from viewer.camera import ViewCamera
-    from viewer.context import describe, headless_context
+    from glint.core.bake_dir import Bake
+    from glint.scenes import stress
+    from glint.viewer.camera import ViewCamera
+    from glint.viewer.context import describe, headless_context
 
     size = args.stress_size
     names = parse_cases(args.stress_cases)
@@ -445,7 +444,7 @@ def markdown(setup: dict, rows: list, walk: dict | None, failures: list) -> str:
 
 
 def write_report(out: Path, setup: dict, rows: list, walk: dict | None, failures: list) -> None:
-    from viewer.bench import _atomic, _json_safe
+    from glint.bench.bench import _atomic, _json_safe
 
     _atomic(out / "stress.json", json.dumps(_json_safe({**setup, "cases_run": rows, "walkthrough": walk,
                                                          "failures": failures}), indent=1) + "\n")

@@ -1,7 +1,7 @@
 """The measurement behind the multi-ring pattern of planar reflectors (viewer/lobe_patterns.py,
 "Planar reflectors"): a pattern's step response across a straight edge in the reflected scene.
 
-    python3 docs/measure_multi_ring.py          # about 10 minutes on 2 cores
+    python3 -m glint.bench.measure_multi_ring          # about 10 minutes on 2 cores
 
 Set-up: a lobe (isotropic Beckmann, m = 0.02, 0.05, 0.1, 0.2; r0 = 0.04, alpha = 0) seen at
 theta_o = 0, 30, 60, 75 deg; the reflected scene is the plane perpendicular to the lobe centre
@@ -15,14 +15,11 @@ radiance 1. Printed: the mean absolute difference of the two responses (%) per m
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from bake import bsdf  # noqa: E402
-from viewer import lobe_patterns as lp  # noqa: E402
+from glint.core import bsdf
+from glint.viewer import lobe_patterns as lp
 
 ROUGHNESS = (0.02, 0.05, 0.1, 0.2)
 VIEWS = (0.0, 30.0, 60.0, 75.0)

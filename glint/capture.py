@@ -21,7 +21,6 @@ import argparse
 import dataclasses
 import json
 import math
-import os
 import re
 import sys
 import time
@@ -29,7 +28,25 @@ from pathlib import Path
 
 import numpy as np
 
-from glint.errors import GlintError
+from glint.core.atomic import atomic_write_text
+from glint.core.bake_dir import Bake
+from glint.core.errors import GlintError
+from glint.core.image_io import write_image
+from glint.services import SCENE_HELP, add_bake_options, check_writable, number, parse_size, parse_vector, run_bake
+from glint.viewer.camera import (
+    DEFAULT_YFOV,
+    ViewCamera,
+    camera_path_at,
+    clip_range,
+    find_named,
+    path_span,
+    scene_bounds,
+)
+from glint.viewer.context import headless_context
+from glint.viewer.progressive import DEFAULT_SAMPLES_PER_FRAME
+from glint.viewer.reflectors import DEFAULT_BUDGET
+from glint.viewer.renderer import Renderer
+from glint.viewer.skipping import frame_section, skipping_section
 
 EXTENSIONS = {".png": "tone-mapped sRGB, 8 bits", ".exr": "linear radiance, float32"}
 DEFAULT_SIZE = "1280x720"
@@ -43,10 +60,6 @@ _VECTOR_ARG = re.compile(r"^-[\d.]")  # "-1,2,3" is a value, not an option
 
 
 def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    from glint.cli import SCENE_HELP, add_bake_options
-    from viewer.progressive import DEFAULT_SAMPLES_PER_FRAME
-    from viewer.reflectors import DEFAULT_BUDGET
-
     p = subparsers.add_parser(
         "capture", parents=[common_parent], help="render images headless (PNG or EXR), no window needed",
         description="Render a scene without a window or display (EGL; Mesa's llvmpipe where there is no "
@@ -104,49 +117,6 @@ def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> ar
 
 
 # -- argument checks (all before the bake, so mistakes cost nothing) ------------------------------
-def parse_size(text: str) -> tuple[int, int]:
-    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text or "")
-    if not m:
-        raise GlintError(f"bad --size '{text}': expected WIDTHxHEIGHT in pixels, e.g. {DEFAULT_SIZE}")
-    w, h = int(m.group(1)), int(m.group(2))
-    if w < 1 or h < 1:
-        raise GlintError(f"bad --size '{text}': width and height must be at least 1 pixel")
-    return w, h
-
-
-def parse_vector(text: str, option: str) -> np.ndarray:
-    parts = [s for s in re.split(r"[,\s]+", text.strip()) if s]
-    try:
-        v = np.array([float(s) for s in parts], np.float64)
-    except ValueError:
-        v = np.zeros(0)
-    if v.shape != (3,) or not np.all(np.isfinite(v)):
-        raise GlintError(f"bad {option} '{text}': expected three numbers X,Y,Z")
-    return v
-
-
-def _number(text: str, option: str, *, whole: bool = False, lo: float | None = None,
-            hi: float | None = None, open_lo: bool = False):
-    try:
-        value = int(text) if whole else float(text)
-    except (TypeError, ValueError):
-        raise GlintError(f"bad {option} '{text}': expected {'a whole number' if whole else 'a number'}") from None
-    too_low = lo is not None and (value <= lo if open_lo else value < lo)
-    if not math.isfinite(value) or too_low or (hi is not None and value > hi):
-        low = None if lo is None else (f"above {lo:g}" if open_lo else f"at least {lo:g}")
-        high = None if hi is None else f"at most {hi:g}"
-        raise GlintError(f"bad {option} '{text}': must be " + (" and ".join(filter(None, (low, high))) or "finite"))
-    return value
-
-
-def _check_writable(path: Path, option: str) -> None:
-    parent = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise GlintError(f"{option} {path}: is a directory; give a file name")
-    if not parent.is_dir():
-        raise GlintError(f"cannot write {path}: directory {parent} does not exist")
-    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
-        raise GlintError(f"cannot write {path}: permission denied")
 
 
 def check_arguments(args) -> dict:
@@ -171,14 +141,14 @@ def check_arguments(args) -> dict:
         raise GlintError("--frames only goes with --path")
     parsed = {
         "size": (width, height),
-        "fov": None if args.fov is None else math.radians(_number(args.fov, "--fov", lo=0, hi=179, open_lo=True)),
-        "frames": _number(args.frames, "--frames", whole=True, lo=1) if args.frames is not None else DEFAULT_FRAMES,
-        "exposure": _number(args.exposure, "--exposure", lo=-100, hi=100),
-        "supersample": _number(args.supersample, "--supersample", whole=True, lo=1, hi=8),
-        "converge": _number(args.converge, "--converge", whole=True, lo=0, hi=MAX_CONVERGE),
-        "lobe_samples": (_number(args.lobe_samples, "--lobe-samples", whole=True, lo=1, hi=MAX_LOBE_SAMPLES)
+        "fov": None if args.fov is None else math.radians(number(args.fov, "--fov", lo=0, hi=179, open_lo=True)),
+        "frames": number(args.frames, "--frames", whole=True, lo=1) if args.frames is not None else DEFAULT_FRAMES,
+        "exposure": number(args.exposure, "--exposure", lo=-100, hi=100),
+        "supersample": number(args.supersample, "--supersample", whole=True, lo=1, hi=8),
+        "converge": number(args.converge, "--converge", whole=True, lo=0, hi=MAX_CONVERGE),
+        "lobe_samples": (number(args.lobe_samples, "--lobe-samples", whole=True, lo=1, hi=MAX_LOBE_SAMPLES)
                          if args.lobe_samples is not None else None),
-        "mirror_budget": (_number(args.mirror_budget, "--mirror-budget", whole=True, lo=0, hi=MAX_MIRROR_BUDGET)
+        "mirror_budget": (number(args.mirror_budget, "--mirror-budget", whole=True, lo=0, hi=MAX_MIRROR_BUDGET)
                           if getattr(args, "mirror_budget", None) is not None else None),
     }
     if args.eye is not None:
@@ -189,17 +159,15 @@ def check_arguments(args) -> dict:
             raise GlintError("--eye and --target are the same point")
         if np.linalg.norm(parsed["up"]) < 1e-12:
             raise GlintError("--up must not be zero")
-    _check_writable(out, "-o")
+    check_writable(out, "-o")
     if args.stats is not None:
-        _check_writable(Path(args.stats), "--stats")
+        check_writable(Path(args.stats), "--stats")
     return parsed
 
 
 # -- views ----------------------------------------------------------------------------------------
 def choose_views(manifest: dict, args, parsed: dict) -> list:
     """The camera of every frame to render, from the bake manifest and the options."""
-    from viewer.camera import DEFAULT_YFOV, ViewCamera, camera_path_at, find_named, path_span
-
     cameras, paths = manifest.get("cameras") or [], manifest.get("camera_paths") or []
     fov = parsed["fov"]
     w, h = parsed["size"]
@@ -207,12 +175,12 @@ def choose_views(manifest: dict, args, parsed: dict) -> list:
         path = find_named(paths, args.path, "camera path", "the scene has none (sidecar [camera_paths])")
         t0, t1 = path_span(path)
         n = parsed["frames"]
-        near, far = _clip_range(manifest)
+        near, far = clip_range(manifest)
         times = [t0 + (t1 - t0) * (k / (n - 1) if n > 1 else 0.0) for k in range(n)]
         views = [camera_path_at(path, t, znear=near, zfar=far) for t in times]
         return [_with_fov(c, fov) for c in views] if fov is not None else views
     if args.eye is not None:
-        near, far = _clip_range(manifest, parsed["eye"])
+        near, far = clip_range(manifest, parsed["eye"])
         return [ViewCamera.look_at(parsed["eye"], parsed["target"], parsed["up"],
                                    fov if fov is not None else DEFAULT_YFOV, znear=near, zfar=far, name="--eye")]
     if args.camera is not None:
@@ -220,31 +188,13 @@ def choose_views(manifest: dict, args, parsed: dict) -> list:
     elif cameras:
         camera = ViewCamera.from_manifest(cameras[0])
     else:
-        lo, hi = _scene_bounds(manifest)
+        lo, hi = scene_bounds(manifest)
         camera = ViewCamera.framing(lo, hi, w / h, fov if fov is not None else DEFAULT_YFOV)
     return [_with_fov(camera, fov) if fov is not None else camera]
 
 
 def _with_fov(camera, fov: float):
     return dataclasses.replace(camera, yfov=fov)
-
-
-def _scene_bounds(manifest: dict) -> tuple[np.ndarray, np.ndarray]:
-    boxes = np.array([o["bounds"] for o in manifest.get("objects", []) if o.get("triangles")], np.float64)
-    if not len(boxes):
-        return np.full(3, -1.0), np.full(3, 1.0)
-    return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
-
-
-def _clip_range(manifest: dict, eye=None) -> tuple[float, float]:
-    """Near and far planes for views the scene does not define: far enough to hold the whole
-    scene from wherever the eye is (at least 1 km); near 1 cm, less in a scene under 2 m across
-    (1 % of its radius: a 1 mm model still shows) and 2e-5 of its reach in one over about 1 km (so
-    24-bit depth still separates its surfaces: glint bench --stress, the 10 km room)."""
-    lo, hi = _scene_bounds(manifest)
-    centre, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
-    reach = radius * 2 + (float(np.linalg.norm(np.asarray(eye) - centre)) if eye is not None else 0.0)
-    return max(min(0.01, 0.01 * radius), 2e-5 * reach), max(1000.0, 2 * reach)
 
 
 # -- the command ----------------------------------------------------------------------------------
@@ -255,16 +205,9 @@ def frame_paths(out: Path, count: int) -> list[Path]:
 
 
 def cmd_capture(args) -> int:
-    from glint.cli import run_bake
-    from glint.image_io import write_image
-
     parsed = check_arguments(args)
     out = Path(args.output)
     report = run_bake(args, progress=sys.stderr.isatty())
-
-    from bake.bake_dir import Bake
-    from viewer.context import headless_context
-    from viewer.renderer import Renderer
 
     bake = Bake(report.bake_dir)
     views = choose_views(bake.manifest, args, parsed)
@@ -291,8 +234,6 @@ def cmd_capture(args) -> int:
             else:
                 write_image(path, renderer.read_srgb())
             if args.stats is not None:
-                from viewer.skipping import frame_section
-
                 s = renderer.stats
                 frames.append({"file": str(path), "camera": _camera_json(camera), "gpu_ms": s["gpu_ms"],
                                "objects_drawn": s["objects_drawn"], "triangles": s["triangles"],
@@ -319,8 +260,6 @@ def _camera_json(camera) -> dict:
 
 
 def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
-    from viewer.skipping import skipping_section
-
     s = renderer.stats
     data = {
         "scene": args.scene,
@@ -342,9 +281,4 @@ def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
         "skipping": skipping_section(s, renderer.bake.manifest, report.status),
         "per_frame": frames,
     }
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(json.dumps(data, indent=1) + "\n")
-        os.replace(tmp, path)
-    except OSError as e:
-        raise GlintError(f"cannot write {path}: {e.strerror}") from e
+    atomic_write_text(path, json.dumps(data, indent=1) + "\n")

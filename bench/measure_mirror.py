@@ -1,9 +1,9 @@
 """GPU time of the planar reflectors' mirror passes (issue 5): mirror passes, MIP build and the whole
 frame with 1, 2 and 4 reflectors in view and one pass each, against no passes at all.
 
-    python3 docs/measure_mirror.py [--size 640x360] [--frames 10] [--out DIR]
+    python3 -m glint.bench.measure_mirror [--size 640x360] [--frames 10] [--out DIR]
 
-Scene "mirror-4" (built here with bake/gltf_writer.py, baked at --quality preview into DIR):
+Scene "mirror-4" (built here with scenes/gltf_writer.py, baked at --quality preview into DIR):
 a 6 x 3 x 6 m room lit by a ceiling panel and the sky through nothing -- a closed room --
 with four glossy planar reflectors on four planes, all in view of its camera: a polished
 floor (m = 0.06), a lacquered table top (m = 0.03), a mirror panel on the back wall (m = 0.005)
@@ -20,12 +20,9 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
 def quad(center, u, v):
@@ -48,7 +45,7 @@ def box(w, name, lo, hi, material):
 
 
 def write_mirror4(path: Path) -> Path:
-    from bake.gltf_writer import GltfWriter
+    from glint.scenes.gltf_writer import GltfWriter
 
     w = GltfWriter()
 
@@ -108,10 +105,10 @@ def _look_rotation(eye, target):
 
 
 def bake(scene_file: Path, out: Path):
-    from bake.bake_dir import Bake
-    from bake.gltf_loader import load_scene
-    from bake.pipeline import bake_scene
-    from bake.settings import resolve_settings
+    from glint.bake.gltf_loader import load_scene
+    from glint.bake.settings import resolve_settings
+    from glint.core.bake_dir import Bake
+    from glint.services import bake_scene
 
     scene = load_scene(scene_file)
     bake_scene(scene, resolve_settings(scene.bake_settings, quality="preview"), out, progress=False)
@@ -119,9 +116,9 @@ def bake(scene_file: Path, out: Path):
 
 
 def measure(bake_obj, budgets, size, frames):
-    from viewer.camera import ViewCamera
-    from viewer.context import headless_context
-    from viewer.renderer import Renderer
+    from glint.viewer.camera import ViewCamera
+    from glint.viewer.context import headless_context
+    from glint.viewer.renderer import Renderer
 
     ctx = headless_context()
     camera = ViewCamera.from_manifest(bake_obj.manifest["cameras"][0])
@@ -152,7 +149,7 @@ def main() -> None:
     size = tuple(int(x) for x in args.size.lower().split("x"))
     args.out.mkdir(parents=True, exist_ok=True)
     scenes = [("mirror-4", bake(write_mirror4(args.out / "mirror-4.glb"), args.out / "mirror-4.bake"), (0, 1, 2, 4))]
-    from scenes import resolve
+    from glint.scenes import resolve
 
     living = bake(Path(resolve("living-room")), args.out / "living-room.bake")
     scenes.append(("living-room", living, (0, 1, 4)))

@@ -3,18 +3,18 @@
 No Mitsuba plugin equals the thesis' model (kd/pi plus Kurt et al.'s anisotropic Beckmann
 lobes with Schlick's Fresnel and the ((wi.n)(wo.n))^alpha factor, plus thin-surface
 transmission lobes), so an end-to-end comparison with Mitsuba needs it as a plugin. The maths
-is bake/bsdf.py's, line by line, with the same numerical guards (its module docstring names
+is core/bsdf.py's, line by line, with the same numerical guards (its module docstring names
 them), written with drjit operations only, so one class works in `scalar_rgb` and in the
 vectorised `llvm_ad_rgb` / `cuda_ad_rgb` variants (no Python branching on values).
 
-Conventions. bake/bsdf.py calls the direction to the viewer wo and the one to the light wi;
-Mitsuba calls them si.wi and wo. Below, names follow bake/bsdf.py (`v` = viewer = si.wi,
+Conventions. core/bsdf.py calls the direction to the viewer wo and the one to the light wi;
+Mitsuba calls them si.wi and wo. Below, names follow core/bsdf.py (`v` = viewer = si.wi,
 `l` = light = Mitsuba's wo). Mitsuba's eval() is f_s |cos(theta_l)| and sample()'s weight
 f_s |cos(theta_l)| / pdf (the path integrator's convention).
 
 Frame and sides, as the viewer shades (shaders/raster_surface.glsl, specular.glsl):
 - n is the shading normal (interpolated vertex normals); anisotropic lobes need the tangent,
-  which the converter (bake/mitsuba_scene.py) stores per vertex as the mesh attributes
+  which the converter (bench/mitsuba_scene.py) stores per vertex as the mesh attributes
   `vertex_tangent` and `vertex_bitangent_sign`, computed by viewer/gpu_scene.py's `tangents` /
   `axis_tangents`: t = tangent Gram-Schmidt against n, b = sign n x t. Isotropic materials
   use Mitsuba's own shading frame (the BSDF is invariant under a rotation about n).
@@ -35,8 +35,8 @@ from __future__ import annotations
 import json
 import math
 
-from bake import bsdf as ref
-from bake.lights import LUMA as _LUMA
+from glint.bake.lights import LUMA as _LUMA
+from glint.core import bsdf as ref
 
 LUMA = [float(x) for x in _LUMA]  # Python floats: numpy scalars would leak into drjit's scalar variant
 
@@ -49,7 +49,7 @@ _registered: set[str] = set()
 
 
 def lobes_json(lobes) -> str:
-    """bake.scene.Lobe list -> the plugin's `lobes` property (a JSON string)."""
+    """glint.core.scene.Lobe list -> the plugin's `lobes` property (a JSON string)."""
     return json.dumps([lobe.to_dict() for lobe in lobes])
 
 
@@ -64,7 +64,7 @@ def register() -> None:
     _registered.add(mi.variant())
 
 
-# -- bake/bsdf.py in drjit ---------------------------------------------------------------------------
+# -- core/bsdf.py in drjit ---------------------------------------------------------------------------
 def _maths():
     """The numpy reference's functions written with drjit (closures over the current variant)."""
     import drjit as dr
@@ -109,7 +109,7 @@ def _maths():
         p = beckmann_D(h, lobe.mx, lobe.my) * h.z / (4.0 * dr.maximum(oh, ref.DOT_MIN))
         return dr.select(ok & (oh > 0.0) & (h.z > 0.0), p, 0.0)
 
-    def sample_half_vector(xi1, xi2, mx, my):  # Eq. 4.5-4.7, quadrant-correct as bake/bsdf.py
+    def sample_half_vector(xi1, xi2, mx, my):  # Eq. 4.5-4.7, quadrant-correct as core/bsdf.py
         xi1 = dr.clip(xi1, ref.XI_MIN, 1.0)
         a = 2.0 * dr.pi * xi2
         phi = dr.atan2(my * dr.sin(a), mx * dr.cos(a))
@@ -124,7 +124,7 @@ def _maths():
 
 
 class _Lobe:
-    """One lobe's constants, roughness clamped as bake/bsdf.py `_roughness` does."""
+    """One lobe's constants, roughness clamped as core/bsdf.py `_roughness` does."""
 
     def __init__(self, d: dict):
         self.transmit = d["kind"] == "transmit"
@@ -145,7 +145,7 @@ def _plugin_class():
 
     class GlintBSDF(mi.BSDF):
         """Properties: `kd` (texture, linear RGB; a bitmap already multiplied by kd), `lobes` (JSON
-        list of bake.scene.Lobe dicts), `two_sided` (bool)."""
+        list of glint.core.scene.Lobe dicts), `two_sided` (bool)."""
 
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
@@ -195,7 +195,7 @@ def _plugin_class():
             if not self.two_sided:  # (no `~back`: a Python bool's ~ is an int in scalar variants)
                 active = active & (dr.dot(si.n, si.to_world(si.wi)) >= 0.0)
             v = self._to_glint(si, frame, back, si.wi)
-            active = active & (v.z >= 0.0)  # bake/bsdf.py: zero for a viewer below the shading horizon
+            active = active & (v.z >= 0.0)  # core/bsdf.py: zero for a viewer below the shading horizon
             kd = dr.clip(self.kd.eval(si, active), 0.0, 1.0)
             return frame, back, v, kd, active
 

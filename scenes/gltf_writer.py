@@ -83,7 +83,7 @@ def _floats(values) -> list[float]:
 class GltfWriter:
     """Collects materials, meshes, cameras, lights and nodes; `write` emits .glb or .gltf."""
 
-    def __init__(self, generator: str = "glint bake/gltf_writer.py", png_level: int = 9):
+    def __init__(self, generator: str = "glint scenes/gltf_writer.py", png_level: int = 9):
         self.generator = generator
         self.png_level = png_level
         self._bin = bytearray()

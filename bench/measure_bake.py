@@ -1,7 +1,7 @@
 """Measures the figures in docs/BAKE.md: bake time and rays per second of each built-in
 scene at each quality preset, and the light maps' error against Mitsuba 3 on cornell-box.
 
-    python3 docs/measure_bake.py [--presets draft preview final] [--jobs 2] [--json out.json]
+    python3 -m glint.bench.measure_bake [--presets draft preview final] [--jobs 2] [--json out.json]
 
 The accuracy method is the one of tests/test_bake_vs_mitsuba.py (50 points, bilinear
 light-map look-up vs. Mitsuba's irradiance, mean of |a-b|_1/|b|_1).
@@ -12,26 +12,21 @@ import argparse
 import json
 import os
 import platform
-import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
-
-from bake.bake_dir import Bake  # noqa: E402
-from bake.gltf_loader import load_scene  # noqa: E402
-from bake.pipeline import bake_scene  # noqa: E402
-from bake.settings import PRESETS, resolve_settings  # noqa: E402
-from scenes import BUILTIN, builtin_path  # noqa: E402
+from glint.bake.gltf_loader import load_scene
+from glint.bake.settings import PRESETS, resolve_settings
+from glint.bench.mitsuba_reference import MARGIN, POINTS, cornell_box_irradiance, sample_points
+from glint.core.bake_dir import Bake
+from glint.scenes import BUILTIN, builtin_path
+from glint.services import bake_scene
 
 
 def cornell_error(scene, bake_dir: Path, reference_cache: dict) -> dict:
-    from mitsuba_reference import cornell_box_irradiance
-    from test_bake_vs_mitsuba import MARGIN, POINTS, sample_points
 
     chosen, _ = sample_points(scene, POINTS, MARGIN)
     bake = Bake(bake_dir)

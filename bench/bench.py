@@ -52,7 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glint.errors import GlintError
+from glint.core.errors import GlintError
 
 DEFAULT_SAMPLES = (1, 3, 5, 7, 9, 11, 15, 19)
 DEFAULT_SIZE = "640x360"
@@ -60,7 +60,7 @@ DEFAULT_REFERENCE_SAMPLES = 1024
 DEFAULT_FRAMES = 20
 DEFAULT_WARMUP = 3
 MAX_FRAMES = 60            # the renderer's timers keep the last 60 frames (viewer/timing.py PassTimer)
-MAX_SAMPLES = 256          # per lobe and pixel (viewer/capture.py MAX_LOBE_SAMPLES)
+MAX_SAMPLES = 256          # per lobe and pixel (glint/capture.py MAX_LOBE_SAMPLES)
 MAX_REFERENCE_SAMPLES = 1 << 20
 REFERENCE_BATCH = 64       # reference samples per still-camera frame
 REL_MSE_EPSILON = 0.01     # (W/(m^2 sr))^2 in rel_mse's denominator
@@ -91,7 +91,7 @@ class Method:
         return (1,) if self.ignores_n else tuple(ns)
 
     def renderer(self, ctx, bake, n: int, supersample: int, exposure: float):
-        from viewer.renderer import Renderer
+        from glint.viewer.renderer import Renderer
 
         if self.walkthrough is None:  # one still-camera frame of n quasi-random samples per lobe
             return Renderer(ctx, bake, supersample=supersample, exposure=exposure, samples_per_frame=n,
@@ -134,7 +134,7 @@ PLANNED: dict[str, str] = {}  # methods named but not implemented yet: key -> wh
 
 # -- options ----------------------------------------------------------------------------------------
 def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    from glint.cli import SCENE_HELP, add_bake_options
+    from glint.services import SCENE_HELP, add_bake_options
 
     methods = "; ".join(f"{m.key}: {m.label}" for m in METHODS.values())
     p = subparsers.add_parser(
@@ -174,13 +174,13 @@ def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argp
                    help="also write the reference and every method's image as PNG into DIR/images")
     p.add_argument("--no-flip", action="store_true", help="skip FLIP even when flip-evaluator is installed")
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
-    from viewer.stress import add_stress_options
+    from glint.bench.stress import add_stress_options
     add_stress_options(p)
     p.add_argument("--mitsuba", action="store_true",
                    help="instead of the method sweep: the walkthrough and converged images against Mitsuba 3 "
                         "rendering the same scene, with Mitsuba's error at 1, 2, 4, ... spp and its seconds: "
-                        "mitsuba.csv, mitsuba.json, mitsuba.png (viewer/bench_mitsuba.py)")
-    from viewer.bench_mitsuba import add_mitsuba_options
+                        "mitsuba.csv, mitsuba.json, mitsuba.png (bench/mitsuba.py)")
+    from glint.bench.mitsuba import add_mitsuba_options
     add_mitsuba_options(p)
     p.set_defaults(run=cmd_bench)
     return p
@@ -215,19 +215,19 @@ def parse_methods(text: str) -> list[str]:
 
 
 def check_arguments(args) -> dict:
-    from viewer.capture import _number, parse_size
+    from glint.services import number, parse_size
 
     samples = parse_list(args.lobe_samples, "--lobe-samples", lo=1, hi=MAX_SAMPLES)
     parsed = {
         "size": parse_size(args.size),
         "samples": samples,
         "methods": parse_methods(args.methods),
-        "reference": _number(args.reference_samples, "--reference-samples", whole=True, lo=1,
+        "reference": number(args.reference_samples, "--reference-samples", whole=True, lo=1,
                              hi=MAX_REFERENCE_SAMPLES),
-        "frames": _number(args.frames, "--frames", whole=True, lo=1, hi=MAX_FRAMES),
-        "warmup": _number(args.warmup, "--warmup", whole=True, lo=0, hi=10_000),
-        "supersample": _number(args.supersample, "--supersample", whole=True, lo=1, hi=8),
-        "exposure": _number(args.exposure, "--exposure", lo=-100, hi=100),
+        "frames": number(args.frames, "--frames", whole=True, lo=1, hi=MAX_FRAMES),
+        "warmup": number(args.warmup, "--warmup", whole=True, lo=0, hi=10_000),
+        "supersample": number(args.supersample, "--supersample", whole=True, lo=1, hi=8),
+        "exposure": number(args.exposure, "--exposure", lo=-100, hi=100),
     }
     if parsed["reference"] < max(samples):
         raise GlintError(f"--reference-samples {parsed['reference']} is fewer than the largest n of --lobe-samples "
@@ -245,8 +245,7 @@ def check_arguments(args) -> dict:
 
 
 def choose_cameras(manifest: dict, names: list[str] | None, aspect: float) -> list:
-    from viewer.camera import ViewCamera, find_named
-    from viewer.capture import _scene_bounds
+    from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 
     cameras = manifest.get("cameras") or []
     if names:
@@ -256,7 +255,7 @@ def choose_cameras(manifest: dict, names: list[str] | None, aspect: float) -> li
         return chosen
     if cameras:
         return [ViewCamera.from_manifest(c) for c in cameras]
-    lo, hi = _scene_bounds(manifest)
+    lo, hi = scene_bounds(manifest)
     camera = ViewCamera.framing(lo, hi, aspect)
     camera.name = "overview"
     return [camera]
@@ -371,7 +370,7 @@ def reference_batches(total: int) -> tuple[int, int]:
 def render_reference(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict, float]:
     """The converged image of `camera` (--reference-samples QMC samples per lobe and pixel),
     its regions and the seconds it took."""
-    from viewer.renderer import Renderer
+    from glint.viewer.renderer import Renderer
 
     batch, frames = reference_batches(parsed["reference"])
     started = time.perf_counter()
@@ -392,7 +391,7 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
     """(image, timing) of every (method, n) in `runs` for one camera. All the renderers stay alive
     and the timed frames go round-robin over them, so whatever else the machine does at the
     time slows every method alike; then each one's medians and its last frame's image."""
-    from viewer.skipping import frame_section
+    from glint.viewer.skipping import frame_section
 
     renderers = []
     try:
@@ -432,13 +431,13 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
 def cmd_bench(args) -> int:
     from tqdm import tqdm
 
-    from bake.bake_dir import Bake
-    from glint.cli import run_bake
-    from viewer.context import headless_context
-    from viewer.skipping import bake_section
+    from glint.core.bake_dir import Bake
+    from glint.services import run_bake
+    from glint.viewer.context import headless_context
+    from glint.viewer.skipping import bake_section
 
-    if args.stress:  # the numerical stress suite (viewer/stress.py): its own scenes, no SCENE
-        from viewer.stress import run_stress
+    if args.stress:  # the numerical stress suite (bench/stress.py): its own scenes, no SCENE
+        from glint.bench.stress import run_stress
 
         if args.scene is not None:
             raise GlintError("--stress runs its own scenes (scenes/stress.py): give no SCENE with it")
@@ -446,7 +445,7 @@ def cmd_bench(args) -> int:
     if args.scene is None:
         raise GlintError("glint bench needs a SCENE (a built-in name or a .glb/.gltf file), or --stress")
     if args.mitsuba:
-        from viewer.bench_mitsuba import cmd_bench_mitsuba
+        from glint.bench.mitsuba import cmd_bench_mitsuba
 
         return cmd_bench_mitsuba(args)
     parsed = check_arguments(args)
@@ -463,8 +462,8 @@ def cmd_bench(args) -> int:
     ctx = headless_context()
     results, references, skipping = [], [], {}
     try:
-        from viewer.context import describe
-        from viewer.timing import PassTimer
+        from glint.viewer.context import describe
+        from glint.viewer.timing import PassTimer
 
         device, timing_method = describe(ctx), PassTimer(ctx).description
         load = [round(x, 2) for x in os.getloadavg()]  # other work on the machine skews the times
@@ -574,7 +573,7 @@ def markdown(setup: dict, results: list) -> str:
         out.append(table(camera, lambda r: f"{fmt(r['gpu_ms'].get('specular'), '.1f')} / "
                                            f"{fmt(r['gpu_ms'].get('frame'), '.1f')}") + "\n")
     if setup.get("skipping"):
-        from viewer.skipping import markdown_table
+        from glint.viewer.skipping import markdown_table
 
         out.append("**Skipped work** (per camera: its frame, the same for every method; viewer/skipping.py)\n\n")
         out.append(markdown_table(setup["skipping"]))
@@ -625,7 +624,7 @@ def _slug(name: str) -> str:
 
 
 def _write_png(path: Path, srgb: np.ndarray) -> None:
-    from glint.image_io import write_image
+    from glint.core.image_io import write_image
 
     path.parent.mkdir(parents=True, exist_ok=True)
     write_image(path, srgb)

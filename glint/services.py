@@ -1,0 +1,139 @@
+"""Services the commands share: open a scene, run or reuse its bake, the common options.
+
+Below the commands (glint/cli.py, capture.py, view.py and the measurement tools in bench/),
+above the bake and the viewer: `bake` hands the bake its one GPU stage
+(glint/cubemap_stage.py), which is how the bake runs without importing the renderer.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from glint.bake import pipeline
+from glint.bake.gltf_loader import load_scene
+from glint.bake.pipeline import BakeReport
+from glint.bake.settings import PRESETS, BakeSettings, resolve_settings
+from glint.core.bake_dir import default_bake_dir
+from glint.core.errors import GlintError
+from glint.core.scene import Scene
+from glint.cubemap_stage import render_cubemaps
+from glint.scenes import BUILTIN, resolve
+
+SCENE_HELP = ("a built-in scene name (see `glint scenes`) or a .glb/.gltf file; "
+              "an optional NAME.glint.toml beside the file adds lights, sky, material overrides and bake settings")
+
+
+def _whole(minimum: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: '{text}'")
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}: '{text}'")
+        return value
+    return parse
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: '{text}'")
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be positive: '{text}'")
+    return value
+
+
+def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out")) -> None:
+    """The bake's options, for `bake` and for the commands that bake first (`view`, `capture`);
+    `out_flags` name the bake-directory option (capture's -o is its image)."""
+    presets = "; ".join(f"{k}: {v['samples']} samples, {v['texels_per_metre']:g} texels/m" for k, v in PRESETS.items())
+    p.add_argument(*out_flags, dest="out", type=Path, metavar="DIR",
+                   help="bake directory (default: NAME.bake beside the scene file; "
+                        "built-in scenes bake into ~/.cache/glint or $GLINT_CACHE)")
+    p.add_argument("-q", "--quality", choices=list(PRESETS),
+                   help=f"quality preset (default: the sidecar's [bake] quality, else preview) — {presets}")
+    p.add_argument("--samples", type=_whole(1), metavar="N", help="paths per texel (overrides the preset)")
+    p.add_argument("--texels-per-metre", type=_positive_float, metavar="T", dest="texels_per_metre",
+                   help="light-map resolution (overrides the preset)")
+    p.add_argument("-j", "--jobs", type=_whole(0), metavar="N",
+                   help="worker processes (default: the sidecar's [bake] jobs, else 0 = one per core)")
+    p.add_argument("--no-denoise", action="store_true", help="keep the path-traced noise (no Open Image Denoise)")
+    p.add_argument("--force", action="store_true", help="bake everything again even if up to date")
+
+
+def open_scene(scene_arg: str) -> tuple[Scene, str | None]:
+    """SCENE argument -> (Scene, builtin name or None)."""
+    return load_scene(resolve(scene_arg)), (scene_arg if scene_arg in BUILTIN else None)
+
+
+def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
+         progress: bool = True) -> BakeReport:
+    """The whole bake of glint.bake.pipeline, with the cube-map stage that renders on the GPU."""
+    return pipeline.bake_scene(scene, settings, bake_dir, force=force, progress=progress,
+                               render_cubemaps=render_cubemaps)
+
+
+def run_bake(args, *, progress: bool = True) -> BakeReport:
+    """Bake (or find up to date) the scene of a command's arguments (add_bake_options)."""
+    scene, builtin = open_scene(args.scene)
+    settings = resolve_settings(scene.bake_settings, quality=args.quality, samples=args.samples,
+                                texels_per_metre=args.texels_per_metre, jobs=args.jobs,
+                                denoise=False if args.no_denoise else None)
+    bake_dir = args.out or default_bake_dir(scene.source, builtin)
+    return bake_scene(scene, settings, bake_dir, force=args.force, progress=progress)
+
+
+# -- argument checks shared by capture, view and bench --------------------------------------------
+def parse_size(text: str, example: str = "1280x720") -> tuple[int, int]:
+    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", text or "")
+    if not m:
+        raise GlintError(f"bad --size '{text}': expected WIDTHxHEIGHT in pixels, e.g. {example}")
+    w, h = int(m.group(1)), int(m.group(2))
+    if w < 1 or h < 1:
+        raise GlintError(f"bad --size '{text}': width and height must be at least 1 pixel")
+    return w, h
+
+
+def parse_vector(text: str, option: str) -> np.ndarray:
+    parts = [s for s in re.split(r"[,\s]+", text.strip()) if s]
+    try:
+        v = np.array([float(s) for s in parts], np.float64)
+    except ValueError:
+        v = np.zeros(0)
+    if v.shape != (3,) or not np.all(np.isfinite(v)):
+        raise GlintError(f"bad {option} '{text}': expected three numbers X,Y,Z")
+    return v
+
+
+def number(text: str, option: str, *, whole: bool = False, lo: float | None = None,
+            hi: float | None = None, open_lo: bool = False):
+    """`text` as a number for `option` within [lo, hi] (lo excluded with `open_lo`), or a GlintError
+    that names the option."""
+    try:
+        value = int(text) if whole else float(text)
+    except (TypeError, ValueError):
+        raise GlintError(f"bad {option} '{text}': expected {'a whole number' if whole else 'a number'}") from None
+    too_low = lo is not None and (value <= lo if open_lo else value < lo)
+    if not math.isfinite(value) or too_low or (hi is not None and value > hi):
+        low = None if lo is None else (f"above {lo:g}" if open_lo else f"at least {lo:g}")
+        high = None if hi is None else f"at most {hi:g}"
+        raise GlintError(f"bad {option} '{text}': must be " + (" and ".join(filter(None, (low, high))) or "finite"))
+    return value
+
+
+def check_writable(path: Path, option: str) -> None:
+    """A GlintError now, before any work, if `path` cannot be written."""
+    parent = path.parent if str(path.parent) else Path(".")
+    if path.is_dir():
+        raise GlintError(f"{option} {path}: is a directory; give a file name")
+    if not parent.is_dir():
+        raise GlintError(f"cannot write {path}: directory {parent} does not exist")
+    if not os.access(parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise GlintError(f"cannot write {path}: permission denied")
