@@ -61,7 +61,8 @@ import numpy as np
 
 from glint.bake import hashing
 from glint.bake.bounding_planes import BoundingPlane, candidate_surfaces, choose_planes, override_planes
-from glint.core.bsdf import M_MIN
+from glint.core.bsdf import M_MIN, theta_thresh
+from glint.core.constants import HALF_MAX
 from glint.core.scene import Material, Object, Scene
 
 CUBEMAP_ROLES = ("curved", "transmissive")
@@ -70,7 +71,6 @@ FACES = (("+x", (1, 0, 0), (0, -1, 0)), ("-x", (-1, 0, 0), (0, -1, 0)),
          ("+y", (0, 1, 0), (0, 0, 1)), ("-y", (0, -1, 0), (0, 0, -1)),
          ("+z", (0, 0, 1), (0, -1, 0)), ("-z", (0, 0, -1), (0, -1, 0)))
 AUTO_SIZE_RANGE = (32, 512)
-XI1_BORDER = 0.01  # Eq. 4.10
 TEXELS_PER_LOBE_RADIUS = 4
 FACE_TEXELS_PER_METRE = 400.0
 SUPERSAMPLE = 2  # per axis: a texel is the mean of 2 x 2 samples
@@ -80,20 +80,15 @@ SUPERSAMPLE = 2  # per axis: a texel is the mean of 2 x 2 samples
 # (a fixed 1 mm znear clipped a 1 mm scene and let a 10 km one z-fight: glint bench --stress).
 NEAR_PER_FAR = 1e-4
 FAR_MARGIN = 1.02
-SKY_DISTANCE = 65504.0  # alpha where only sky shows: the largest half float, far but finite
-
-
-def theta_thresh(m: float) -> float:
-    """Eq. 4.10 at xi1_border, where the lobe is narrowest: cos^2(phi)/mx^2 + sin^2(phi)/my^2
-    peaks at 1/m^2 with m = min(mx, my)."""
-    return math.atan(math.sqrt(-math.log(XI1_BORDER)) * m)
+SKY_DISTANCE = HALF_MAX  # alpha where only sky shows: far but finite
 
 
 def automatic_size(obj: Object, material: Material) -> int:
     """Face size from the narrowest lobe and the object's size (see the module docstring)."""
     lo, hi = AUTO_SIZE_RANGE
     widths = [max(min(lobe.mx, lobe.my), M_MIN) for lobe in material.lobes]
-    by_lobe = math.pi / theta_thresh(min(widths)) if widths else math.inf  # 4 (pi/2) / (2 theta)
+    # Eq. 4.10 where the lobe is narrowest: its phi factor peaks at 1/m^2 with m = min(mx, my)
+    by_lobe = math.pi / float(theta_thresh(0.0, min(widths), min(widths))) if widths else math.inf  # 4 (pi/2) / (2 theta)
     by_size = FACE_TEXELS_PER_METRE * float(np.linalg.norm(obj.bounds[1] - obj.bounds[0]))
     need = min(by_lobe, by_size)
     return int(min(max(2 ** math.ceil(math.log2(max(need, 1.0))), lo), hi))

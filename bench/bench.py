@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.core.constants import MIRROR_PLANE_COS
 from glint.core.errors import GlintError
 
 DEFAULT_SAMPLES = (1, 3, 5, 7, 9, 11, 15, 19)
@@ -262,7 +263,6 @@ def choose_cameras(manifest: dict, names: list[str] | None, aspect: float) -> li
 
 
 # -- images and regions -----------------------------------------------------------------------------
-MIRROR_PLANE_COS = 0.985  # shaders/specular.glsl: planar pixels facing their plane within 10 degrees
 
 
 def region_masks(renderer, bake) -> dict[str, np.ndarray]:

@@ -124,7 +124,7 @@ def _maths():
 
 
 class _Lobe:
-    """One lobe's constants, roughness clamped as core/bsdf.py `_roughness` does."""
+    """One lobe's constants, roughness clamped as core/bsdf.py `clamp_roughness` does."""
 
     def __init__(self, d: dict):
         self.transmit = d["kind"] == "transmit"

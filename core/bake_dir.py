@@ -35,6 +35,7 @@ import numpy as np
 
 from glint.core.atomic import atomic_write_text
 from glint.core.errors import GlintError
+from glint.core.image_io import sample_bilinear
 
 FORMAT_VERSION = 1
 MANIFEST = "manifest.json"
@@ -158,7 +159,6 @@ class Bake:
     def irradiance(self, obj: int, triangles: np.ndarray, barycentric: np.ndarray) -> np.ndarray:
         """Bilinear light-map look-up at points given by triangle index and barycentrics (K, 3)
         of object `obj` -- what the viewer's texture unit does (GL_LINEAR, clamp to edge)."""
-        from glint.bake.texels import sample_bilinear
 
         mesh = self.meshes[obj]
         corners = mesh["indices"][np.asarray(triangles)].astype(np.int64)  # (K, 3)

@@ -46,6 +46,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from glint.core.constants import XI1_BORDER
+
 M_MIN = 1e-4
 HZ_MIN = 1e-7
 DOT_MIN = 1e-12
@@ -77,7 +79,8 @@ def half_vector(wi, wo):
     return h, ok
 
 
-def _roughness(mx, my):
+def clamp_roughness(mx, my):
+    """(mx, my) as arrays floored at M_MIN (see the module docstring)."""
     return np.maximum(np.asarray(mx, dtype=float), M_MIN), np.maximum(np.asarray(my, dtype=float), M_MIN)
 
 
@@ -102,7 +105,7 @@ def beckmann_D(h, mx, my):
     Zero for h below or on the horizon (hz <= 0). h must be unit length.
     """
     h = np.asarray(h, dtype=float)
-    mx, my = _roughness(mx, my)
+    mx, my = clamp_roughness(mx, my)
     hx, hy, hz = h[..., 0], h[..., 1], h[..., 2]
     c = np.maximum(hz, HZ_MIN)  # HZ_MIN: finite exponent, finite c^4 (see module doc)
     exponent = (hx * hx / (mx * mx) + hy * hy / (my * my)) / (c * c)
@@ -184,7 +187,7 @@ def sample_half_vector(xi1, xi2, mx, my):
     atan2(my sin(2 pi xi2), mx cos(2 pi xi2)) it keeps it, so phi_h runs over
     [0, 2 pi) monotonically with xi2 (and phi_h = 2 pi xi2 when mx = my).
     """
-    mx, my = _roughness(mx, my)
+    mx, my = clamp_roughness(mx, my)
     xi1 = np.clip(np.asarray(xi1, dtype=float), XI_MIN, 1.0)  # -log(xi1) needs xi1 in (0, 1]
     xi2 = np.asarray(xi2, dtype=float)
     a = 2.0 * np.pi * xi2
@@ -299,3 +302,12 @@ def lobe_albedo(wo, mx, my, r0, alpha, kind, n=ALBEDO_N):
         wi = sample_lobe(wo, x1, x2, mx, my, kind)
         total += sample_weight(wi, wo, r0, alpha, kind).sum(axis=-1)
     return total / n
+
+
+def theta_thresh(phi_h, mx, my):
+    """The lobe border's half-vector angle in the direction phi_h (Eq. 4.10):
+    theta_thresh = arctan(sqrt(-log(xi1_border) / (cos^2 phi_h / mx^2 + sin^2 phi_h / my^2))),
+    roughness floored at M_MIN. At phi_h = 0 with mx = my = m: arctan(sqrt(-log xi1_border) m)."""
+    mx, my = clamp_roughness(mx, my)
+    phi_h = np.asarray(phi_h, dtype=float)
+    return np.arctan(np.sqrt(-np.log(XI1_BORDER) / (np.cos(phi_h) ** 2 / mx ** 2 + np.sin(phi_h) ** 2 / my ** 2)))

@@ -12,9 +12,8 @@ import numpy as np
 import OpenImageIO as oiio
 
 from glint.core.atomic import atomic_path
+from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
-
-HALF_MAX = 65504.0
 
 
 def read_image(path: str | Path, what: str = "image") -> np.ndarray:
@@ -73,3 +72,30 @@ def write_image(path: str | Path, pixels: np.ndarray, *, half: bool | None = Non
         finally:
             out.close()
     return kind
+
+
+def sample_bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear look-up of an (H, W, C) image at (K, 2) uv -> (K, C), as OpenGL GL_LINEAR + CLAMP_TO_EDGE.
+
+    Texel (y, x) has its centre at uv ((x + 0.5) / W, (y + 0.5) / H); texel
+    indices outside the image are clamped to the edge. A 2-D image gives (K,).
+    """
+    image = np.asarray(image)
+    flat = image.ndim == 2
+    if flat:
+        image = image[..., None]
+    H, W = image.shape[:2]
+    uv = np.asarray(uv, np.float64).reshape(-1, 2)
+    x = uv[:, 0] * W - 0.5
+    y = uv[:, 1] * H - 0.5
+    xf, yf = np.floor(x), np.floor(y)
+    fx, fy = (x - xf)[:, None], (y - yf)[:, None]
+    x0 = np.clip(xf.astype(np.int64), 0, W - 1)
+    x1 = np.clip(xf.astype(np.int64) + 1, 0, W - 1)
+    y0 = np.clip(yf.astype(np.int64), 0, H - 1)
+    y1 = np.clip(yf.astype(np.int64) + 1, 0, H - 1)
+    img = image.astype(np.float64, copy=False)
+    out = ((1 - fy) * ((1 - fx) * img[y0, x0] + fx * img[y0, x1])
+           + fy * ((1 - fx) * img[y1, x0] + fx * img[y1, x1]))
+    out = out.astype(image.dtype if np.issubdtype(image.dtype, np.floating) else np.float64)
+    return out[:, 0] if flat else out

@@ -12,15 +12,8 @@
 #include "common.glsl"
 #include "materials.glsl"
 
-// The guards of core/bsdf.py, same values.
-const float M_MIN = 1e-4;      // roughness floor: mx = 0 would divide by zero in Eq. 3.3
-const float HZ_MIN = 1e-7;     // cos(theta_h) floor inside D (Eq. 3.3): finite exponent and cos^4
-const float DOT_MIN = 1e-12;   // wo.h floor in the denominators of Eq. 3.4 and 4.9
-const float COS_MIN = 1e-4;    // cosine floor in Kurt's ((wi.n)(wo.n))^alpha (Eq. 3.4)
-const float HALF_MIN = 1e-30;  // |wi + wo| below this: no half vector (wi = -wo)
-// core/bsdf.py clamps xi1 at 1e-38, which float32 holds only as a subnormal that GPUs may flush
-// to 0 (then -log(xi1) = inf); the GLSL uses the smallest normal float, 2^-126, instead.
-const float XI_MIN = 1.17549435e-38;
+// The guards of core/bsdf.py (M_MIN, HZ_MIN, DOT_MIN, COS_MIN, HALF_MIN, XI_MIN) are defines
+// injected from there (viewer/shader_source.py glsl_constants): one source for both.
 
 bool lobe_is_transmit(Lobe lobe) {
     return int(lobe.ks.a + 0.5) == LOBE_TRANSMIT;

@@ -20,10 +20,9 @@ vec3 clean_radiance(vec3 v) {
 }
 
 // Radiance for a half-float (rgba16f) target: clean_radiance clamped to the largest half float,
-// 65504. A larger value's conversion is implementation-dependent (GL 4.5, 2.3.4.2): Mesa clamps,
+// HALF_MAX (a define from core/constants.py). A larger value's conversion is implementation-dependent (GL 4.5, 2.3.4.2): Mesa clamps,
 // other drivers may store Inf, which the mirror buffer's MIP chain would spread (a 1e5 lamp seen in
 // a mirror: glint bench --stress, the emitters case).
-const float HALF_MAX = 65504.0;
 vec3 clean_half_radiance(vec3 v) {
     return min(clean_radiance(v), vec3(HALF_MAX));
 }

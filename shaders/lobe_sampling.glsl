@@ -7,12 +7,9 @@
 
 #include "bsdf.glsl"
 
-// Eq. 4.10: the lobe border is where the importance transformation (Eq. 4.6) is at xi1 = 0.01,
-// the thesis' empirical choice; about 99% of the importance-sampled half vectors lie inside.
-const float XI1_BORDER = 0.01;
-// Eq. 4.15 caps tan(alpha) here (alpha ~ 89.4 deg): a wider lobe has no tangent-plane ellipse,
-// and its samples are filtered at the coarsest MIP level anyway.
-const float LOBE_TAN_MAX = 100.0;
+// XI1_BORDER (Eq. 4.10's lobe border) and LOBE_TAN_MAX (Eq. 4.15's cap on tan(alpha): a wider
+// lobe has no tangent-plane ellipse, and its samples are filtered at the coarsest MIP level
+// anyway) are defines from core/constants.py.
 
 // theta_thresh of Eq. 4.10 for the direction cs = (cos, sin)(phi_h):
 //   arctan(sqrt(-log(xi1_border) / (cos^2 ph/mx^2 + sin^2 ph/my^2))).

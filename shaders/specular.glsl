@@ -374,7 +374,6 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
 // within MIRROR_PLANE_COS of the plane's (facing the same way). Elsewhere -- the sides of a slab
 // made planar by the sidecar -- the mirror image is not the light it receives: -1 there, as for
 // objects whose plane got no pass this frame.
-const float MIRROR_PLANE_COS = 0.985;  // 10 degrees
 
 int mirror_slot_at(Surface s) {
     int slot = mirror_slot_of(s.object);

@@ -454,7 +454,8 @@ def test_includes_resolve_once_and_errors_name_the_file(ctx, monkeypatch):
              "cycle.glsl": '#include "cycle2.glsl"\n', "cycle2.glsl": '#include "cycle.glsl"\n'}
     monkeypatch.setattr(shader_source, "read", lambda name: files[name])
     text, used = shader_source.preprocess("main.comp", {"N": 3, "FLAG": True})
-    assert text.startswith("#version 430 core\n#define N 3\n#define FLAG 1\n")
+    assert text.startswith("#version 430 core\n#define HALF_MAX 65504.0\n")  # core/constants.py, injected first
+    assert "\n#define N 3\n#define FLAG 1\n#line 1 0\n" in text
     assert used == ["main.comp", "a.glsl", "b.glsl"] and text.count("void g()") == 1
     shader_source.compute_program(ctx, "main.comp").release()
     with pytest.raises(shader_source.ShaderError, match=r"bad\.comp:4"):

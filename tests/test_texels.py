@@ -4,8 +4,9 @@ import pytest
 import trimesh
 
 from glint.bake.dilate import dilate, dilate_to_fill
-from glint.bake.texels import rasterize_texels, sample_bilinear
+from glint.bake.texels import rasterize_texels
 from glint.bake.unwrap import unwrap
+from glint.core.image_io import sample_bilinear
 from glint.core.scene import Object
 
 DENSITY = 16.0

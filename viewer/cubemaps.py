@@ -39,11 +39,11 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
+from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
 
 CUBE_OBJECT_BINDING, BOUNDING_PLANE_BINDING = 4, 5
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")  # GL's face order (GL_TEXTURE_CUBE_MAP_POSITIVE_X + k)
-HALF_MAX = 65504.0
 MAX_PLANES = 16  # per object; more are ignored (each is a ray-plane test per sample)
 
 # Per object (std430): xyz projection centre, w unused; class (-1: none), layer, first plane, plane count.

@@ -22,7 +22,7 @@ Everything here is read-only after upload; passes bind what they need.
   viewer/cubemaps.py.
 - Light maps: one texture array, a layer per page, RGBA16F, or RGBA32F when a
   value does not fit in half float (very bright emitters must not become Inf);
-  GL_LINEAR and clamp to edge, which is `bake.texels.sample_bilinear`. Row 0 of a
+  GL_LINEAR and clamp to edge, which is `glint.core.image_io.sample_bilinear`. Row 0 of a
   page (v = 0) is the first row uploaded, i.e. GL's t = 0: no flip anywhere.
 - Materials and lobes: two shader storage buffers (`MATERIAL_DTYPE`,
   `LOBE_DTYPE`, std430; GLSL side in shaders/materials.glsl).
@@ -39,11 +39,10 @@ from dataclasses import dataclass, field
 import moderngl
 import numpy as np
 
+from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
 from glint.viewer.cubemaps import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, CubeMaps
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
-
-HALF_MAX = 65504.0
 
 MATERIAL_BINDING, LOBE_BINDING = 0, 1
 PATTERN_BINDING, LOBE_PATTERN_BINDING = 2, 3  # shaders/specular.glsl; viewer/cubemaps.py uses 4 and 5

@@ -141,10 +141,9 @@ from __future__ import annotations
 import numpy as np
 
 from glint.core import bsdf
+from glint.core.constants import LOBE_TAN_MAX, XI1_BORDER
 
-XI1_BORDER = 0.01      # Eq. 4.10, the thesis' empirical lobe border
 RING_RADIUS = 0.6      # xi1 of the ring: "radius = 0.6 (= 40% off-center)"
-LOBE_TAN_MAX = 100.0   # Eq. 4.15 cap, as lobe_sampling.glsl
 LOBE_AXIS_VARIANCE = -0.5 / np.log(XI1_BORDER)  # the lobe's variance per axis, border radius 1
 
 # The rules of choose_pattern and samples_for_lobe (measured: see the module doc).
@@ -242,22 +241,11 @@ def samples_for_lobe(mx: float, my: float, planar: bool = False) -> int:
 
 # ----------------------------------------------------------------------------- Eq. 4.10-4.13
 
-def _roughness(mx, my):
-    return np.maximum(np.asarray(mx, dtype=float), bsdf.M_MIN), np.maximum(np.asarray(my, dtype=float), bsdf.M_MIN)
-
-
 def pattern_phi(xi2, mx, my):
     """phi_h = arctan(my/mx tan(2 pi xi2)) (Eq. 4.12), quadrant-correct as glint.core.bsdf.sample_half_vector."""
-    mx, my = _roughness(mx, my)
+    mx, my = bsdf.clamp_roughness(mx, my)
     a = 2.0 * np.pi * np.asarray(xi2, dtype=float)
     return np.arctan2(my * np.sin(a), mx * np.cos(a))
-
-
-def theta_thresh(phi_h, mx, my):
-    """theta_thresh = arctan(sqrt(-log(xi1_border) / (cos^2 phi_h / mx^2 + sin^2 phi_h / my^2))) (Eq. 4.10)."""
-    mx, my = _roughness(mx, my)
-    phi_h = np.asarray(phi_h, dtype=float)
-    return np.arctan(np.sqrt(-np.log(XI1_BORDER) / (np.cos(phi_h) ** 2 / mx ** 2 + np.sin(phi_h) ** 2 / my ** 2)))
 
 
 def pattern_direction(wo, xi1, xi2, mx, my, kind):
@@ -269,7 +257,7 @@ def pattern_direction(wo, xi1, xi2, mx, my, kind):
     bsdf._check_kind(kind)
     wo = np.asarray(wo, dtype=float)
     phi = pattern_phi(xi2, mx, my)
-    theta = (1.0 - np.asarray(xi1, dtype=float)) * theta_thresh(phi, mx, my)
+    theta = (1.0 - np.asarray(xi1, dtype=float)) * bsdf.theta_thresh(phi, mx, my)
     h = np.stack(np.broadcast_arrays(np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)), -1)
     wi = 2.0 * np.sum(wo * h, axis=-1, keepdims=True) * h - wo
     return bsdf.mirror(wi) if kind == "transmit" else wi

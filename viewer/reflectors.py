@@ -66,13 +66,13 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
+from glint.core.bsdf import theta_thresh
 from glint.viewer.camera import ViewCamera
 from glint.viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HEIGHT, MirrorCamera, group_coplanar
 
 DEFAULT_BUDGET = 4  # mirror passes per frame
 GUARD_MAX_HALF_ANGLE = np.radians(80.0)  # the widened half field of view at most (tan 80 deg = 5.7)
 GUARD_MAX_SCALE = 2.0  # and the scale at most (module doc: measured on planar-classes)
-XI1_BORDER = 0.01  # the lobe border of Eq. 4.10 (viewer/lobe_patterns.py)
 
 
 class SkipReason(str, enum.Enum):
@@ -161,7 +161,7 @@ def lobe_reach(mx: float, my: float) -> float:
     """Radians a reflection lobe's directions turn from its mirror direction at most, at normal
     view: twice theta_thresh of Eq. 4.10 along its wider axis, atan(sqrt(-ln xi1_border) m)."""
     m = max(float(mx), float(my), 0.0)
-    return 2.0 * float(np.arctan(np.sqrt(-np.log(XI1_BORDER)) * m))
+    return 2.0 * float(theta_thresh(0.0, m, m)) if m > 0 else 0.0
 
 
 def guard_scale(camera: ViewCamera, aspect: float, reach: float) -> float:

@@ -20,6 +20,8 @@ from importlib import resources
 
 import moderngl
 
+from glint.core import bsdf, constants
+
 GLSL_VERSION = "#version 430 core"
 PACKAGE = "glint.shaders"
 LOCAL_SIZE = 8  # compute work groups are LOCAL_SIZE x LOCAL_SIZE (a define of every compute shader)
@@ -42,11 +44,18 @@ def read(name: str) -> str:
         raise ShaderError(f"no shader file '{name}' in the {PACKAGE} package") from None
 
 
+def glsl_constants() -> dict:
+    """The constants every shader gets as defines: core/constants.py and the BSDF's numerical guards."""
+    return {"HALF_MAX": constants.HALF_MAX, "XI1_BORDER": constants.XI1_BORDER, "LOBE_TAN_MAX": constants.LOBE_TAN_MAX,
+            "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "M_MIN": bsdf.M_MIN, "HZ_MIN": bsdf.HZ_MIN,
+            "DOT_MIN": bsdf.DOT_MIN, "COS_MIN": bsdf.COS_MIN, "HALF_MIN": bsdf.HALF_MIN, "XI_MIN": bsdf.XI_MIN}
+
+
 def preprocess(name: str, defines: dict | None = None) -> tuple[str, list[str]]:
     """(GLSL text of `name` with includes resolved and defines injected, file of each source string)."""
     files: list[str] = []
     out = [GLSL_VERSION]
-    for key, value in (defines or {}).items():
+    for key, value in {**glsl_constants(), **(defines or {})}.items():
         if not re.fullmatch(r"[A-Za-z_]\w*", key):
             raise ShaderError(f"bad define name {key!r}")
         out.append(f"#define {key} {_literal(value)}")
