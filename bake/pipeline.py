@@ -23,7 +23,7 @@ from glint.core.bake_dir import FORMAT_VERSION, BakeDirWriter, load_meshes, read
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
 from glint.core.scene import Scene
-from glint.core.skipped import bake_record
+from glint.core.skipped import bake_record, stale_reason
 
 
 @dataclass
@@ -106,11 +106,14 @@ CubeMapRenderer = Callable[..., dict]
 
 
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
-               progress: bool = True, render_cubemaps: CubeMapRenderer | None = None) -> BakeReport:
+               progress: bool = True, render_cubemaps: CubeMapRenderer | None = None,
+               announce: Callable[[str], None] | None = None) -> BakeReport:
     """Bake `scene` into `bake_dir`, redoing only the stages whose inputs changed.
 
-    `render_cubemaps` renders the cube maps that need rendering (glint.services.bake passes
+    `render_cubemaps` renders the cube maps that need rendering (glint.services.bake_scene passes
     glint.cubemap_stage.render_cubemaps); a scene that needs a new cube map without one is an error.
+    `announce(why)` is called once, before any work, when an existing bake is to be redone in part
+    (why: the changed inputs, as glint.core.skipped.stale_reason words them).
     """
     old = None if force else read_manifest(bake_dir)
     geometry = hashing.geometry_hash(scene, settings)
@@ -137,6 +140,8 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
                 {k: v for k, v in manifest.items() if k != "statistics"}:
             return BakeReport(bake_dir, "up-to-date", old)
 
+    if old is not None and announce is not None:
+        announce(stale_reason(old, manifest))
     with BakeDirWriter(bake_dir) as out:
         _write_textures(scene, out.path)
         if reuse_lightmaps:

@@ -61,9 +61,11 @@ def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
     out: dict[str, list[str]] = {"geometry": [], "light maps": [], "manifest": []}
     if old.get("stages", {}).get("geometry") != new["stages"]["geometry"]:
         out["geometry"].append("geometry or light-map resolution")
-    old_settings = {k: v for k, v in (old.get("settings") or {}).items() if k != "quality"}
-    if old_settings != {k: v for k, v in new["settings"].items() if k != "quality"}:
-        out["light maps"].append("bake settings")
+    old_settings = old.get("settings") or {}
+    changed = [f"{k} {old_settings.get(k)} -> {v}" for k, v in new["settings"].items()
+               if k != "quality" and old_settings.get(k) != v]
+    if changed:
+        out["light maps"].append("bake settings (" + ", ".join(changed) + ")")
     old_materials, new_materials = _by_name(old.get("materials")), _by_name(new["materials"])
     if set(old_materials) != set(new_materials):
         out["light maps"].append("materials added or removed")
@@ -102,6 +104,14 @@ def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
 
 def _phrase(items: list[str], limit: int = 3) -> str:
     return ", ".join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")
+
+
+def stale_reason(old: dict, new: dict) -> str:
+    """One phrase of why a bake with manifest `old` is redone for `new`, e.g.
+    "changed: kd of Floor, bake settings (samples 32 -> 128)"."""
+    changes = changed_inputs(old, new)
+    items = changes["geometry"] + changes["light maps"] + changes["manifest"]
+    return ("changed: " + _phrase(items)) if items else "made by an older glint"
 
 
 def bake_record(status: str, old: dict | None, new: dict, cube_maps: dict, *, forced: bool = False) -> dict:

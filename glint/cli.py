@@ -46,7 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "The result is written to a temporary directory and moved into place, "
                                    "so an interrupted bake leaves the previous one intact.")
     p.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
-    add_bake_options(p)
+    add_bake_options(p, keeps_existing=False)
     p.set_defaults(run=cmd_bake)
     add_view_parser(sub, common)
     add_capture_parser(sub, common)
@@ -62,7 +62,7 @@ def cmd_scenes(args) -> int:
 
 
 def cmd_bake(args) -> int:
-    report = run_bake(args, progress=sys.stderr.isatty())
+    report = run_bake(args, progress=sys.stderr.isatty(), reuse=False)
     print(report.summary)
     skipped = summary_line(report.manifest, report.status)
     if skipped:

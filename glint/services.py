@@ -10,6 +10,7 @@ import argparse
 import math
 import os
 import re
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,7 @@ from glint.bake import pipeline
 from glint.bake.gltf_loader import load_scene
 from glint.bake.pipeline import BakeReport
 from glint.bake.settings import PRESETS, BakeSettings, resolve_settings
-from glint.core.bake_dir import default_bake_dir
+from glint.core.bake_dir import default_bake_dir, read_manifest
 from glint.core.errors import GlintError
 from glint.core.scene import Scene
 from glint.cubemap_stage import render_cubemaps
@@ -50,15 +51,18 @@ def _positive_float(text: str) -> float:
     return value
 
 
-def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out")) -> None:
-    """The bake's options, for `bake` and for the commands that bake first (`view`, `capture`);
-    `out_flags` name the bake-directory option (capture's -o is its image)."""
+def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_existing: bool = True) -> None:
+    """The bake's options, for `bake` and for the commands that bake first (`view`, `capture`,
+    `bench`); `out_flags` name the bake-directory option (capture's -o is its image);
+    `keeps_existing`: an existing bake keeps its settings unless an option is given (run_bake)."""
     presets = "; ".join(f"{k}: {v['samples']} samples, {v['texels_per_metre']:g} texels/m" for k, v in PRESETS.items())
     p.add_argument(*out_flags, dest="out", type=Path, metavar="DIR",
                    help="bake directory (default: NAME.bake beside the scene file; "
                         "built-in scenes bake into ~/.cache/glint or $GLINT_CACHE)")
     p.add_argument("-q", "--quality", choices=list(PRESETS),
-                   help=f"quality preset (default: the sidecar's [bake] quality, else preview) — {presets}")
+                   help=("quality preset (default: an existing bake is used with the settings it was made with; "
+                         "a new one gets the sidecar's [bake] quality, else preview)" if keeps_existing else
+                         "quality preset (default: the sidecar's [bake] quality, else preview)") + f" — {presets}")
     p.add_argument("--samples", type=_whole(1), metavar="N", help="paths per texel (overrides the preset)")
     p.add_argument("--texels-per-metre", type=_positive_float, metavar="T", dest="texels_per_metre",
                    help="light-map resolution (overrides the preset)")
@@ -74,20 +78,53 @@ def open_scene(scene_arg: str) -> tuple[Scene, str | None]:
 
 
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
-         progress: bool = True) -> BakeReport:
+               progress: bool = True, announce=None) -> BakeReport:
     """The whole bake of glint.bake.pipeline, with the cube-map stage that renders on the GPU."""
     return pipeline.bake_scene(scene, settings, bake_dir, force=force, progress=progress,
-                               render_cubemaps=render_cubemaps)
+                               render_cubemaps=render_cubemaps, announce=announce)
 
 
-def run_bake(args, *, progress: bool = True) -> BakeReport:
-    """Bake (or find up to date) the scene of a command's arguments (add_bake_options)."""
+def _command_line_settings(args) -> dict:
+    return {"quality": args.quality, "samples": args.samples, "texels_per_metre": args.texels_per_metre,
+            "jobs": args.jobs, "denoise": False if args.no_denoise else None}
+
+
+def settings_for(scene: Scene, args, existing: dict | None) -> BakeSettings:
+    """The settings to bake `scene` with for a command's arguments (add_bake_options).
+
+    Without an existing bake (or for `glint bake` itself): the quality preset, the sidecar's
+    [bake] table, then the command line (glint.bake.settings.resolve_settings). With one
+    (`existing`, its manifest), the bake the user made is used as it is: its own settings,
+    whatever preset it was made with; only what the command line gives explicitly changes
+    them, and when the scene file or sidecar changed since, the sidecar's [bake] keys apply too
+    (the sidecar is part of the scene). The pipeline then redoes only the stages whose inputs
+    differ, usually none.
+    """
+    cli = _command_line_settings(args)
+    if existing is None or args.quality is not None:
+        return resolve_settings(scene.bake_settings, **cli)
+    made_with = {k: v for k, v in existing["settings"].items() if k in BakeSettings.__dataclass_fields__}
+    sidecar = {k: v for k, v in (scene.bake_settings or {}).items() if k != "quality"}
+    if existing["scene"].get("hash") == pipeline.source_hash(scene):
+        sidecar = {k: v for k, v in sidecar.items() if k == "jobs"}  # jobs never changes a result
+    return resolve_settings({**made_with, **sidecar}, **cli)
+
+
+def run_bake(args, *, progress: bool = True, reuse: bool = True) -> BakeReport:
+    """Bake, or find up to date, the scene of a command's arguments (add_bake_options).
+
+    `reuse`: an existing bake keeps its settings (settings_for); `glint bake` passes False, so
+    its presets and sidecar apply as given. When an existing bake must be redone, one line on
+    stderr says why before the work starts."""
     scene, builtin = open_scene(args.scene)
-    settings = resolve_settings(scene.bake_settings, quality=args.quality, samples=args.samples,
-                                texels_per_metre=args.texels_per_metre, jobs=args.jobs,
-                                denoise=False if args.no_denoise else None)
     bake_dir = args.out or default_bake_dir(scene.source, builtin)
-    return bake_scene(scene, settings, bake_dir, force=args.force, progress=progress)
+    existing = read_manifest(bake_dir) if reuse and not args.force else None
+    settings = settings_for(scene, args, existing)
+
+    def announce(why: str) -> None:
+        print(f"glint: {bake_dir} is stale ({why}): re-baking what changed", file=sys.stderr)
+
+    return bake_scene(scene, settings, bake_dir, force=args.force, progress=progress, announce=announce)
 
 
 # -- argument checks shared by capture, view and bench --------------------------------------------
