@@ -87,8 +87,10 @@ def automatic_size(obj: Object, material: Material) -> int:
     """Face size from the narrowest lobe and the object's size (see the module docstring)."""
     lo, hi = AUTO_SIZE_RANGE
     widths = [max(min(lobe.mx, lobe.my), M_MIN) for lobe in material.lobes]
-    # Eq. 4.10 where the lobe is narrowest: its phi factor peaks at 1/m^2 with m = min(mx, my)
-    by_lobe = math.pi / float(theta_thresh(0.0, min(widths), min(widths))) if widths else math.inf  # 4 (pi/2) / (2 theta)
+    # Eq. 4.10 where the lobe is narrowest: its phi factor peaks at 1/m^2 with m = min(mx, my);
+    # the reflected lobe's radius 2 theta_thresh spans TEXELS_PER_LOBE_RADIUS texels of pi/2 / S
+    m = min(widths) if widths else None
+    by_lobe = TEXELS_PER_LOBE_RADIUS * (math.pi / 2) / (2 * float(theta_thresh(0.0, m, m))) if widths else math.inf
     by_size = FACE_TEXELS_PER_METRE * float(np.linalg.norm(obj.bounds[1] - obj.bounds[0]))
     need = min(by_lobe, by_size)
     return int(min(max(2 ** math.ceil(math.log2(max(need, 1.0))), lo), hi))

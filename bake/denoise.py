@@ -2,13 +2,12 @@
 from __future__ import annotations
 
 import numpy as np
+import pyoidn
 
 
 def denoise_lightmap(irradiance: np.ndarray) -> np.ndarray:
     """(H, W, 3) HDR irradiance -> denoised copy. Call on a dilated page so chart
     borders have no empty (black) neighbours to bleed in."""
-    import pyoidn
-
     out = pyoidn.denoise(np.ascontiguousarray(irradiance, dtype=np.float32),
                          filter_type=pyoidn.OIDN_FILTER_TYPE_RT_LIGHTMAP, quality="high")
     # OIDN never returns negatives for HDR input in practice; keep the guarantee explicit.

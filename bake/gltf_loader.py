@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from glint.bake.material_mapping import MATERIAL_EXTENSIONS, apply_override, material_from_gltf
 from glint.bake.roles import assign_roles
@@ -446,8 +447,6 @@ class _SceneBuilder:
         return self._images[source]
 
     def _decode_image(self, index: int, where: str) -> np.ndarray | None:
-        from PIL import Image
-
         image = self.item("images", index, f"{where} texture")
         try:
             if "bufferView" in image:
@@ -474,13 +473,8 @@ class _SceneBuilder:
 
     def _objects(self, scene: Scene, worlds) -> dict[str, tuple[str, str]]:
         """Fill scene.objects; return object name -> (node name, mesh name) for the sidecar."""
-        nodes = _list(self.tree, "nodes", self.source)
         aliases = {}
-        for node_index in sorted(worlds):
-            node = nodes[node_index]
-            if "mesh" not in node:
-                continue
-            mesh = self.item("meshes", node["mesh"], f"node {node_index}")
+        for node_index, node, mesh in self._nodes_with("mesh", "meshes", worlds):
             node_name = node.get("name") or mesh.get("name") or f"node{node_index}"
             mesh_name = mesh.get("name") or f"mesh{node['mesh']}"
             for world in worlds[node_index]:
@@ -491,6 +485,15 @@ class _SceneBuilder:
                         scene.objects.append(obj)
                         aliases[obj.name] = (node_name, mesh_name)
         return aliases
+
+    def _nodes_with(self, key: str, table: str, worlds):
+        """(node index, node, the item of `table` it refers to by `key`) for each node in the scene
+        (`worlds`: node index -> world matrices) that has `key`, in node order."""
+        nodes = _list(self.tree, "nodes", self.source)
+        for node_index in sorted(worlds):
+            node = nodes[node_index]
+            if key in node:
+                yield node_index, node, self.item(table, node[key], f"node {node_index}")
 
     def _unique(self, name: str) -> str:
         out, k = name, 0
@@ -637,12 +640,7 @@ class _SceneBuilder:
                     raise self.bad(f"light '{name}' has unknown type {kind!r}")
 
     def _cameras(self, scene: Scene, worlds) -> None:
-        nodes = _list(self.tree, "nodes", self.source)
-        for node_index in sorted(worlds):
-            node = nodes[node_index]
-            if "camera" not in node:
-                continue
-            cam = self.item("cameras", node["camera"], f"node {node_index}")
+        for node_index, node, cam in self._nodes_with("camera", "cameras", worlds):
             name = node.get("name") or cam.get("name") or f"camera{node['camera']}"
             if cam.get("type") != "perspective":
                 self.warn(f"{self.source}: camera '{name}' is {cam.get('type')}; only "

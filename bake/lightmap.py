@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
 from glint.bake.executor import LocalExecutor
 from glint.bake.irradiance import compute_irradiance
@@ -82,7 +83,5 @@ def _fill(image: np.ndarray, valid: np.ndarray, settings) -> np.ndarray:
     grow = settings.padding + 2
     image = dilate(image, valid, grow)
     if settings.denoise and valid.any():
-        from glint.bake.denoise import denoise_lightmap
-
         image = dilate(np.where(valid[..., None], denoise_lightmap(image), 0.0), valid, grow)
     return np.ascontiguousarray(image, dtype=np.float32)

@@ -15,12 +15,17 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+from tqdm import tqdm
 
 from glint.bake import hashing
 from glint.bake.cubemap import CubeMapPlan, plan_cubemaps
+from glint.bake.lightmap import bake_lightmaps
 from glint.bake.settings import BakeSettings
+from glint.bake.texels import rasterize_texels
+from glint.bake.unwrap import Atlas, ObjectCharts, unwrap
 from glint.core.bake_dir import FORMAT_VERSION, BakeDirWriter, load_meshes, read_manifest, save_meshes, write_json
 from glint.core.errors import GlintError
+from glint.core.geometry import plane_of
 from glint.core.image_io import write_image
 from glint.core.scene import Scene
 from glint.core.skipped import bake_record, stale_reason
@@ -61,7 +66,6 @@ def source_hash(scene: Scene) -> str:
 
 def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     """The part of the manifest the viewer reads besides the light maps (JSON-ready)."""
-    from glint.core.geometry import plane_of
 
     def vec(v):
         return [float(x) for x in np.asarray(v).ravel()]
@@ -169,7 +173,6 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
 def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: BakeDirWriter, manifest: dict,
               progress: bool, render_cubemaps: CubeMapRenderer | None) -> dict:
     """Carry over the cube maps whose inputs did not change, render the others (bake/cubemap.py)."""
-    from tqdm import tqdm
 
     old_hashes = old["stages"].get("cubemaps", {}) if old is not None else {}
     todo = []
@@ -201,10 +204,7 @@ def _write_textures(scene: Scene, path: Path) -> None:
 
 def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Path, progress: bool,
                                  old_dir: Path | None) -> dict:
-    from tqdm import tqdm
 
-    from glint.bake.lightmap import bake_lightmaps
-    from glint.bake.texels import rasterize_texels
 
     t0 = time.perf_counter()
     with tqdm(total=2, desc="unwrap", unit="step", disable=not progress, leave=False) as bar:
@@ -241,7 +241,6 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
 
 def _atlas(scene: Scene, settings: BakeSettings, path: Path, old_dir: Path | None):
     """Unwrap with xatlas, or, when the geometry did not change, read the charts of the last bake."""
-    from glint.bake.unwrap import Atlas, ObjectCharts, unwrap
 
     if old_dir is not None:
         old = read_manifest(old_dir)["atlas"]

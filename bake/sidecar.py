@@ -55,6 +55,7 @@ from glint.bake.validate import check_rgb as _rgb
 from glint.bake.validate import check_vec3 as _vec3
 from glint.bake.validate import warn_unknown_keys as _unknown
 from glint.core.errors import GlintError
+from glint.core.image_io import read_image
 from glint.core.scene import ROLES, Camera, CameraPath, Sky
 
 if sys.version_info >= (3, 11):
@@ -306,7 +307,6 @@ def _sky(table, path: Path, w: list[str]) -> Sky:
 
 def read_sky_map(path: Path, where: str = "sky map") -> np.ndarray:
     """An equirectangular EXR/HDR/... -> (H, W, 3) float32 linear RGB, via OpenImageIO."""
-    from glint.core.image_io import read_image
 
     pixels = read_image(path, where)
     if pixels.shape[2] < 3:

@@ -22,9 +22,11 @@ input: the same objects and settings give byte-identical charts.
 from __future__ import annotations
 
 import math
+import multiprocessing as mp
 from dataclasses import dataclass
 
 import numpy as np
+import xatlas
 
 from glint.core.errors import GlintError, warn
 
@@ -65,8 +67,6 @@ class Atlas:
 
 
 def _chart_options():
-    import xatlas
-
     o = xatlas.ChartOptions()
     # xatlas 0.0.11 defaults, pinned.
     o.max_chart_area = 0.0  # no limit
@@ -84,8 +84,6 @@ def _chart_options():
 
 
 def _pack_options(texels_per_unit: float, padding: int, page_size: int):
-    import xatlas
-
     o = xatlas.PackOptions()
     o.texels_per_unit = float(texels_per_unit)
     # A fixed page size lets xatlas open more pages when one is full; charts
@@ -152,8 +150,6 @@ def unwrap(objects, texels_per_metre: float, padding: int = 2, max_page_size: in
 
 def _run_xatlas(meshes, texels_per_unit: float, padding: int, page_size: int):
     """xatlas itself: (pages, page width, page height, per mesh (vmapping, indices, texel uv, page))."""
-    import xatlas
-
     atlas = xatlas.Atlas()
     for positions, indices, normals in meshes:
         # Only the parametrisation sees the scaled copy; translation is irrelevant to it.
@@ -185,7 +181,6 @@ def _isolated(fn, *args):
     in a child the crash costs a retry, not the whole process.
     The result is deterministic, so a retry gives the same charts.
     """
-    import multiprocessing as mp
 
     ctx = mp.get_context("fork")
     for attempt in range(XATLAS_TRIES):

@@ -35,7 +35,7 @@ import numpy as np
 
 from glint.core.atomic import atomic_write_text
 from glint.core.errors import GlintError
-from glint.core.image_io import sample_bilinear
+from glint.core.image_io import read_image, sample_bilinear
 
 FORMAT_VERSION = 1
 MANIFEST = "manifest.json"
@@ -151,7 +151,6 @@ class Bake:
     def lightmap(self, page: int) -> np.ndarray:
         """(H, W, 4) float32: irradiance RGB and A = 1 where path traced."""
         if page not in self._pages:
-            from glint.core.image_io import read_image
 
             self._pages[page] = read_image(self.path / self.manifest["lightmaps"][page])
         return self._pages[page]

@@ -1,4 +1,5 @@
 """The one exception type the command line turns into a one-line message."""
+import sys
 
 
 class GlintError(Exception):
@@ -12,6 +13,4 @@ class GlintError(Exception):
 
 def warn(message: str) -> None:
     """A recoverable problem: printed once to stderr, the work goes on."""
-    import sys
-
     print(f"glint: warning: {message}", file=sys.stderr)

@@ -57,10 +57,6 @@ class Material:
         return bool(np.any(np.asarray(self.emission) > 0))
 
     @property
-    def reflect_lobes(self) -> list[Lobe]:
-        return [lobe for lobe in self.lobes if lobe.kind == "reflect"]
-
-    @property
     def transmit_lobes(self) -> list[Lobe]:
         return [lobe for lobe in self.lobes if lobe.kind == "transmit"]
 

@@ -11,14 +11,18 @@ import os
 import sys
 import textwrap
 
+import numpy as np
+
+from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
+from glint.services import SCENE_HELP, add_bake_options, parse_size, run_bake
+from glint.viewer.camera import ViewCamera, find_named
+from glint.viewer.controls import KEY_HELP, WalkControls
 
 DEFAULT_SIZE = "1280x720"
 
 
 def add_view_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    from glint.services import SCENE_HELP, add_bake_options
-    from glint.viewer.controls import KEY_HELP
     p = subparsers.add_parser(
         "view", parents=[common_parent], help="walk through a scene in a window (bakes first if needed)",
         description=textwrap.fill("Open a window on a scene and walk through it. The scene is baked first "
@@ -54,10 +58,6 @@ def no_window(scene: str, reason: str) -> GlintError:
 
 def home_camera(manifest: dict, aspect: float):
     """A view of the whole scene, for scenes without cameras."""
-    import numpy as np
-
-    from glint.viewer.camera import ViewCamera
-
     bounds = np.array([o["bounds"] for o in manifest["objects"] if o.get("triangles")],
                       np.float64).reshape(-1, 2, 3)
     if not len(bounds):
@@ -66,11 +66,6 @@ def home_camera(manifest: dict, aspect: float):
 
 
 def cmd_view(args) -> int:
-    from glint.services import (
-        parse_size,  # the same WxH rules and message as `glint capture`
-        run_bake,
-    )
-
     width, height = parse_size(args.size)
     reason = missing_display()
     if reason:  # before baking: the bake would be wasted on a machine that cannot show it
@@ -80,10 +75,6 @@ def cmd_view(args) -> int:
     if report.status != "up-to-date":
         print(report.summary, flush=True)
 
-    from glint.core.bake_dir import Bake
-    from glint.viewer.camera import find_named
-    from glint.viewer.controls import WalkControls
-
     bake = Bake(report.bake_dir)
     manifest = bake.manifest
     if args.camera is not None:
@@ -91,6 +82,7 @@ def cmd_view(args) -> int:
     controls = WalkControls(manifest["cameras"], manifest["camera_paths"], home_camera(manifest, width / height),
                             start=args.camera)
 
+    # here, not at the top: moderngl_window costs 0.2 s of every glint command's start-up
     from glint.viewer.window import ViewerWindow, create_window, run
 
     name = manifest["scene"]["name"]

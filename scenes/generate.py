@@ -1,6 +1,7 @@
 """Generate the built-in scenes: `python3 -m glint.scenes.generate [OUTDIR]` (default: this package).
 
-Writes cornell-box.glb, living-room.glb, material-classes.glb, planar-classes.glb and their sidecars. The output
+Writes cornell-box.glb, living-room.glb, material-classes.glb and planar-classes.glb. Their
+sidecars (NAME.glint.toml beside them: exact lobes, roles, sky, camera paths) are written by hand. The output
 is deterministic (vertex data rounded to 1e-6 before it becomes float32, PNGs
 stored uncompressed), and tests/test_scenes.py checks that the committed files
 are exactly what this script writes.
@@ -455,43 +456,6 @@ def frame(width: float, height: float, border: float, depth: float) -> Mesh:
 # power (~10 W of radiant flux each way), so neither dominates the light maps.
 LIGHT_RADIANCE = 16.0  # W/(m^2 sr), peak channel of the ceiling diffusers
 LIGHT_COLOUR = (1.0, 0.87, 0.70)  # ~3000 K warm white, linear RGB
-SIDECAR = """\
-# Sidecar for living-room.glb, written by scenes/generate.py (do not edit by hand).
-
-[bake]
-quality = "preview"
-
-[lights]
-units = "photometric"    # KHR_lights_punctual intensities are candela / lux, as glTF says
-
-[sky]
-radiance = [3.0, 3.5, 4.5]  # W/(m^2 sr): a bright overcast sky seen through the window
-strength = 1.0
-
-# Polished oak: the base colour (texture) stays, one sharp reflection lobe.
-[materials."Floor"]
-lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.06, my = 0.06, r0 = 0.04, alpha = 0.0 } ]
-
-# Dark walnut with a high-gloss lacquer.
-[materials."Table lacquer"]
-kd = [0.12, 0.07, 0.04]
-lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.03, my = 0.03, r0 = 0.05, alpha = 0.2 } ]
-
-[objects."Table top"]
-role = "planar"
-
-[objects."Glass screen"]
-role = "transmissive"
-
-[camera_paths.tour]
-keys = [
-  { time = 0.0, eye = [1.6, 1.6, 1.6], target = [-1.0, 1.0, -0.8] },
-  { time = 4.0, eye = [0.6, 1.6, 0.2], target = [-0.8, 0.6, 0.1] },
-  { time = 8.0, eye = [-0.3, 1.5, -1.2], target = [0.3, 1.5, -2.2] },
-  { time = 12.0, eye = [1.2, 1.5, -0.6], target = [2.5, 1.4, 0.8] },
-  { time = 16.0, eye = [1.6, 1.6, 1.6], target = [-1.0, 1.0, -0.8] },
-]
-"""
 
 
 def living_room() -> GltfWriter:
@@ -678,45 +642,6 @@ MC_SPHERES = (  # (object name, material, x); all at z = MC_SPHERE_Z
 )
 MC_SPHERE_Z = -0.4
 MC_CAMERA = ("front", (0.0, 1.2, 1.45), (0.0, 0.72, MC_SPHERE_Z), 50.0)  # name, eye, target, yfov
-MC_SIDECAR = """\
-# Sidecar for material-classes.glb, written by scenes/generate.py (do not edit by hand).
-# One sphere per material class of the thesis; the lobes here are the exact BSDF (section 3.3),
-# the glTF's metallic-roughness values only approximate them.
-
-[bake]
-quality = "draft"
-
-[sky]
-radiance = [2.5, 3.0, 4.0]  # W/(m^2 sr): daylight through the window
-strength = 1.0
-
-# Sharp insulator: red glazed ceramic, one narrow dielectric lobe.
-[materials."Glazed ceramic"]
-kd = [0.55, 0.07, 0.05]
-lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.04, my = 0.04, r0 = 0.04, alpha = 0.0 } ]
-
-# Chrome-like glossy metal.
-[materials."Chrome"]
-kd = [0.0, 0.0, 0.0]
-lobes = [ { kind = "reflect", ks = [0.95, 0.95, 0.95], mx = 0.03, my = 0.03, r0 = 0.9, alpha = 0.0 } ]
-
-# Anisotropic brushed aluminium: the thesis' two-lobe fit to Miro 5 (its Table 3.3), as
-# living-room's side table; brushed around the sphere's vertical axis (the tangent).
-[materials."Brushed aluminium"]
-kd = [0.003, 0.003, 0.003]
-lobes = [
-  { kind = "reflect", ks = [0.57, 0.57, 0.57], mx = 0.0046, my = 0.0267, r0 = 0.94, alpha = 0.5 },
-  { kind = "reflect", ks = [0.54, 0.54, 0.54], mx = 0.013, my = 0.1199, r0 = 0.84, alpha = 0.38 },
-]
-
-# Frosted glass (thin): a rough transmission lobe and a weak reflection lobe.
-[materials."Frosted glass"]
-kd = [0.0, 0.0, 0.0]
-lobes = [
-  { kind = "transmit", ks = [0.9, 0.92, 0.92], mx = 0.1, my = 0.1, r0 = 0.04, alpha = 0.0 },
-  { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.1, my = 0.1, r0 = 0.04, alpha = 0.0 },
-]
-"""
 
 
 def checker_texture(size: int = 64, squares: int = 2) -> np.ndarray:
@@ -739,21 +664,35 @@ def stripes_texture(size: int = 64) -> np.ndarray:
     return np.repeat(row[None], size, axis=0).astype(np.uint8)
 
 
-def material_classes() -> GltfWriter:
-    w = GltfWriter(GENERATOR, png_level=0)
-    M = {}
-    M["Floor tiles"] = w.add_material("Floor tiles", base_color=(1, 1, 1, 1), roughness=0.9,
-                                      base_color_texture=checker_texture())
-    M["Red paint"] = w.add_material("Red paint", base_color=(0.62, 0.12, 0.09, 1), roughness=0.9)
-    M["Green paint"] = w.add_material("Green paint", base_color=(0.12, 0.45, 0.16, 1), roughness=0.9)
-    M["Grey paint"] = w.add_material("Grey paint", base_color=(0.6, 0.62, 0.66, 1), roughness=0.9)
+PAINTS = {"Red paint": (0.62, 0.12, 0.09), "Green paint": (0.12, 0.45, 0.16), "Blue paint": (0.10, 0.20, 0.55),
+          "Yellow paint": (0.75, 0.60, 0.10), "Grey paint": (0.6, 0.62, 0.66)}
+CEILING_LIGHT = quad((-0.5, 0, -0.25), (0.5, 0, -0.25), (0.5, 0, 0.25), (-0.5, 0, 0.25))  # faces down
+
+
+def add_class_room_materials(w: GltfWriter, M: dict, paints: tuple[str, ...]) -> None:
+    """The diffuse materials the two class rooms share, `paints` first (glTF material order)."""
+    for name in paints:
+        M[name] = w.add_material(name, base_color=(*PAINTS[name], 1), roughness=0.9)
     M["Striped paper"] = w.add_material("Striped paper", base_color=(1, 1, 1, 1), roughness=0.9,
                                         base_color_texture=stripes_texture())
     M["Ceiling paint"] = w.add_material("Ceiling paint", base_color=(0.85, 0.85, 0.84, 1), roughness=0.95)
     M["Light diffuser"] = w.add_material("Light diffuser", base_color=(0.9, 0.9, 0.9, 1), roughness=1.0,
                                          emissive=LIGHT_COLOUR, emissive_strength=12.0)
     M["Plinth"] = w.add_material("Plinth", base_color=(0.25, 0.25, 0.27, 1), roughness=0.8)
-    # The four classes; exact lobes in the sidecar (MC_SIDECAR), these are the glTF fallbacks.
+
+
+def add_class_room_camera(w: GltfWriter, name: str, eye, target, fov: float) -> None:
+    cam = w.add_camera(name, yfov=math.radians(fov), znear=0.05, zfar=50.0, aspect_ratio=16 / 9)
+    w.add_node(name, camera=cam, translation=eye, rotation=look_at_quat(eye, target))
+
+
+def material_classes() -> GltfWriter:
+    w = GltfWriter(GENERATOR, png_level=0)
+    M = {}
+    M["Floor tiles"] = w.add_material("Floor tiles", base_color=(1, 1, 1, 1), roughness=0.9,
+                                      base_color_texture=checker_texture())
+    add_class_room_materials(w, M, ("Red paint", "Green paint", "Grey paint"))
+    # The four classes; exact lobes in the sidecar (material-classes.glint.toml), these are the glTF fallbacks.
     M["Glazed ceramic"] = w.add_material("Glazed ceramic", base_color=(0.55, 0.07, 0.05, 1), roughness=0.2)
     M["Chrome"] = w.add_material("Chrome", base_color=(0.95, 0.95, 0.95, 1), metallic=1.0, roughness=0.17)
     M["Brushed aluminium"] = w.add_material(
@@ -772,15 +711,12 @@ def material_classes() -> GltfWriter:
         if name == "Wall south":  # (the floor: one texture tile, 2 x 2 squares, per metre)
             mesh.uvs = mesh.uvs / (2 * MC_X)  # the stripes once across the wall
         node(name, mesh, walls[name])
-    node("Ceiling light", quad((-0.5, 0, -0.25), (0.5, 0, -0.25), (0.5, 0, 0.25), (-0.5, 0, 0.25)),  # faces down
-         "Light diffuser", translation=(0.0, MC_H - 0.01, -0.1))
+    node("Ceiling light", CEILING_LIGHT, "Light diffuser", translation=(0.0, MC_H - 0.01, -0.1))
     for name, material, x in MC_SPHERES:
         node(f"{name.split()[0]} plinth", box((0.36, MC_PLINTH, 0.36), (0, MC_PLINTH / 2, 0)), "Plinth",
              translation=(x, 0.0, MC_SPHERE_Z))
         node(name, uv_sphere(MC_RADIUS, 48, 24), material, translation=(x, MC_PLINTH + MC_RADIUS, MC_SPHERE_Z))
-    name, eye, target, fov = MC_CAMERA
-    cam = w.add_camera(name, yfov=math.radians(fov), znear=0.05, zfar=50.0, aspect_ratio=16 / 9)
-    w.add_node(name, camera=cam, translation=eye, rotation=look_at_quat(eye, target))
+    add_class_room_camera(w, *MC_CAMERA)
     return w
 
 
@@ -794,67 +730,13 @@ PC_PLATFORM = ((-0.55, 0.55), 0.45, (-1.15, -0.45))  # x range, top height, z ra
 PC_PANEL_Y, PC_PANEL_Z = (0.35, 1.75), (-1.4, 0.2)  # wall panels: height and depth range
 PC_PANEL_GAP = 0.02  # the panels stand this far off their walls
 PC_CAMERA = ("front", (0.0, 1.55, 1.55), (0.0, 0.45, -0.6), 62.0)  # name, eye, target, yfov
-PC_SIDECAR = """\
-# Sidecar for planar-classes.glb, written by scenes/generate.py (do not edit by hand).
-# One planar reflector per planar material class (issue 5); the lobes are the exact BSDF,
-# the glTF's metallic-roughness values only approximate them.
-
-[bake]
-quality = "draft"
-
-[sky]
-radiance = [2.5, 3.0, 4.0]  # W/(m^2 sr): daylight through the window
-strength = 1.0
-
-# Polished stone: a grey floor with one very sharp dielectric lobe.
-[materials."Polished stone"]
-kd = [0.42, 0.40, 0.37]
-lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.02, my = 0.02, r0 = 0.05, alpha = 0.0 } ]
-
-# Varnished wood: the wood texture under a glossy varnish.
-[materials."Varnished wood"]
-lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.05, my = 0.05, r0 = 0.05, alpha = 0.0 } ]
-
-# Glossy tiles: pale glazed tiles (texture), a wider dielectric lobe.
-[materials."Glossy tiles"]
-lobes = [ { kind = "reflect", ks = [1.0, 1.0, 1.0], mx = 0.1, my = 0.1, r0 = 0.04, alpha = 0.0 } ]
-
-# Blurry aluminium: a rough metal.
-[materials."Blurry aluminium"]
-kd = [0.0, 0.0, 0.0]
-lobes = [ { kind = "reflect", ks = [0.92, 0.92, 0.92], mx = 0.2, my = 0.2, r0 = 0.9, alpha = 0.0 } ]
-
-[objects."Stone floor"]
-role = "planar"
-
-[objects."Wood platform top"]
-role = "planar"
-
-[objects."Tile panel"]
-role = "planar"
-
-[objects."Aluminium panel"]
-role = "planar"
-"""
-PC_ROLES = {"Stone floor": "Polished stone", "Wood platform top": "Varnished wood",
-            "Tile panel": "Glossy tiles", "Aluminium panel": "Blurry aluminium"}
 
 
 def planar_classes() -> GltfWriter:
     w = GltfWriter(GENERATOR, png_level=0)
     M = {}
-    M["Red paint"] = w.add_material("Red paint", base_color=(0.62, 0.12, 0.09, 1), roughness=0.9)
-    M["Green paint"] = w.add_material("Green paint", base_color=(0.12, 0.45, 0.16, 1), roughness=0.9)
-    M["Blue paint"] = w.add_material("Blue paint", base_color=(0.10, 0.20, 0.55, 1), roughness=0.9)
-    M["Yellow paint"] = w.add_material("Yellow paint", base_color=(0.75, 0.60, 0.10, 1), roughness=0.9)
-    M["Grey paint"] = w.add_material("Grey paint", base_color=(0.6, 0.62, 0.66, 1), roughness=0.9)
-    M["Striped paper"] = w.add_material("Striped paper", base_color=(1, 1, 1, 1), roughness=0.9,
-                                        base_color_texture=stripes_texture())
-    M["Ceiling paint"] = w.add_material("Ceiling paint", base_color=(0.85, 0.85, 0.84, 1), roughness=0.95)
-    M["Light diffuser"] = w.add_material("Light diffuser", base_color=(0.9, 0.9, 0.9, 1), roughness=1.0,
-                                         emissive=LIGHT_COLOUR, emissive_strength=12.0)
-    M["Plinth"] = w.add_material("Plinth", base_color=(0.25, 0.25, 0.27, 1), roughness=0.8)
-    # The four planar classes; exact lobes in the sidecar (PC_SIDECAR), these are the glTF fallbacks.
+    add_class_room_materials(w, M, ("Red paint", "Green paint", "Blue paint", "Yellow paint", "Grey paint"))
+    # The four planar classes; exact lobes in the sidecar (planar-classes.glint.toml), these are the glTF fallbacks.
     M["Polished stone"] = w.add_material("Polished stone", base_color=(0.42, 0.40, 0.37, 1), roughness=0.12)
     M["Varnished wood"] = w.add_material("Varnished wood", base_color=(1, 1, 1, 1), roughness=0.2,
                                          base_color_texture=wood_texture())
@@ -873,8 +755,7 @@ def planar_classes() -> GltfWriter:
             mesh.uvs = mesh.uvs / (2 * MC_X)  # the stripes once across the wall
         node("Stone floor" if name == "Floor" else name, mesh,
              "Polished stone" if name == "Floor" else walls[name])
-    node("Ceiling light", quad((-0.5, 0, -0.25), (0.5, 0, -0.25), (0.5, 0, 0.25), (-0.5, 0, 0.25)),  # faces down
-         "Light diffuser", translation=(0.0, MC_H - 0.01, -0.1))
+    node("Ceiling light", CEILING_LIGHT, "Light diffuser", translation=(0.0, MC_H - 0.01, -0.1))
     # Varnished wood: the top of a low platform (the base is diffuse, just below the top).
     (x0, x1), h, (z0, z1) = PC_PLATFORM
     node("Wood platform top", quad((x0, h, z1), (x1, h, z1), (x1, h, z0), (x0, h, z0), uv_size=(x1 - x0, z1 - z0)),
@@ -893,9 +774,7 @@ def planar_classes() -> GltfWriter:
     node("Yellow block", box((0.25, 0.7, 0.25), (0, 0.35, 0)), "Yellow paint", translation=(1.25, 0.0, -0.9))
     node("Red block", box((0.2, 0.3, 0.2), (0, 0.15, 0)), "Red paint", translation=(-0.25, h, -0.8))
     node("Green ball", uv_sphere(0.14, 32, 16), "Green paint", translation=(0.25, h + 0.14, -0.75))
-    name, eye, target, fov = PC_CAMERA
-    cam = w.add_camera(name, yfov=math.radians(fov), znear=0.05, zfar=50.0, aspect_ratio=16 / 9)
-    w.add_node(name, camera=cam, translation=eye, rotation=look_at_quat(eye, target))
+    add_class_room_camera(w, *PC_CAMERA)
     return w
 
 
@@ -907,13 +786,7 @@ def generate(out_dir: Path | str = HERE) -> list[Path]:
                living_room().write(out / "living-room.glb"),
                material_classes().write(out / "material-classes.glb"),
                planar_classes().write(out / "planar-classes.glb")]
-    sidecars = []
-    for name, text in (("living-room", SIDECAR), ("material-classes", MC_SIDECAR),
-                       ("planar-classes", PC_SIDECAR)):
-        sidecar = out / f"{name}.glint.toml"
-        sidecar.write_text(text)
-        sidecars.append(sidecar)
-    return written + sidecars
+    return written
 
 
 def main(argv: list[str] | None = None) -> int:
