@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from glint.scenes.gltf_writer import GltfWriter
+from glint.viewer.context import headless_context
 
 
 def quad(center, u, v):
@@ -56,3 +57,20 @@ def room(tmp_path) -> Path:
 
 
 FAST = {"quality": "draft", "samples": 8, "texels_per_metre": 6.0, "denoise": False}
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    """One headless GL context (EGL; llvmpipe without a GPU) per test module."""
+    context = headless_context()
+    yield context
+    context.release()
+
+
+def error_of(capsys, code):
+    """The one line `glint: ...` a failed command printed (exit 2, no traceback)."""
+    err = capsys.readouterr().err.strip().splitlines()
+    lines = [line for line in err if not line.startswith("glint: warning:")]
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("glint: "), err
+    assert "Traceback" not in "\n".join(err)
+    return lines[0]

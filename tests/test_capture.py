@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import OpenImageIO as oiio
 import pytest
-from conftest import write_room
+from conftest import error_of, write_room
 
 from glint.cli import main
 from glint.core.image_io import read_image
@@ -48,15 +48,6 @@ def room(tmp_path_factory):
 def capture(room, out, *extra):
     scene, opts = room
     return main(["capture", str(scene), "-o", str(out), *SIZE, *opts, *map(str, extra)])
-
-
-def error_of(capsys, code):
-    """The one line `glint: ...` a failed command printed."""
-    err = capsys.readouterr().err.strip().splitlines()
-    lines = [l for l in err if not l.startswith("glint: warning:")]
-    assert code == 2 and len(lines) == 1 and lines[0].startswith("glint: "), err
-    assert "Traceback" not in "\n".join(err)
-    return lines[0]
 
 
 def aces_srgb(x):

@@ -14,13 +14,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 from test_mirror_pass import BLACK, glossy, planar_bake
 from test_renderer import material, quad
 
 from glint.core import bsdf
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import headless_context
 from glint.viewer.renderer import Renderer
 
 M = 0.2
@@ -44,13 +42,6 @@ def cast_radiance(P, d, rects):
         inside = (t > 0) & (np.abs(x[:, 0] - c[0]) <= hx) & (np.abs(x[:, 1] - c[1]) <= hy)
         L[inside] = radiance  # one plane: no square hides another
     return L
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    context = headless_context()
-    yield context
-    context.release()
 
 
 # Bounds on the median and 75th percentile of the relative error. Measured with one level per

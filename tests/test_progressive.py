@@ -16,18 +16,10 @@ from test_renderer import material, quad
 from test_specular import cube_file, direction_colours, lobe, specular_bake
 
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import headless_context
 from glint.viewer.progressive import Progressive
 from glint.viewer.renderer import Renderer
 
 SIZE = (24, 16)
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    context = headless_context()
-    yield context
-    context.release()
 
 
 @pytest.fixture

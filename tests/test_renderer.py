@@ -18,7 +18,6 @@ import pytest
 from glint.core.bake_dir import FORMAT_VERSION, Bake, save_meshes, write_json
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera, camera_path_at, gl_bytes
-from glint.viewer.context import headless_context
 from glint.viewer.passes.gbuffer import in_frustum
 from glint.viewer.passes.resolve import ResolvePass
 from glint.viewer.passes.tonemap import TonemapPass
@@ -26,13 +25,6 @@ from glint.viewer.renderer import Renderer
 
 KD = (0.5, 0.25, 0.8)
 E = (2.0, 1.0, 0.5)
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    context = headless_context()
-    yield context
-    context.release()
 
 
 # -- hand-made bake directories -------------------------------------------------------------------

@@ -377,10 +377,14 @@ def test_committed_scenes_are_reproduced_by_the_generator(tmp_path):
 
 
 # -- material-classes ------------------------------------------------------------------------
+def built_in_with_sidecar(name: str):
+    """(glTF JSON, world meshes by node, sidecar TOML) of a built-in scene."""
+    path = builtin_path(name)
+    return glb_json(path), world_meshes(path), tomllib.loads((SCENES / f"{name}.glint.toml").read_text())
+
+
 def test_material_classes_has_one_sphere_per_class_and_a_camera_on_all_four():
-    path = builtin_path("material-classes")
-    doc, meshes = glb_json(path), world_meshes(path)
-    cfg = tomllib.loads((SCENES / "material-classes.glint.toml").read_text())
+    doc, meshes, cfg = built_in_with_sidecar("material-classes")
     spheres = {"Ceramic sphere": "Glazed ceramic", "Chrome sphere": "Chrome",
                "Brushed sphere": "Brushed aluminium", "Frosted sphere": "Frosted glass"}
     for node, material in spheres.items():
@@ -414,9 +418,7 @@ def assert_centres_in_view(doc, meshes, nodes, margin=1.0):
 
 # -- planar-classes --------------------------------------------------------------------------
 def test_planar_classes_has_four_planar_reflectors_in_four_planes_and_a_camera_on_all():
-    path = builtin_path("planar-classes")
-    doc, meshes = glb_json(path), world_meshes(path)
-    cfg = tomllib.loads((SCENES / "planar-classes.glint.toml").read_text())
+    doc, meshes, cfg = built_in_with_sidecar("planar-classes")
     reflectors = {"Stone floor": "Polished stone", "Wood platform top": "Varnished wood",
                   "Tile panel": "Glossy tiles", "Aluminium panel": "Blurry aluminium"}
     assert {name: o["role"] for name, o in cfg["objects"].items()} == dict.fromkeys(reflectors, "planar")

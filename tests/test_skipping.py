@@ -25,20 +25,12 @@ from glint.core.bake_dir import Bake
 from glint.core.skipped import NO_LOBE, PLANAR, last_bake
 from glint.scenes.gltf_writer import GltfWriter
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import headless_context
 from glint.viewer.renderer import Renderer
 from glint.viewer.skipping import skipping_section
 
 TILE = 8  # the shading pass's tiles (shaders: LOCAL_SIZE)
 GLOSSY = [{"kind": "reflect", "ks": [1, 1, 1], "mx": 0.1, "my": 0.1, "r0": 0.04}]
 BAKE_ARGS = ["-q", "draft", "--samples", "8", "--texels-per-metre", "6", "--no-denoise"]
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    context = headless_context()
-    yield context
-    context.release()
 
 
 def tiles(width: int, height: int) -> int:

@@ -19,17 +19,9 @@ from glint.core import bsdf
 from glint.core.bake_dir import Bake, write_json
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import headless_context
 from glint.viewer.cubemaps import read_cubemap
 from glint.viewer.gpu_scene import axis_tangents
 from glint.viewer.renderer import Renderer
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    context = headless_context()
-    yield context
-    context.release()
 
 
 # -- the OpenGL cube-map convention, from the specification -----------------------------------------

@@ -30,15 +30,7 @@ from test_specular import (
 
 from glint.core import bsdf
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import headless_context
 from glint.viewer.renderer import Renderer
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    context = headless_context()
-    yield context
-    context.release()
 
 
 # -- independent quadrature over the half vector ----------------------------------------------------

@@ -17,15 +17,6 @@ from glint.scenes import stress as scenes
 SIZE = (64, 36)
 
 
-@pytest.fixture(scope="module")
-def ctx():
-    from glint.viewer.context import headless_context
-
-    c = headless_context()
-    yield c
-    c.release()
-
-
 def baked(case, tmp):
     report, seconds, _ = stress.bake_case(case, tmp, jobs=2)
     assert seconds > 0
