@@ -1,4 +1,4 @@
-"""Which planar reflectors get a mirror pass this frame (section 4.5.1; DESIGN.md viewer step 1).
+"""Which planar reflectors get a mirror pass this frame (section 4.5.1; docs/VIEWER.md, "Passes").
 
 `plan_mirror_passes(reflectors, camera, aspect, ...)` decides, per frame, on the
 CPU and in this order:

@@ -12,7 +12,7 @@ It draws into its own textures and never touches the default framebuffer, so it
 does not care whether a window or nothing at all is on the other side; the
 framebuffer bound before `render` is bound again after it.
 
-Per frame (DESIGN.md "Viewer"): mirror passes of the planar reflectors in view
+Per frame (docs/VIEWER.md, "Passes"): mirror passes of the planar reflectors in view
 (section 4.5.1, viewer/passes/mirror.py: at most `mirror_budget` per frame, at
 the render size) -> G-buffer raster pass at N times the output size (N =
 supersample) -> occlusion queries of the reflectors (read by a later frame) ->

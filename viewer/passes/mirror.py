@@ -1,4 +1,4 @@
-"""Mirror passes of planar reflectors (section 4.5.1; DESIGN.md "Viewer", step 1).
+"""Mirror passes of planar reflectors (section 4.5.1; docs/VIEWER.md, "Passes").
 
 Per frame, before the G-buffer:
 
