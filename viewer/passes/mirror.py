@@ -10,8 +10,9 @@ Per frame, before the G-buffer:
    V R, winding flipped, clipped at the plane with gl_ClipDistance), without that pass's
    reflectors and without objects wholly behind the plane, diffuse only (light map +
    emission: shaders/mirror.frag), and the sky behind it -- the clear colour for a constant
-   sky, else shaders/mirror_sky.frag, one triangle at the far plane, which on llvmpipe costs
-   ~4.6 ms at 640 x 360 even where the scene covers everything -- into layer k ("slot" k) of
+   sky, else shaders/mirror_sky.frag, one triangle at the far plane, which costs its whole
+   area even where the scene covers everything (docs/BENCHMARKS.md, "The mirror pass's
+   sky") -- into layer k ("slot" k) of
    three texture arrays:
 
        radiance   RGBA16F  light towards the mirrored eye, or the sky's; a full MIP chain
