@@ -109,7 +109,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
                progress: bool = True, render_cubemaps: CubeMapRenderer | None = None) -> BakeReport:
     """Bake `scene` into `bake_dir`, redoing only the stages whose inputs changed.
 
-    `render_cubemaps` renders the cube maps that need rendering (glint.services.bake passes
+    `render_cubemaps` renders the cube maps that need rendering (glint.services.bake_scene passes
     glint.cubemap_stage.render_cubemaps); a scene that needs a new cube map without one is an error.
     """
     old = None if force else read_manifest(bake_dir)

@@ -475,7 +475,7 @@ class MirrorPasses:
 
 
 def max_level(size: tuple[int, int]) -> int:
-    """The last level of the radiance chain (viewer/mirror_projection.max_mip_level)."""
+    """The last level of the radiance chain (bench/mirror_projection.py max_mip_level)."""
     return int(np.floor(np.log2(max(int(size[0]), int(size[1]), 1))))
 
 
