@@ -1,4 +1,4 @@
-"""Object roles: how the renderer treats an object's view-dependent light (DESIGN.md).
+"""Object roles: how the renderer treats an object's view-dependent light (docs/SCENES.md, section 3).
 
 - `diffuse`: its material has no lobes: light map only, no specular work at run time.
 - `transmissive`: any transmit lobe (thin glass, section 3.3.1): cube map.

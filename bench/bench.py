@@ -120,7 +120,7 @@ METHODS = {m.key: m for m in (
     Method("patterns-thesis", "ours with the thesis' footprint A / n (Eq. 4.16)", "patterns", footprint="thesis"),
     Method("patterns-moment-all", "ours with the second-moment footprint on transmission lobes too", "patterns",
            footprint="moment-all"),
-    # Planar reflectors (issue 5): the single ring of curved objects instead of the multi-ring
+    # Planar reflectors: the single ring of curved objects instead of the multi-ring
     # (section 4.5.3); the same as "patterns" on curved objects. Not in the default sweep.
     Method("patterns-ring", "ours with the single ring on planar reflectors", "patterns", "eq4.25", "ring"),
     Method("filtered-is", "Colbert-Krivanek filtered importance sampling", "filtered-importance"),

@@ -1,4 +1,4 @@
-"""Frame time per pass of the built-in scenes at several sizes (issues 3-5; thesis Table 4.2).
+"""Frame time per pass of the built-in scenes at several sizes (as the thesis' Table 4.2; docs/VIEWER.md).
 
     python3 -m glint.bench.measure_frame_times [--sizes 1920x1080,3840x2160] [--supersample 1,2] [--frames 60]
                                         [--scenes living-room,...] [--bake-root DIR] [--out DIR]

@@ -1,6 +1,6 @@
 """The measurement behind viewer/lobe_patterns.py's rules: which pattern, how many samples.
 
-    python3 -m glint.bench.measure_lobe_patterns                 # all three tables of the module docstring
+    python3 -m glint.bench.measure_lobe_patterns                 # the three tables of docs/BENCHMARKS.md
     python3 -m glint.bench.measure_lobe_patterns samples --pattern ring
     python3 -m glint.bench.measure_lobe_patterns samples --pattern line --ms 0.02,0.03,0.05
     python3 -m glint.bench.measure_lobe_patterns threshold
@@ -25,7 +25,8 @@ core/bsdf.py's, i.e. the float64 twins of the shaders):
 the ring, or anisotropic m_y = 10 m_x = m with the line) and the smallest n that keeps them
 within 1% / 2.5% (`samples_for_lobe`'s criterion); `threshold` prints ring against line at the
 same n over anisotropy ratios (sum of errors over sum of references, %). The defaults are the
-runs quoted in viewer/lobe_patterns.py: seed 11 with 40 environments, seed 21 with 30.
+runs quoted in docs/BENCHMARKS.md ("Lobe patterns: how the rules were measured"), behind the
+rules of viewer/lobe_patterns.py: seed 11 with 40 environments, seed 21 with 30.
 
 `fis` (not part of `all`; docs/BENCHMARKS.md) puts the patterns beside Colbert and Krivanek's
 filtered importance sampling at the same n, in the same model: Eq. 4.4 weights f cos / p over n

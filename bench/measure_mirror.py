@@ -1,4 +1,4 @@
-"""GPU time of the planar reflectors' mirror passes (issue 5): mirror passes, MIP build and the whole
+"""GPU time of the planar reflectors' mirror passes: mirror passes, MIP build and the whole
 frame with 1, 2 and 4 reflectors in view and one pass each, against no passes at all.
 
     python3 -m glint.bench.measure_mirror [--size 640x360] [--frames 10] [--out DIR]

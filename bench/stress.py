@@ -1,7 +1,7 @@
-"""`glint bench --stress`: the numerical stress suite of issue 6.
+"""`glint bench --stress`: the numerical stress suite.
 
     glint bench --stress                                  # reduced size: minutes on a 2-core machine
-    glint bench --stress --stress-size full -o out/       # the issue's sizes (2 M triangles, 10,000 frames)
+    glint bench --stress --stress-size full -o out/       # full size (2 M triangles, 10,000 frames)
     glint bench --stress --stress-cases furnace,scale-1mm,scale-1m --walkthrough-frames 200
 
 The cases are the glTF scenes of scenes/stress.py. Each is baked (draft quality, --jobs), then

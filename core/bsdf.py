@@ -17,7 +17,7 @@ Conventions
 - "Above the horizon" includes z == 0 exactly, so a view exactly along the
   surface still gets finite values (the guards below keep them finite).
 
-Numerical guards (DESIGN.md "Numerics"), each named once here:
+Numerical guards (docs/ARCHITECTURE.md, "Numerics"), each named once here:
 - M_MIN: roughness is clamped to >= 1e-4 (mx = 0 would divide by zero in
   Eq. 3.3; below 1e-4 a lobe is a mirror at any screen resolution).
 - HZ_MIN: cos(theta_h) is clamped inside D (Eq. 3.3). tan^2(theta_h) cos^2(phi_h)

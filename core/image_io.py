@@ -37,7 +37,7 @@ def write_image(path: str | Path, pixels: np.ndarray, *, half: bool | None = Non
     """Write (H, W, C) pixels; returns the pixel type written ("half", "float" or "uint8").
 
     EXR: half float when every value fits (|v| <= 65504), else float32, so very
-    bright emitters never turn into Inf (DESIGN.md "Numerics"). half=True/False forces it.
+    bright emitters never turn into Inf (docs/ARCHITECTURE.md, "Numerics"). half=True/False forces it.
     """
     path = Path(path)
     pixels = np.asarray(pixels)

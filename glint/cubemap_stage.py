@@ -1,9 +1,9 @@
 """The bake's one GPU stage: render the cube maps that glint.bake.cubemap planned.
 
 Reads the bake directory written so far (manifest, meshes, light maps) and writes
-`cubemaps/<object index>.exr` (format in glint/bake/cubemap.py's docstring). It sits above
+`cubemaps/<object index>.exr` (format in bake/cubemap.py's docstring). It sits above
 both the bake and the viewer because it needs the bake's plans and the viewer's renderer: the
-bake's pipeline is handed `render_cubemaps` (glint.services.bake does that), so the bake never
+bake's pipeline is handed `render_cubemaps` (glint.services.bake_scene does that), so the bake never
 imports the renderer.
 """
 from __future__ import annotations
@@ -24,7 +24,8 @@ from glint.viewer.renderer import Renderer
 
 
 def diffuse_view(manifest: dict) -> dict:
-    """The manifest as the cube-map renders see it: no lobes, no cube maps (module docstring)."""
+    """The manifest as the cube-map renders see it: no lobes, no cube maps (bake/cubemap.py: the
+    light-mapped scene, rendered diffuse)."""
     return {**manifest, "materials": [{**m, "lobes": []} for m in manifest["materials"]],
             "objects": [{**o, "cubemap": None} for o in manifest["objects"]]}
 

@@ -1,7 +1,7 @@
 """Services the commands share: open a scene, run or reuse its bake, the common options.
 
 Below the commands (glint/cli.py, capture.py, view.py and the measurement tools in bench/),
-above the bake and the viewer: `bake` hands the bake its one GPU stage
+above the bake and the viewer: `bake_scene` hands the bake its one GPU stage
 (glint/cubemap_stage.py), which is how the bake runs without importing the renderer.
 """
 from __future__ import annotations

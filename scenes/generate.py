@@ -721,7 +721,7 @@ def material_classes() -> GltfWriter:
 
 
 # -- planar-classes --------------------------------------------------------------------------
-# Issue 5's planar counterpart of material-classes: four planar reflectors, each in its own plane
+# The planar counterpart of material-classes: four planar reflectors, each in its own plane
 # (so each gets a mirror pass within the default budget of 4), one per planar material class --
 # polished stone (the floor), varnished wood (a platform top), glossy tiles and blurry aluminium
 # (panels on the west and east walls) -- in the material-classes room with coloured blocks, a

@@ -1,4 +1,4 @@
-"""Stress scenes for `glint bench --stress` (issue 6): glTF files at the edges of what glint takes.
+"""Stress scenes for `glint bench --stress`: glTF files at the edges of what glint takes.
 
     from glint.scenes import stress
     case = stress.materials(out_dir, spheres=9)       # -> StressScene(name, path, ...)
@@ -6,10 +6,11 @@
 
 Each case is one small function writing NAME.glb (scenes/gltf_writer.py, as scenes/generate.py
 writes the built-ins) and NAME.glint.toml (exact lobes, roles, cameras, a camera path, bake
-settings) into a directory, with size parameters; `SIZES` holds the full size the issue asks for
-and the reduced one the CI machine affords. What each case states for its checks (the brightest
-emitter's radiance, an exact expected radiance, a reference case to compare with) travels in
-`StressScene`; bench/stress.py bakes, renders and checks them.
+settings) into a directory, with size parameters; `SIZES` holds the full size (the scale the
+suite is meant to prove, e.g. 500 objects and 2 M triangles) and the reduced one the CI machine
+affords. What each case states for its checks (the brightest emitter's radiance, an exact
+expected radiance, a reference case to compare with) travels in `StressScene`; bench/stress.py
+bakes, renders and checks them.
 
 Cases:
     materials   spheres (curved: cube maps) and panels (planar: mirror passes) at the BSDF's
@@ -43,7 +44,7 @@ HOT_RADIANCE = 1e5         # the emitters case's lamp: above half float's larges
 FURNACE_KD, FURNACE_LE = 0.5, 1.0
 SCALES = {"scale-1mm": 1e-3, "scale-1m": 1.0, "scale-10km": 1e4}
 
-# Per size: the parameters of each case (full: what issue 6 asks for).
+# Per size: the parameters of each case (full: the scale the suite is meant to prove).
 SIZES = {
     "reduced": {"materials": {"segments": 24, "cubemap_size": 32},
                 "big": {"objects": 50, "triangles": 200_000},

@@ -1,5 +1,5 @@
 // Constants and numerically guarded helpers shared by every pass.
-// Nothing non-finite may reach a frame buffer (DESIGN.md "Numerics"): helpers that divide
+// Nothing non-finite may reach a frame buffer (docs/ARCHITECTURE.md, "Numerics"): helpers that divide
 // or normalise take a fallback instead of trusting their input.
 
 const float PI = 3.14159265358979323846;

@@ -110,7 +110,7 @@ float pattern_footprint_area(PatternMoment pm, int n, vec2 uv) {
 }
 
 // Colbert and Krivanek's (2007) MIP level for n filtered importance samples, the comparison
-// method of issue 4: the sample's solid angle omega_s = 1 / (n pdf) over a texel's
+// method of `glint bench` (filtered-is): the sample's solid angle omega_s = 1 / (n pdf) over a texel's
 // omega_p = 4 pi / (6 N), N = face_size^2, level = 0.5 log2(omega_s / omega_p) (no bias term).
 // Written as a difference of logarithms so that neither a tiny nor a huge pdf overflows;
 // clamped to 0 .. log2(face_size) (a pdf of 0 gives the coarsest level).

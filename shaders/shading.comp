@@ -1,4 +1,4 @@
-// Shading pass: outgoing radiance per G-buffer pixel, in a compute shader (DESIGN.md "Viewer":
+// Shading pass: outgoing radiance per G-buffer pixel, in a compute shader (docs/VIEWER.md, "Passes":
 // rasterise little, shade in compute). Background pixels get the sky along their view ray.
 //
 // This dispatch writes the view-independent part (light-mapped diffuse, emission, sky) and sorts

@@ -58,7 +58,7 @@ layout(std430, binding = LOBE_PATTERN_BINDING) readonly buffer LobePatternBuffer
 uniform int specular_mode;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
 uniform int qmc_first;      // SPECULAR_QMC: index of this frame's first sample in the sequence
 uniform int qmc_count;      // SPECULAR_QMC: samples per lobe and pixel in this frame
-uniform int pattern_footprint;  // SPECULAR_PATTERNS on cube maps: one of these (viewer/renderer.py FOOTPRINTS)
+uniform int pattern_footprint;  // SPECULAR_PATTERNS (cube maps and mirror buffers): one of these (viewer/renderer.py FOOTPRINTS)
 const int FOOTPRINT_MOMENT = 0, FOOTPRINT_THESIS = 1, FOOTPRINT_MOMENT_ALL = 2;
 
 // The specular work of a frame: shading.comp queues the tiles (LOCAL_SIZE^2 pixels) that have a
@@ -309,9 +309,9 @@ vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern) {
 // Still camera (over all its frames; unfiltered: unbiased) and filtered importance sampling
 // (`filtered`: each sample at its own MIP level for A / count sr, as the patterns; within the
 // frame): step 1 in the running mean of the planes found so far (step_one_plane); Eq. 4.4 over
-// `count` importance samples. Colbert and Krivanek's 1 / (count p) sr per sample (the cube maps'
-// importance_mip_level) measured worse here: tiles of planar-classes 24 / 31 dB at n = 3 / 7
-// against 30 / 41, the tails' samples of a narrow lobe blurred over the whole buffer.
+// `count` importance samples. Not Colbert and Krivanek's 1 / (count p) sr per sample (the cube maps'
+// importance_mip_level): in a mirror buffer it blurs the tails' samples of a narrow lobe over the
+// whole buffer (measured: docs/BENCHMARKS.md, "What is measured", filtered-is).
 vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, int count, uvec2 rotation,
                                 bool filtered) {
     float sample_sr = filtered ? lobe_ellipse_area(sp.wo, lobe) / float(max(count, 1)) : 0.0;  // A' = A / n

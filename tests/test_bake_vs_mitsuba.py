@@ -1,4 +1,4 @@
-"""The baked light maps of `cornell-box` against Mitsuba 3 (issue 2's acceptance test).
+"""The baked light maps of `cornell-box` against Mitsuba 3 (the bake's end-to-end accuracy).
 
 At 50 points spread over every surface, away from edges and contacts, the light
 map's bilinear look-up (what the viewer's texture unit does) is compared with
@@ -18,7 +18,7 @@ from glint.core.bake_dir import Bake
 from glint.scenes import builtin_path
 from glint.services import bake_scene
 
-# The quality this test bakes at; the `final` figure is measured by bench/measure_bake_accuracy.py.
+# The quality this test bakes at; the `final` figure is measured by bench/measure_bake.py (docs/BAKE.md).
 TEST_SETTINGS = {"quality": "preview", "samples": 256, "texels_per_metre": 16.0}
 
 

@@ -2,7 +2,7 @@
 
 The GLSL runs on llvmpipe in float32 (bench/glsl_eval.py); the expected values are
 core/bsdf.py in float64 on the very same float32-rounded inputs, so what is compared is
-the arithmetic alone. The grid covers the numerics DESIGN.md asks for: roughness 1e-4..1,
+the arithmetic alone. The grid covers the numerics of docs/ARCHITECTURE.md: roughness 1e-4..1,
 anisotropy 1:100, alpha 0..1, r0 0..1, both lobe kinds, views from the normal to exactly
 along the surface, and directions in the lobe (importance samples), anywhere on the
 sphere, and on the special cases (mirror direction, wi = -wo, horizon, zero vectors).

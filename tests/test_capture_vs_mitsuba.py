@@ -1,4 +1,4 @@
-"""`glint capture cornell-box` against Mitsuba 3 rendering mitsuba.cornell_box() (issue 3's acceptance test).
+"""`glint capture cornell-box` against Mitsuba 3 rendering mitsuba.cornell_box() (the viewer's end-to-end accuracy).
 
 The reference (tests/data/cornell_box_128.exr) is Mitsuba 3 with the same camera, 128x128,
 box pixel filter, unlimited path depth, 16384 samples per pixel, made by

@@ -92,7 +92,7 @@ def test_bake_then_up_to_date(tmp_path):
 
 @pytest.mark.slow
 def test_bake_living_room_preview(tmp_path):
-    """The acceptance run of issue 2: `glint bake living-room --quality preview` on the CI machine."""
+    """`glint bake living-room --quality preview`, the README's first bake, end to end on the CI machine."""
     out = tmp_path / "lr.bake"
     result = glint("bake", "living-room", "--quality", "preview", "-o", out)
     assert result.returncode == 0, result.stderr

@@ -766,7 +766,7 @@ def test_capture_mirror_budget_and_stats(tmp_path, capsys):
 
 
 def test_planar_pattern_can_be_forced_to_the_single_ring(ctx, tmp_path):
-    """Renderer(planar_pattern=...) (`glint bench --methods patterns-ring`, issue 5): "ring" puts the
+    """Renderer(planar_pattern=...) (`glint bench --methods patterns-ring`): "ring" puts the
     curved objects' single ring on an isotropic planar lobe instead of the multi-ring; "auto" is the
     multi-ring. Both images are finite and differ where the floor reflects the lamp's edge."""
     meshes = [quad((0, 0, 0), (5, 0, 0), (0, 0, -5)), quad((0, 1.1, -1.5), (0.5, 0, 0), (0, 0.5, 0))]

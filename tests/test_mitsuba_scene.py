@@ -224,7 +224,7 @@ def test_bench_mitsuba_cornell_box(tmp_path, scalar):
 
 
 def test_display_srgb_is_the_tone_map():
-    """viewer/bench_mitsuba.display_srgb (the shaders' tone map run on numpy radiance) equals
+    """bench/mitsuba.py display_srgb (the shaders' tone map run on numpy radiance) equals
     shaders/colour.glsl's formulas written in numpy here, to one 8-bit step (the renderer's own
     display: test_bench_mitsuba_cornell_box)."""
     from glint.bench.mitsuba import display_srgb

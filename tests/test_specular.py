@@ -157,7 +157,7 @@ def furnace_albedo(spec, geometry, size):
 
 @pytest.mark.parametrize("spec, theta, phi", FURNACE)
 def test_white_furnace_converges_to_the_lobe_albedo(ctx, tmp_path, spec, theta, phi):
-    """Constant incident radiance 1: the still camera's mean is the directional albedo (issue 4)."""
+    """Constant incident radiance 1: the still camera's mean is the directional albedo."""
     size = (8, 8)
     camera, geometry = view(orbit(theta, phi))
     expected = furnace_albedo(spec, geometry, size)

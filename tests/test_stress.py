@@ -1,4 +1,4 @@
-"""The stress suite (issue 6): scenes/stress.py's cases at test size, checked by bench/stress.py's
+"""The stress suite: scenes/stress.py's cases at test size, checked by bench/stress.py's
 measurements against expectations that do not come from the renderer: the furnace's
 Le / (1 - kd) (the rendering equation's Neumann series), the scale invariance of a scene whose
 emission is radiance (1 mm and 10 km rooms must give the 1 m room's image), finite values and

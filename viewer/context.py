@@ -12,7 +12,7 @@ import moderngl
 
 from glint.core.errors import GlintError
 
-GL_REQUIRED = 430  # compute shaders and shader storage buffers (DESIGN.md "Viewer")
+GL_REQUIRED = 430  # compute shaders and shader storage buffers (docs/VIEWER.md: the floor)
 
 
 def headless_context(require: int = GL_REQUIRED) -> moderngl.Context:

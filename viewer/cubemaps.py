@@ -17,7 +17,7 @@ Every class has a full MIP chain (GL's glGenerateMipmap: 2 x 2 box filter per
 level), GL_LINEAR_MIPMAP_LINEAR, and GL_TEXTURE_CUBE_MAP_SEAMLESS is on, so the
 filtered look-ups of Eq. 4.14-4.17 blend across face edges. Texels are RGBA16F,
 or RGBA32F for a class where a value does not fit in half float (a very bright
-emitter must not turn into Inf; DESIGN.md "Numerics"). Alpha is the bake's
+emitter must not turn into Inf; docs/ARCHITECTURE.md, "Numerics"). Alpha is the bake's
 distance from the centre; the shaders read only rgb.
 
 moderngl (5.13) has no cube-map arrays, so the few GL calls they need go through

@@ -10,65 +10,35 @@ BSDF itself from core/bsdf.py; tests/test_lobe_patterns.py holds the two equal.
 
 Which pattern, how many samples
 -------------------------------
-The thesis leaves both to the user. The rules here were measured (issue 4):
+The thesis leaves both to the user; the rules here were measured in a numpy model of the
+filtered look-ups (bench/measure_lobe_patterns.py: environments of spherical Gaussians, each
+look-up filtered over its share A / n of the lobe, the relative error of Eq. 4.25 against the
+lobe's integral over 280 cases of environment x view). Set-up and tables: docs/BENCHMARKS.md,
+"Lobe patterns: how the rules were measured".
 
-Set-up. Environments: 6 spherical Gaussians G(w) = a exp(lam (mu.w - 1)) at random
-directions, lam log-uniform in [1, 1e4] (from sky-like to lamps of ~0.6 deg), each of unit
-energy (a = lam / 2 pi), so small lights are bright, as in a room. Views theta_o = 0, 25,
-45, 45, 60, 70, 80 deg; r0 = 0.5, alpha = 0. Reference: the lobe's integral of L f cos by
-QMC with multiple importance sampling (the lobe's Eq. 4.5-4.9 samples and the Gaussians'
-own, 2 x 8192). Estimate: Eq. 4.25 over `pattern_xi(kind, n)`, each look-up filtered as its
-MIP level filters it: the environment convolved exactly with a normalised vMF kernel of the
-sample's solid angle A / n (A = `lobe_ellipse_area`; variance-matched, lam_f = 12 n / A; at
-most one cube face). Error: |estimate - reference| / reference per case (environment x
-view); 40 environments x 7 views = 280 cases per lobe, the 75th and 90th percentile quoted
-(a second set of 30 environments gave the same rules). Isotropic lobes m_x = m_y = m with
-the ring; anisotropic m_y = 10 m_x = m with the line:
-
-    75th / 90th percentile error (%)   n = 1       3         5         7         11        19
-    ring  m = 0.01                      0.4/1.6   0.2/0.6   0.1/0.2   0.1/0.3   0.1/0.3   0.1/0.3
-          m = 0.02                      1.8/8.0   0.8/2.4   0.3/0.9   0.4/1.1   0.4/1.2   0.5/1.3
-          m = 0.03                      5.4/23    1.8/5.4   0.8/2.4   0.9/2.7   1.0/2.7   1.2/3.0
-          m = 0.05                      18/102    5.4/22    2.5/9.2   2.8/8.3   3.6/7.2   3.8/10
-          m = 0.1                       73/259    21/50     12/27     8.9/22    14/29     17/45
-          m = 0.2                       151/588   54/125    30/66     25/50     22/48     28/58
-    line  m = 0.02                      0.7/2.5   0.2/0.9   0.2/0.9   0.2/0.9   0.2/0.9   0.1/0.9
-          m = 0.03                      1.7/5.7   0.5/2.0   0.5/2.3   0.4/2.1   0.3/2.1   0.3/2.1
-          m = 0.05                      4.8/16    1.7/6.7   1.6/7.4   1.3/7.1   1.1/6.8   1.0/6.8
-          m = 0.1                       15/59     11/27     7.9/32    6.3/25    4.7/26    3.8/26
-          m = 0.2                       56/255    27/80     41/76     23/63     18/57     14/56
-
-Rule (`samples_for_lobe`): the smallest n that keeps the 75th percentile within 1% and the
-90th within 2.5%, each switch to more samples placed at the last measured roughness where
-the smaller n still does (m = 0.01, 0.015, 0.02, 0.03, 0.05 were measured too); where no n
-gets there, the ring keeps 7 (its error grows again past 7-9: more samples on the one
-ring at xi1 = 0.6 move the weight off the centre) and the line grows to 19 (its error keeps
-falling, slowly: samples spaced along the one axis keep covering it better). By the
-larger roughness max(m_x, m_y):
+Rule (`samples_for_lobe`): the smallest n that keeps the 75th percentile of the error within
+1% and the 90th within 2.5%, each switch to more samples placed at the last measured
+roughness where the smaller n still does; where no n gets there, the ring keeps 7 (its error
+grows again past 7-9: more samples on the one ring at xi1 = 0.6 move the weight off the
+centre) and the line grows to 19 (its error keeps falling, slowly: samples spaced along the
+one axis keep covering it better). By the larger roughness max(m_x, m_y):
 
     ring:  < 0.01: 1,  < 0.02: 3,  < 0.05: 5,  else 7
     line:  < 0.01: 1,  < 0.03: 3,  < 0.05: 7,  < 0.1: 11,  < 0.15: 15,  else 19
 
 1 sample (m < MIRROR_M = 0.01, a lobe a few cube-map texels wide) is the mirror direction
-with the Fresnel weight, as DESIGN.md asks. The 90th percentiles show the limits: wide
-lobes (m >= 0.1) keep errors of 10-50% whatever n; those are the bias of the patterns and of
-Eq. 4.25 (also under constant radiance the 7-sample ring is off by +3%, +14%, +120% for
-m = 0.2, 0.4, 1 at normal view, r0 = 0.04) and grow at grazing views; the still camera's QMC converges to the reference regardless.
+with the Fresnel weight: it already meets the criterion there. Wide lobes (m >= 0.1) keep
+errors of 10-50% whatever n; those are the bias of the patterns and of Eq. 4.25 (even under
+constant radiance the 7-sample ring is off for wide lobes), which grows at grazing views; the
+still camera's QMC converges to the reference regardless.
 
-Threshold (`choose_pattern`, LINE_RATIO = 3): ring and line at the same n (sum of errors
-over sum of references, %, 30 environments x 7 views), m_max = max(m_x, m_y):
+Threshold (`choose_pattern`, LINE_RATIO = 3): ring and line compared at the same n over
+anisotropy ratios m_y / m_x. The line wins from a ratio of 2-3 for glossy lobes; for narrow
+ones (m_max = 0.03) the ring is better up to ~4, with small errors either way. 3 is the
+compromise.
 
-    m_y / m_x                     1.5        2          2.5        3          4
-    m_max = 0.1, n = 7 ring/line  5.1/10.1   7.3/6.7    10.0/4.3   13.0/3.3   18.7/7.7
-    m_max = 0.1, n = 11           7.0/16.3   7.3/13.0   9.1/11.0   10.9/8.8   13.8/4.3
-    m_max = 0.2, n = 11           14.9/25.1  15.4/18.3  15.6/13.3  15.8/9.8   17.6/7.4
-    m_max = 0.03, n = 7           7.0/26.7   5.3/17.8   2.5/12.8   3.6/10.0   6.2/6.9
-
-The line wins from a ratio of 2-3 for glossy lobes; for narrow ones (m_max = 0.03) the ring
-is better up to ~4, with small errors either way. 3 is the compromise.
-
-Footprint: how wide each look-up filters (cube maps)
-----------------------------------------------------
+Footprint: how wide each look-up filters
+----------------------------------------
 The thesis filters each of n samples by a box of the area A / n, A the lobe's 99 % ellipse
 (Eq. 4.14-4.17). For n = 1 that box is as wide as the lobe's support: with the border at
 D = 1 % of its peak, the border radius is sqrt(-2 log 0.01) = 3.03 standard deviations, and a
@@ -82,23 +52,17 @@ for m = 0.03 and 0.1 at views of 0-70 degrees, by importance sampling.) So the e
 level is about 1.4, 1.0, 0.6 and 0.1 levels finer than the thesis' at n = 1, 3, 7, 19 for the
 ring: the offset depends on n, which is why one constant MIP offset could not fix it.
 
-Measured (`glint bench material-classes --size 320x180 --reference-samples 1024`, PSNR dB of
-each material's pixels against the converged still camera, n = 1 / 3 / 7 / 19):
-
-                         thesis A / n            second moment           moment, transmission too
-    Glazed ceramic       33.4 38.2 43.1 51.2     44.7 47.4 51.2 52.5
-    Chrome               20.1 25.1 31.0 39.4     31.8 36.4 39.3 39.7
-    Brushed aluminium    21.4 25.7 29.6 34.6     23.7 30.2 34.6 37.4
-    Frosted glass        27.0 31.4 30.3 30.4     26.9 31.6 30.4 30.4     19.5 25.9 28.8 30.3
-
-(split-sum's one look-up: 40.7, 24.4, 26.8, 24.5.) Scaling the moment's area by 0.5, 2 or 4
-lost on chrome and ceramic at every n; the isotropic MIP filter of an anisotropic footprint as
-the geometric mean of the axes' variances beat their arithmetic mean and their maximum. The
-frosted glass' transmission lobe is the exception: at grazing views 1 - F moves its mass off the
-straight-through centre (its second moment about the centre is 1.5 and 2.5 times D's at 80 and
-85 degrees, m = 0.1, against 1.05 and 1.7 for reflection), and the box of A / n measured better
-at every n, so transmission lobes keep the thesis' footprint (`Renderer(footprint="thesis")`
-gives it to every lobe; `glint bench` method patterns-thesis).
+Against the converged still camera (`glint bench`, PSNR per material: docs/BENCHMARKS.md,
+"Lobe patterns: how the rules were measured") the second moment gains on every reflection
+lobe at every n; scaling its area by 0.5, 2 or 4 lost, and the isotropic MIP filter of an
+anisotropic footprint works best as the geometric mean of the axes' variances (better than
+their arithmetic mean or their maximum). The frosted glass' transmission lobe is the
+exception: at grazing views 1 - F moves its mass off the straight-through centre, so its
+second moment about the centre underestimates the spread, and the box of A / n measured
+better at every n. Transmission lobes keep the thesis' footprint (`Renderer(footprint="thesis")`
+gives it to every lobe; `glint bench` method patterns-thesis). The same footprint, times the
+projection's texels per steradian, sets the MIP level of a planar reflector's samples in its
+mirror buffer (shaders/specular.glsl).
 
 Planar reflectors: the multi-ring pattern (section 4.5.3)
 ---------------------------------------------------------
@@ -115,26 +79,13 @@ anisotropic ones keep the line patterns, whose samples are already evenly spaced
 towards the ends (the thesis says the same). `samples_for_lobe(..., planar=True)`: 1, 3, 5
 as for the ring, and 10 (centre + 5 + 4) from m = 0.05 on.
 
-Measured (bench/measure_multi_ring.py): the step response of the estimate across a straight
-edge in the reflected scene (radiance 1 beyond the edge, 0 before it; the edge at offsets
--1.5 .. 1.5 lobe radii in the tangent plane at unit distance, 8 orientations; views
-theta_o = 0, 30, 60, 75 deg; r0 = 0.04), against the exact response (the lobe's f cos
-integral beyond the edge by QMC, 2^14 points); each pattern sample filtered as its MIP level
-filters it, by a disk of the lobe's cross-section area A / n (A = `lobe_ellipse_area`).
-Mean absolute error of the normalised response (%), per m = 0.02 / 0.05 / 0.1 / 0.2:
-
-    n    single ring (curved)        best multi-ring                  3 rings, radii .27/.53/.8
-    5    1.03 1.04 1.16 1.76         2 rings .4/.8: 0.82 0.90 1.08 1.53
-    7    0.87 0.90 1.05 1.44         2 rings .4/.8: 1.16 1.20 1.31 1.70  1.32 1.31 1.38 1.33
-    10   0.90 0.96 1.13 1.35         2 rings .4/.8: 0.81 0.83 0.95 1.12  1.59 1.60 1.60 1.75
-    13   0.96 1.04 1.21 1.36         2 rings .4/.8: 0.65 0.71 0.88 1.18  1.55 1.53 1.50 1.52
-    16   1.06 1.13 1.28 1.38         2 rings .4/.8: 0.66 0.75 0.91 1.12  1.55 1.54 1.56 1.66
-
-(radii in theta_h / theta_thresh; outermost radii 0.6 .. 0.9 and 1 .. 3 rings were tried.)
-Two rings reaching out to 0.8 beat the single ring from n = 10 on by 15-35%, and at n = 5;
-three rings (the thesis' 3 x 3 of Fig. 4.34) put too much of the filtered footprint near the
-centre and lose to both. The single ring stays a little better at n = 7, hence 10 samples for
-glossy planar lobes, the thesis' own count for its planar figures.
+Why these radii and counts (bench/measure_multi_ring.py, the step response of the estimate
+across a straight edge in the reflected scene; table: docs/BENCHMARKS.md, "Lobe patterns:
+how the rules were measured"): two rings reaching out to 0.8 beat the single ring from
+n = 10 on, and at n = 5; three rings (the thesis' 3 x 3 of Fig. 4.34) put too much of the
+filtered footprint near the centre and lose to both. The single ring stays a little better
+at n = 7, hence 10 samples for glossy planar lobes, the thesis' own count for its planar
+figures.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Which planar reflectors get a mirror pass this frame (section 4.5.1; DESIGN.md viewer step 1).
+"""Which planar reflectors get a mirror pass this frame (section 4.5.1; docs/VIEWER.md, "Passes").
 
 `plan_mirror_passes(reflectors, camera, aspect, ...)` decides, per frame, on the
 CPU and in this order:
@@ -24,23 +24,18 @@ Guard band
 ----------
 A lobe sample of a reflector pixel near the border of the view looks past the
 border of a mirror buffer that shows the view's own field: with the buffer
-clamped to its edge, a wide lobe there read the edge texels instead of what
-its directions see (41% of the lobe's f cos / p weight of the blurry aluminium
-panel of planar-classes, m = 0.2; its PSNR stuck at 14-16 dB whatever n). So
-each pass widens its frustum by the reach of its widest lobe (`lobe_reach`:
-twice the half-vector angle of the lobe border, Eq. 4.10, the angle a
-reflected direction turns by at normal view), `guard_scale`: the projection's
-x and y are divided by s >= 1, the buffer keeps its pixel count (coarser by s;
-wide lobes read coarse MIP levels anyway). `MirrorPass.view_projection` is what
-the pass renders and the shaders project with.
+clamped to its edge, a wide lobe there would read the edge texels instead of what
+its directions see. So each pass widens its frustum by the reach of its widest
+lobe (`lobe_reach`: twice the half-vector angle of the lobe border, Eq. 4.10,
+the angle a reflected direction turns by at normal view), `guard_scale`: the
+projection's x and y are divided by s >= 1, the buffer keeps its pixel count
+(coarser by s; wide lobes read coarse MIP levels anyway).
+`MirrorPass.view_projection` is what the pass renders and the shaders project with.
 
-s is capped at GUARD_MAX_SCALE = 2: uncapped, the reach gave 1.2 (stone), 2.4
-(tiles) and 6.8 (aluminium) on planar-classes, and the coarser buffer cost the
-glossy tiles 2 dB at n = 3..7 while the aluminium gained nothing over s = 2
-(walkthrough PSNR against one reference for all, converged with the uncapped band
-and 3x finer buffers: tiles 41.2 / 52.1 dB at n = 3 / 7 capped, 39.0 / 50.1
-uncapped; aluminium 15.0 / 17.6 and 14.7 / 17.6; no band: tiles 34.5 / 50.4,
-aluminium 13.0 / 14.4; cap 1.5: aluminium 14.5 / 16.7).
+s is capped at GUARD_MAX_SCALE = 2: a wider band makes the buffer coarser for
+every lobe of the pass, and past 2 that cost the glossy lobes more than it gained
+the widest ones (measured on planar-classes: docs/BENCHMARKS.md, "The mirror
+buffers' guard band").
 
 Occlusion queries (the GL side is the renderer's)
 -------------------------------------------------
@@ -72,7 +67,7 @@ from glint.viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HE
 
 DEFAULT_BUDGET = 4  # mirror passes per frame
 GUARD_MAX_HALF_ANGLE = np.radians(80.0)  # the widened half field of view at most (tan 80 deg = 5.7)
-GUARD_MAX_SCALE = 2.0  # and the scale at most (module doc: measured on planar-classes)
+GUARD_MAX_SCALE = 2.0  # and the scale at most (module doc, "Guard band")
 
 
 class SkipReason(str, enum.Enum):

@@ -12,7 +12,7 @@ It draws into its own textures and never touches the default framebuffer, so it
 does not care whether a window or nothing at all is on the other side; the
 framebuffer bound before `render` is bound again after it.
 
-Per frame (DESIGN.md "Viewer"): mirror passes of the planar reflectors in view
+Per frame (docs/VIEWER.md, "Passes"): mirror passes of the planar reflectors in view
 (section 4.5.1, viewer/passes/mirror.py: at most `mirror_budget` per frame, at
 the render size) -> G-buffer raster pass at N times the output size (N =
 supersample) -> occlusion queries of the reflectors (read by a later frame) ->
@@ -60,7 +60,7 @@ MODES = ("walkthrough", "converge", "auto")
 # renderer is made, stats["split_sum"]["prefilter_ms"]).
 WALKTHROUGH_METHODS = {"patterns": "SPECULAR_PATTERNS", "filtered-importance": "SPECULAR_FILTERED_IS",
                        "split-sum": "SPECULAR_SPLIT_SUM"}
-# The MIP footprint of each pattern look-up in a cube map (shaders/specular.glsl): the lobe's
+# The MIP footprint of each pattern look-up in a cube map or mirror buffer (shaders/specular.glsl): the lobe's
 # second moment less the pattern's spread for reflection lobes and the thesis' share A / n of the
 # lobe's 99 % ellipse (Eq. 4.16) for transmission lobes (the default; viewer/lobe_patterns.py,
 # "Footprint"), A / n for all lobes, or the second moment for all lobes.

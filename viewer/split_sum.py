@@ -22,8 +22,8 @@ box-filtered MIP chain at Colbert and Krivanek's level for its pdf (filtered imp
 sampling, as the glTF viewer): smooth with few samples. Level k >= 1 takes `level_samples`:
 PREFILTER_SAMPLES at level 1, doubled per level up to PREFILTER_SAMPLES_MAX (the lobes widen as
 the texels get fewer, so each level costs about half the one before; tests/test_split_sum.py
-holds every texel within 2 % of a numpy quadrature; twice the samples: 0.8 %, at 8x the cost
-on llvmpipe, where this scheme takes ~7 s for material-classes' three cube maps of up to 512^2). Level 0 is the source itself (m_0 = 0). The chain stops at faces of LOWEST_FACE texels (engines stop at
+holds every texel within 2 % of a numpy quadrature; more samples buy little accuracy for much
+time: docs/BENCHMARKS.md, "The split-sum prefilter's sample counts"). Level 0 is the source itself (m_0 = 0). The chain stops at faces of LOWEST_FACE texels (engines stop at
 4-16), so a face of S texels gets log2(S / LOWEST_FACE) + 1 levels.
 
 Roughness to level, as the glTF viewer maps its perceptual roughness sqrt(m) linearly onto the

@@ -1,4 +1,4 @@
-"""Mirror passes of planar reflectors (section 4.5.1; DESIGN.md "Viewer", step 1).
+"""Mirror passes of planar reflectors (section 4.5.1; docs/VIEWER.md, "Passes").
 
 Per frame, before the G-buffer:
 
@@ -10,8 +10,9 @@ Per frame, before the G-buffer:
    V R, winding flipped, clipped at the plane with gl_ClipDistance), without that pass's
    reflectors and without objects wholly behind the plane, diffuse only (light map +
    emission: shaders/mirror.frag), and the sky behind it -- the clear colour for a constant
-   sky, else shaders/mirror_sky.frag, one triangle at the far plane, which on llvmpipe costs
-   ~4.6 ms at 640 x 360 even where the scene covers everything -- into layer k ("slot" k) of
+   sky, else shaders/mirror_sky.frag, one triangle at the far plane, which costs its whole
+   area even where the scene covers everything (docs/BENCHMARKS.md, "The mirror pass's
+   sky") -- into layer k ("slot" k) of
    three texture arrays:
 
        radiance   RGBA16F  light towards the mirrored eye, or the sky's; a full MIP chain
@@ -474,7 +475,7 @@ class MirrorPasses:
 
 
 def max_level(size: tuple[int, int]) -> int:
-    """The last level of the radiance chain (viewer/mirror_projection.max_mip_level)."""
+    """The last level of the radiance chain (bench/mirror_projection.py max_mip_level)."""
     return int(np.floor(np.log2(max(int(size[0]), int(size[1]), 1))))
 
 
