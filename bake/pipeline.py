@@ -186,7 +186,7 @@ def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: Ba
     if todo:
         if render_cubemaps is None:
             raise GlintError(f"{len(todo)} cube map(s) to render but no cube-map renderer was given "
-                             "(bake through glint.services.bake)")
+                             "(bake through glint.services.bake_scene)")
         write_json(out.path / "manifest.json", manifest)  # the renderer reads the bake written so far
         with tqdm(total=len(todo), desc="cube maps", unit="map", disable=not progress, leave=False) as bar:
             stats.update(render_cubemaps(out.path, todo, progress=bar.update))
