@@ -31,6 +31,8 @@ TEST_SETTINGS = {"quality": "preview", "samples": 256, "texels_per_metre": 16.0}
 
 @pytest.mark.slow
 def test_cornell_box_irradiance_matches_mitsuba(tmp_path):
+    """Deliberate bug this catches (tried, never committed; the module docstring has the
+    figures): the light maps' irradiance x1.02 (or x0.98), through the signed-mean bound."""
     scene = load_scene(builtin_path("cornell-box"))
     settings = resolve_settings(scene.bake_settings, **TEST_SETTINGS)
     bake_scene(scene, settings, tmp_path / "cb.bake", progress=False)
