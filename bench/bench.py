@@ -40,8 +40,6 @@ time) and adds `accumulate`.
 from __future__ import annotations
 
 import argparse
-import csv
-import json
 import math
 import os
 import re
@@ -52,6 +50,8 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.bench.report import json_safe, num, pyplot, save_figure, slug, write_csv, write_json, write_png
+from glint.core.atomic import atomic_write_text
 from glint.core.constants import MIRROR_PLANE_COS
 from glint.core.errors import GlintError
 
@@ -476,7 +476,7 @@ def cmd_bench(args) -> int:
                                    "regions": {k: int(v.sum()) for k, v in regions.items()}})
                 out.mkdir(parents=True, exist_ok=True)
                 if args.images:
-                    _write_png(out / "images" / f"{_slug(camera.name)}_reference.png", ref["srgb"])
+                    write_png(out / "images" / f"{slug(camera.name)}_reference.png", ref["srgb"])
                 runs = [(method, n) for method in methods for n in method.samples(parsed["samples"])]
                 for (method, n), (image, timing) in zip(runs, sweep(ctx, bake, runs, camera, size, parsed, progress)):
                     # the work skipped in the camera's frame (the same tiles and passes for every method)
@@ -490,7 +490,7 @@ def cmd_bench(args) -> int:
                                        if timing["prefilter_ms"] is not None else {}),
                                     "regions": errors(image, ref, regions, flip)})
                     if args.images:
-                        _write_png(out / "images" / f"{_slug(camera.name)}_{method.key}_n{n}.png", image["srgb"])
+                        write_png(out / "images" / f"{slug(camera.name)}_{method.key}_n{n}.png", image["srgb"])
     finally:
         ctx.release()
 
@@ -529,12 +529,12 @@ def csv_rows(setup: dict, results: list) -> list[dict]:
         for region, e in r["regions"].items():
             ms = r["gpu_ms"]
             row = {"scene": setup["scene"], "camera": r["camera"], "method": r["method"], "n": r["n"],
-                   "region": region, "pixels": e["pixels"], "psnr_db": _num(e["psnr_db"]),
-                   "rel_mse": _num(e["rel_mse"]), "flip": _num(e["flip"]), "ms_specular": _num(ms.get("specular")),
-                   "ms_frame": _num(ms.get("frame")), "lookups_per_pixel": _num(r["lookups_per_pixel"])}
+                   "region": region, "pixels": e["pixels"], "psnr_db": num(e["psnr_db"]),
+                   "rel_mse": num(e["rel_mse"]), "flip": num(e["flip"]), "ms_specular": num(ms.get("specular")),
+                   "ms_frame": num(ms.get("frame")), "lookups_per_pixel": num(r["lookups_per_pixel"])}
             for p in PASSES:
                 if p != "specular":
-                    row[f"ms_{p}"] = _num(ms.get(p))
+                    row[f"ms_{p}"] = num(ms.get(p))
             rows.append(row)
     return rows
 
@@ -580,64 +580,17 @@ def markdown(setup: dict, results: list) -> str:
     return "".join(out)
 
 
-def _num(x) -> str:
-    if x is None or (isinstance(x, float) and math.isnan(x)):
-        return ""
-    if isinstance(x, float) and math.isinf(x):
-        return "inf"
-    return f"{x:.6g}" if isinstance(x, float) else str(x)
-
-
-def _json_safe(x):
-    if isinstance(x, float):
-        return None if not math.isfinite(x) else round(x, 6) if abs(x) >= 1e-3 else float(f"{x:.6g}")
-    if isinstance(x, dict):
-        return {k: _json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_safe(v) for v in x]
-    return x
-
-
 def write_results(out: Path, setup: dict, results: list) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    _atomic(out / "bench.json", json.dumps(_json_safe({**setup, "results": results}), indent=1) + "\n")
-    tmp = out / f".bench.csv.{os.getpid()}.tmp"
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
-        writer.writeheader()
-        writer.writerows(csv_rows(setup, results))
-    os.replace(tmp, out / "bench.csv")
-    _atomic(out / "bench.md", markdown(_json_safe(setup), _json_safe(results)))
-
-
-def _atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except OSError as e:
-        raise GlintError(f"cannot write {path}: {e.strerror}") from e
-
-
-def _slug(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "-", name).strip("-") or "camera"
-
-
-def _write_png(path: Path, srgb: np.ndarray) -> None:
-    from glint.core.image_io import write_image
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_image(path, srgb)
+    write_json(out / "bench.json", {**setup, "results": results})
+    write_csv(out / "bench.csv", CSV_COLUMNS, csv_rows(setup, results))
+    atomic_write_text(out / "bench.md", markdown(json_safe(setup), json_safe(results)))
 
 
 def plot(path: Path, setup: dict, results: list, columns: int = 3) -> None:
     """PSNR against the specular pass's ms: a panel per camera and region (the view-dependent
     pixels, then each material), a curve per method, points labelled n."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     panels = []
     for camera in dict.fromkeys(r["camera"] for r in results):
         regions = dict.fromkeys(k for r in results if r["camera"] == camera for k in r["regions"])
@@ -671,8 +624,4 @@ def plot(path: Path, setup: dict, results: list, columns: int = 3) -> None:
                  f"{setup['reference']['samples_per_lobe_and_pixel']} QMC samples per lobe and pixel; "
                  f"points: n samples per lobe\n{setup['device']}", fontsize=9)
     fig.tight_layout(rect=(0, 0.9 / (3.4 * rows + 0.9) * 0.9, 1, 1 - 0.45 / (3.4 * rows + 0.9)))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path, dpi=110)

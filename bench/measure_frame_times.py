@@ -20,6 +20,8 @@ import json
 import time
 from pathlib import Path
 
+from glint.core.atomic import atomic_write_text
+
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
 
@@ -93,7 +95,7 @@ def main() -> None:
     device = describe(ctx)
     ctx.release()
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "frame_times.json").write_text(json.dumps(
+    atomic_write_text(args.out / "frame_times.json", json.dumps(
         {"device": device, "frames": args.frames, "warmup": args.warmup, "rows": rows}, indent=1) + "\n")
     lines = [f"Device: {device}; medians of {args.frames} frames after {args.warmup} warm-up frames.", "",
              "| scene | camera | size | supersample | mode | GPU ms (sum of passes) | wall ms/frame | passes (ms) |",
@@ -102,7 +104,7 @@ def main() -> None:
         passes = ", ".join(f"{k} {v:.2f}" for k, v in r["passes_ms"].items())
         lines.append(f"| {r['scene']} | {r['camera']} | {r['size']} | {r['supersample']} | {r['mode']} | "
                      f"{r['gpu_total_ms']:.2f} | {r['wall_ms_per_frame']:.2f} | {passes} |")
-    (args.out / "frame_times.md").write_text("\n".join(lines) + "\n")
+    atomic_write_text(args.out / "frame_times.md", "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -24,6 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.core.atomic import atomic_write_text
+
 
 def quad(center, u, v):
     c, u, v = map(np.asarray, (center, u, v))
@@ -83,9 +85,9 @@ def write_mirror4(path: Path) -> Path:
     w.add_node("Camera", camera=w.add_camera("Camera", math.radians(60)), translation=(1.8, 1.6, 2.5),
                rotation=_look_rotation((1.8, 1.6, 2.5), (-0.6, 0.8, -1.5)))
     w.write(path)
-    path.with_name(path.stem + ".glint.toml").write_text(
-        '[objects."Table top"]\nrole = "planar"\n[objects."Mirror"]\nrole = "planar"\n'
-        '[objects."Panel"]\nrole = "planar"\n')
+    atomic_write_text(path.with_name(path.stem + ".glint.toml"),
+                      '[objects."Table top"]\nrole = "planar"\n[objects."Mirror"]\nrole = "planar"\n'
+                      '[objects."Panel"]\nrole = "planar"\n')
     return path
 
 

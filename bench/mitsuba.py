@@ -37,9 +37,7 @@ variant and the library.
 from __future__ import annotations
 
 import argparse
-import csv
 import glob
-import json
 import math
 import os
 import re
@@ -51,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.bench.report import num, pyplot, save_figure, slug, write_csv, write_json, write_png
 from glint.core.errors import GlintError
 
 VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")  # fastest first
@@ -264,8 +263,6 @@ def cmd_bench_mitsuba(args) -> int:
     from tqdm import tqdm
 
     from glint.bench.bench import (
-        _slug,
-        _write_png,
         check_arguments,
         choose_cameras,
         errors,
@@ -325,10 +322,10 @@ def cmd_bench_mitsuba(args) -> int:
                                     "regions": errors(image, ref, regions, flip)})
                     if args.images:  # --images: the displayed images, as `glint bench --images` writes
                         name = f"{method}_{extra['spp']}spp" if "spp" in extra else method
-                        _write_png(out / "images" / f"{_slug(camera.name)}_{name}.png", image["srgb"])
+                        write_png(out / "images" / f"{slug(camera.name)}_{name}.png", image["srgb"])
 
                 if args.images:
-                    _write_png(out / "images" / f"{_slug(camera.name)}_mitsuba_reference.png", ref["srgb"])
+                    write_png(out / "images" / f"{slug(camera.name)}_mitsuba_reference.png", ref["srgb"])
 
                 row("glint-walkthrough", walk, walk_time["seconds"], frame_ms=walk_time["ms"])
                 row("glint-converged", conv, conv_info["seconds"], samples_per_lobe=parsed["reference"])
@@ -374,33 +371,22 @@ CSV_COLUMNS = ("scene", "camera", "method", "spp", "seconds", "region", "pixels"
 
 
 def write_results(out: Path, setup: dict, results: list) -> None:
-    from glint.bench.bench import _atomic, _json_safe, _num
-
     out.mkdir(parents=True, exist_ok=True)
-    _atomic(out / "mitsuba.json", json.dumps(_json_safe({**setup, "results": results}), indent=1) + "\n")
+    write_json(out / "mitsuba.json", {**setup, "results": results})
     rows = []
     for r in results:
         for region, e in r["regions"].items():
             rows.append({"scene": setup["scene"], "camera": r["camera"], "method": r["method"],
-                         "spp": r.get("spp", ""), "seconds": _num(r["seconds"]), "region": region,
-                         "pixels": e["pixels"], "rel_mse": _num(e["rel_mse"]), "psnr_db": _num(e["psnr_db"]),
-                         "flip": _num(e["flip"])})
-    tmp = out / f".mitsuba.csv.{os.getpid()}.tmp"
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
-    os.replace(tmp, out / "mitsuba.csv")
+                         "spp": r.get("spp", ""), "seconds": num(r["seconds"]), "region": region,
+                         "pixels": e["pixels"], "rel_mse": num(e["rel_mse"]), "psnr_db": num(e["psnr_db"]),
+                         "flip": num(e["flip"])})
+    write_csv(out / "mitsuba.csv", CSV_COLUMNS, rows)
 
 
 def plot(path: Path, setup: dict, results: list) -> None:
     """rel MSE against seconds, log-log, a panel per camera and region (image, view-dependent):
     Mitsuba's curve (points labelled spp) and the viewer's walkthrough and converged points."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     panels = [(c, region) for c in dict.fromkeys(r["camera"] for r in results)
               for region in ("image", "view-dependent")
               if any(r["camera"] == c and r["regions"].get(region, {}).get("pixels") for r in results)]
@@ -437,8 +423,4 @@ def plot(path: Path, setup: dict, results: list) -> None:
     fig.suptitle(f"{setup['scene']}, {w}x{h}: error against Mitsuba ({setup['mitsuba']['reference_spp']} spp) "
                  f"and time\n" + textwrap.shorten(f"glint: {setup['device']}", 60 * max(len(panels), 1)), fontsize=9)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path, dpi=110)

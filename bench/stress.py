@@ -35,7 +35,6 @@ what failed when a count is not zero or a bound does not hold.
 """
 from __future__ import annotations
 
-import json
 import os
 import sys
 import time
@@ -43,6 +42,8 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.bench.report import write_json
+from glint.core.atomic import atomic_write_text
 from glint.core.errors import GlintError
 
 STRESS_SIZE = (96, 54)
@@ -444,8 +445,5 @@ def markdown(setup: dict, rows: list, walk: dict | None, failures: list) -> str:
 
 
 def write_report(out: Path, setup: dict, rows: list, walk: dict | None, failures: list) -> None:
-    from glint.bench.bench import _atomic, _json_safe
-
-    _atomic(out / "stress.json", json.dumps(_json_safe({**setup, "cases_run": rows, "walkthrough": walk,
-                                                         "failures": failures}), indent=1) + "\n")
-    _atomic(out / "stress.md", markdown(setup, rows, walk, failures))
+    write_json(out / "stress.json", {**setup, "cases_run": rows, "walkthrough": walk, "failures": failures})
+    atomic_write_text(out / "stress.md", markdown(setup, rows, walk, failures))
