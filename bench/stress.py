@@ -290,7 +290,7 @@ def accumulation_drift(ctx, bake, camera, frames: int = DRIFT_FRAMES, size=WALKT
 
 # -- the command ------------------------------------------------------------------------------------
 def add_stress_options(p) -> None:
-    """`glint bench --stress` and its options (bench/bench.py's parser)."""
+    """`glint bench --stress` and its options (bench/command.py's parser)."""
     from glint.scenes.stress import CASES
 
     g = p.add_argument_group("stress suite (--stress: no SCENE; the scenes of scenes/stress.py)")
