@@ -51,7 +51,7 @@ import numpy as np
 
 from glint.bench.report import json_safe, num, pyplot, save_figure, slug, write_csv, write_json, write_png
 from glint.core.atomic import atomic_write_text
-from glint.core.constants import MIRROR_PLANE_COS
+from glint.core.constants import GB_DARK_BACK_FACE, GB_ID_BITS, MIRROR_PLANE_COS
 from glint.core.errors import GlintError
 
 DEFAULT_SAMPLES = (1, 3, 5, 7, 9, 11, 15, 19)
@@ -223,8 +223,8 @@ def region_masks(renderer, bake) -> dict[str, np.ndarray]:
     ids = np.frombuffer(targets["material"].read(alignment=1), np.uint32).reshape(h, w)
     depth = np.frombuffer(targets["depth"].read(alignment=1), np.float32).reshape(h, w)
     normal = np.frombuffer(targets["normal"].read(alignment=1), np.float16).reshape(h, w, 4).astype(np.float32)
-    dark = normal[..., 3] > 0.5
-    material, obj = (ids & 0xFFFF).astype(np.int64), (ids >> 16).astype(np.int64)
+    dark = normal[..., 3] > 0.5 * GB_DARK_BACK_FACE  # as shaders/gbuffer_read.glsl
+    material, obj = (ids & ((1 << GB_ID_BITS) - 1)).astype(np.int64), (ids >> GB_ID_BITS).astype(np.int64)
     manifest = bake.manifest
     objects = manifest["objects"]
     lobed = np.array([bool(m.get("lobes")) for m in manifest["materials"]] + [False])

@@ -47,7 +47,8 @@ def read(name: str) -> str:
 def glsl_constants() -> dict:
     """The constants every shader gets as defines: core/constants.py and the BSDF's numerical guards."""
     return {"HALF_MAX": constants.HALF_MAX, "XI1_BORDER": constants.XI1_BORDER, "LOBE_TAN_MAX": constants.LOBE_TAN_MAX,
-            "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "M_MIN": bsdf.M_MIN, "HZ_MIN": bsdf.HZ_MIN,
+            "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "GB_DARK_BACK_FACE": constants.GB_DARK_BACK_FACE,
+            "GB_ID_BITS": constants.GB_ID_BITS, "M_MIN": bsdf.M_MIN, "HZ_MIN": bsdf.HZ_MIN,
             "DOT_MIN": bsdf.DOT_MIN, "COS_MIN": bsdf.COS_MIN, "HALF_MIN": bsdf.HALF_MIN, "XI_MIN": bsdf.XI_MIN}
 
 
