@@ -129,7 +129,6 @@ METHODS = {m.key: m for m in (
     Method("split-sum", "split-sum prefiltered cube map (game engines, glTF viewers)", "split-sum", ignores_n=True),
 )}
 DEFAULT_METHODS = ("patterns", "patterns-auto", "patterns-thesis", "patterns-eq4.24", "filtered-is", "qmc", "split-sum")
-PLANNED: dict[str, str] = {}  # methods named but not implemented yet: key -> why
 
 
 # -- options ----------------------------------------------------------------------------------------
@@ -154,8 +153,6 @@ def parse_methods(text: str) -> list[str]:
     if not keys:
         raise GlintError(f"bad --methods '{text}': name at least one of {', '.join(METHODS)}")
     for k in keys:
-        if k in PLANNED:
-            raise GlintError(f"--methods {k}: {PLANNED[k]}")
         if k not in METHODS:
             raise GlintError(f"unknown method '{k}' in --methods; choose from {', '.join(METHODS)}")
     return list(dict.fromkeys(keys))

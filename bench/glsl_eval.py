@@ -42,10 +42,6 @@ def context() -> moderngl.Context:
     return _context
 
 
-def _glsl_type(width: int) -> str:
-    return "float" if width == 1 else f"vec{width}" if width <= 4 else f"float[{width}]"
-
-
 def _columns(a: np.ndarray) -> np.ndarray:
     a = np.asarray(a, dtype=np.float32)
     if a.ndim == 1:
