@@ -48,11 +48,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
 from glint.bench.report import json_safe, num, pyplot, save_figure, slug, write_csv, write_json, write_png
 from glint.core.atomic import atomic_write_text
+from glint.core.bake_dir import Bake
 from glint.core.constants import GB_DARK_BACK_FACE, GB_ID_BITS, MIRROR_PLANE_COS
 from glint.core.errors import GlintError
+from glint.services import number, parse_size, run_bake
+from glint.viewer.camera import ViewCamera, find_named, scene_bounds
+from glint.viewer.context import describe, headless_context
+from glint.viewer.renderer import Renderer
+from glint.viewer.skipping import bake_section, frame_section, markdown_table
+from glint.viewer.timing import PassTimer
 
 DEFAULT_SAMPLES = (1, 3, 5, 7, 9, 11, 15, 19)
 DEFAULT_SIZE = "640x360"
@@ -91,8 +99,6 @@ class Method:
         return (1,) if self.ignores_n else tuple(ns)
 
     def renderer(self, ctx, bake, n: int, supersample: int, exposure: float):
-        from glint.viewer.renderer import Renderer
-
         if self.walkthrough is None:  # one still-camera frame of n quasi-random samples per lobe
             return Renderer(ctx, bake, supersample=supersample, exposure=exposure, samples_per_frame=n,
                             max_frames=1)
@@ -159,8 +165,6 @@ def parse_methods(text: str) -> list[str]:
 
 
 def check_arguments(args) -> dict:
-    from glint.services import number, parse_size
-
     samples = parse_list(args.lobe_samples, "--lobe-samples", lo=1, hi=MAX_SAMPLES)
     parsed = {
         "size": parse_size(args.size),
@@ -189,8 +193,6 @@ def check_arguments(args) -> dict:
 
 
 def choose_cameras(manifest: dict, names: list[str] | None, aspect: float) -> list:
-    from glint.viewer.camera import ViewCamera, find_named, scene_bounds
-
     cameras = manifest.get("cameras") or []
     if names:
         chosen = []
@@ -274,7 +276,7 @@ def rel_mse(test: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
 def flip_module():
     """NVIDIA's `flip_evaluator`, or None where it is not installed."""
     try:
-        import flip_evaluator
+        import flip_evaluator  # optional (glint[flip]): looked for only when a run measures FLIP
     except ImportError:
         return None
     return flip_evaluator
@@ -313,8 +315,6 @@ def reference_batches(total: int) -> tuple[int, int]:
 def render_reference(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict, float]:
     """The converged image of `camera` (--reference-samples QMC samples per lobe and pixel),
     its regions and the seconds it took."""
-    from glint.viewer.renderer import Renderer
-
     batch, frames = reference_batches(parsed["reference"])
     started = time.perf_counter()
     renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
@@ -334,8 +334,6 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
     """(image, timing) of every (method, n) in `runs` for one camera. All the renderers stay alive
     and the timed frames go round-robin over them, so whatever else the machine does at the
     time slows every method alike; then each one's medians and its last frame's image."""
-    from glint.viewer.skipping import frame_section
-
     renderers = []
     try:
         for method, n in runs:
@@ -373,13 +371,6 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
 
 def run_sweep(args) -> int:
     """`glint bench SCENE`: the sweep of the module docstring (bench/command.py chooses it)."""
-    from tqdm import tqdm
-
-    from glint.core.bake_dir import Bake
-    from glint.services import run_bake
-    from glint.viewer.context import headless_context
-    from glint.viewer.skipping import bake_section
-
     parsed = check_arguments(args)
     report = run_bake(args, progress=sys.stderr.isatty())
     bake = Bake(report.bake_dir)
@@ -394,9 +385,6 @@ def run_sweep(args) -> int:
     ctx = headless_context()
     results, references, skipping = [], [], {}
     try:
-        from glint.viewer.context import describe
-        from glint.viewer.timing import PassTimer
-
         device, timing_method = describe(ctx), PassTimer(ctx).description
         load = [round(x, 2) for x in os.getloadavg()]  # other work on the machine skews the times
         with tqdm(total=len(cameras) * steps, desc="bench", unit="step",
@@ -505,8 +493,6 @@ def markdown(setup: dict, results: list) -> str:
         out.append(table(camera, lambda r: f"{fmt(r['gpu_ms'].get('specular'), '.1f')} / "
                                            f"{fmt(r['gpu_ms'].get('frame'), '.1f')}") + "\n")
     if setup.get("skipping"):
-        from glint.viewer.skipping import markdown_table
-
         out.append("**Skipped work** (per camera: its frame, the same for every method; viewer/skipping.py)\n\n")
         out.append(markdown_table(setup["skipping"]))
     return "".join(out)

@@ -20,16 +20,18 @@ import json
 import time
 from pathlib import Path
 
+from glint.bake.settings import resolve_settings
 from glint.core.atomic import atomic_write_text
+from glint.core.bake_dir import Bake, default_bake_dir
+from glint.services import bake_scene, open_scene
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import describe, headless_context
+from glint.viewer.renderer import Renderer
 
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
 
 def load_bake(scene: str, bake_root: Path | None):
-    from glint.bake.settings import resolve_settings
-    from glint.core.bake_dir import Bake, default_bake_dir
-    from glint.services import bake_scene, open_scene
-
     loaded, builtin = open_scene(scene)
     out = bake_root / f"{scene}.bake" if bake_root else default_bake_dir(loaded.source, builtin)
     bake_scene(loaded, resolve_settings(loaded.bake_settings), out, progress=False)  # no-op when up to date
@@ -64,10 +66,6 @@ def main() -> None:
     ap.add_argument("--bake-root", type=Path)
     ap.add_argument("--out", type=Path, default=Path("/tmp/glint-frame-times"))
     args = ap.parse_args()
-    from glint.viewer.camera import ViewCamera
-    from glint.viewer.context import describe, headless_context
-    from glint.viewer.renderer import Renderer
-
     sizes = [tuple(int(x) for x in s.lower().split("x")) for s in args.sizes.split(",")]
     factors = [int(s) for s in args.supersample.split(",")]
     ctx = headless_context()

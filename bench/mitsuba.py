@@ -48,9 +48,18 @@ import time
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
+from glint.bench import glsl_eval, mitsuba_scene
+from glint.bench.bench import check_arguments, choose_cameras, errors, flip_module, reference_batches, region_masks
 from glint.bench.report import num, pyplot, save_figure, slug, write_csv, write_json, write_png
+from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
+from glint.services import number, open_scene, run_bake
+from glint.viewer.context import describe, headless_context
+from glint.viewer.renderer import Renderer
+
+# Mitsuba is optional (glint[test]): imported by the functions that need it, so the rest works without.
 
 VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")  # fastest first
 DEFAULT_REFERENCE_SPP = 4096
@@ -151,8 +160,6 @@ def display_srgb(linear: np.ndarray, exposure: float, ctx=None) -> np.ndarray:
     """(H, W, 3) uint8: shaders/colour.glsl's aces_narkowicz and srgb_oetf of radiance x 2^EV, run by
     bench/glsl_eval.py in `ctx` (default: its own), rounded as an rgba8 image store does (what
     Renderer.read_srgb returns)."""
-    from glint.bench import glsl_eval
-
     h, w = linear.shape[:2]
     L = np.nan_to_num(np.asarray(linear, np.float32).reshape(-1, 3), nan=0.0, posinf=0.0, neginf=0.0)
     if ctx is None:
@@ -167,8 +174,6 @@ def display_srgb(linear: np.ndarray, exposure: float, ctx=None) -> np.ndarray:
 
 # -- the command --------------------------------------------------------------------------------
 def check_mitsuba_arguments(args) -> dict:
-    from glint.services import number
-
     ref = number(args.mitsuba_reference_spp, "--mitsuba-reference-spp", whole=True, lo=1, hi=MAX_SPP)
     top = number(args.mitsuba_max_spp, "--mitsuba-max-spp", whole=True, lo=1, hi=MAX_SPP)
     if ref < 2 * top:
@@ -185,11 +190,9 @@ def render_batches(spp: int, pixels: int) -> list[int]:
 
 def render_mitsuba(mi_scene, sensor: int, spp: int, seed: int, pixels: int, progress=None) -> np.ndarray:
     """Mean of `render_batches` renders (seeds seed, seed + 1, ...), a progress step after each."""
-    from glint.bench.mitsuba_scene import render
-
     total = 0.0
     for k, n in enumerate(render_batches(spp, pixels)):
-        total = total + render(mi_scene, sensor=sensor, spp=n, seed=seed + k).astype(np.float64) * n
+        total = total + mitsuba_scene.render(mi_scene, sensor=sensor, spp=n, seed=seed + k).astype(np.float64) * n
         if progress is not None:
             progress.update(1)
     return (total / spp).astype(np.float32)
@@ -222,9 +225,6 @@ def glint_images(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict,
     the wall-clock seconds of its --reference-samples still-camera frames (bench/bench.py
     `reference_batches`), after one untimed frame that compiles and uploads everything (Mitsuba's
     kernels are compiled before its timings too)."""
-    from glint.bench.bench import reference_batches, region_masks
-    from glint.viewer.renderer import Renderer
-
     batch, frames = reference_batches(parsed["reference"])
     renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
                         samples_per_frame=batch, max_frames=frames)
@@ -260,26 +260,11 @@ def glint_images(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict,
 
 
 def cmd_bench_mitsuba(args) -> int:
-    from tqdm import tqdm
-
-    from glint.bench.bench import (
-        check_arguments,
-        choose_cameras,
-        errors,
-        flip_module,
-        reference_batches,
-    )
-    from glint.core.bake_dir import Bake
-    from glint.services import open_scene, run_bake
-    from glint.viewer.context import describe, headless_context
-
     # The sweep's --lobe-samples play no part here (the walkthrough uses the default patterns).
     parsed = check_arguments(argparse.Namespace(**{**vars(args), "lobe_samples": "1"}))
     parsed.update(check_mitsuba_arguments(args))
     setup_variant = choose_variant(args.mitsuba_variant)
-    import mitsuba as mi
-
-    from glint.bench import mitsuba_scene
+    import mitsuba as mi  # present: choose_variant checked
 
     report = run_bake(args, progress=sys.stderr.isatty())
     bake = Bake(report.bake_dir)
