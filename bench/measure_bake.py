@@ -28,7 +28,6 @@ from glint.services import bake_scene
 
 
 def cornell_error(scene, bake_dir: Path, reference_cache: dict) -> dict:
-
     chosen, _ = sample_points(scene, POINTS, MARGIN)
     bake = Bake(bake_dir)
     ours = np.array([bake.irradiance(o, np.array([t]), b[None])[0] for o, t, b, _, _ in chosen])
@@ -41,7 +40,7 @@ def cornell_error(scene, bake_dir: Path, reference_cache: dict) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
     ap.add_argument("--scenes", nargs="+", default=list(BUILTIN))
     ap.add_argument("--jobs", type=int, default=2)

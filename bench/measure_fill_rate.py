@@ -63,7 +63,7 @@ def timed(ctx, fn, frames: int, method: str) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--frames", type=int, default=60)
     args = ap.parse_args()

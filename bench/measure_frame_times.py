@@ -57,7 +57,7 @@ def time_view(renderer, camera, size, frames: int, warmup: int, mode: str) -> di
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="1920x1080,3840x2160")
     ap.add_argument("--supersample", default="1,2")
     ap.add_argument("--frames", type=int, default=60)

@@ -141,7 +141,7 @@ def measure(bake_obj, budgets, size, frames):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="640x360")
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--out", type=Path, default=Path("/tmp/glint-measure-mirror"))
