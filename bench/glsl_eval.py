@@ -113,7 +113,7 @@ def program(include: str, main: str, defines: dict | None = None,
         try:
             _programs[key] = ctx.compute_shader(text)
         except Exception as e:
-            raise shader_source._explain(e, {include: files + ["<glsl_eval main>"]}) from e
+            raise shader_source.explain_compile_error(e, {include: files + ["<glsl_eval main>"]}) from e
     return _programs[key]
 
 

@@ -91,7 +91,7 @@ def _literal(value) -> str:
     return repr(value) if isinstance(value, float) else str(value)  # repr keeps '.', 'e' of floats
 
 
-def _explain(error: Exception, stages: dict[str, list[str]]) -> ShaderError:
+def explain_compile_error(error: Exception, stages: dict[str, list[str]]) -> ShaderError:
     """Rewrite the "k:line" locations of a compiler log into "file:line".
 
     moderngl heads each stage's log with a line naming the stage ("vertex_shader",
@@ -118,7 +118,7 @@ def compute_program(ctx: moderngl.Context, name: str, defines: dict | None = Non
     try:
         return ctx.compute_shader(text)
     except Exception as e:
-        raise _explain(e, {name: files}) from e
+        raise explain_compile_error(e, {name: files}) from e
 
 
 def raster_program(ctx: moderngl.Context, vertex: str, fragment: str,
@@ -128,7 +128,7 @@ def raster_program(ctx: moderngl.Context, vertex: str, fragment: str,
     try:
         return ctx.program(vertex_shader=vs, fragment_shader=fs)
     except Exception as e:
-        raise _explain(e, {vertex: vfiles, fragment: ffiles}) from e
+        raise explain_compile_error(e, {vertex: vfiles, fragment: ffiles}) from e
 
 
 def dispatch(program: moderngl.ComputeShader, width: int, height: int) -> None:
