@@ -39,9 +39,6 @@ time) and adds `accumulate`.
 """
 from __future__ import annotations
 
-import argparse
-import csv
-import json
 import math
 import os
 import re
@@ -51,9 +48,19 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
-from glint.core.constants import MIRROR_PLANE_COS
+from glint.bench.report import json_safe, num, pyplot, save_figure, slug, write_csv, write_json, write_png
+from glint.core.atomic import atomic_write_text
+from glint.core.bake_dir import Bake
+from glint.core.constants import GB_DARK_BACK_FACE, GB_ID_BITS, MIRROR_PLANE_COS
 from glint.core.errors import GlintError
+from glint.services import number, parse_size, run_bake
+from glint.viewer.camera import ViewCamera, find_named, scene_bounds
+from glint.viewer.context import describe, headless_context
+from glint.viewer.renderer import Renderer
+from glint.viewer.skipping import bake_section, frame_section, markdown_table
+from glint.viewer.timing import PassTimer
 
 DEFAULT_SAMPLES = (1, 3, 5, 7, 9, 11, 15, 19)
 DEFAULT_SIZE = "640x360"
@@ -92,8 +99,6 @@ class Method:
         return (1,) if self.ignores_n else tuple(ns)
 
     def renderer(self, ctx, bake, n: int, supersample: int, exposure: float):
-        from glint.viewer.renderer import Renderer
-
         if self.walkthrough is None:  # one still-camera frame of n quasi-random samples per lobe
             return Renderer(ctx, bake, supersample=supersample, exposure=exposure, samples_per_frame=n,
                             max_frames=1)
@@ -130,63 +135,9 @@ METHODS = {m.key: m for m in (
     Method("split-sum", "split-sum prefiltered cube map (game engines, glTF viewers)", "split-sum", ignores_n=True),
 )}
 DEFAULT_METHODS = ("patterns", "patterns-auto", "patterns-thesis", "patterns-eq4.24", "filtered-is", "qmc", "split-sum")
-PLANNED: dict[str, str] = {}  # methods named but not implemented yet: key -> why
 
 
 # -- options ----------------------------------------------------------------------------------------
-def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    from glint.services import SCENE_HELP, add_bake_options
-
-    methods = "; ".join(f"{m.key}: {m.label}" for m in METHODS.values())
-    p = subparsers.add_parser(
-        "bench", parents=[common_parent], help="run time against error of the specular integration methods",
-        description="For each camera, method and sample count: GPU milliseconds per pass and the error "
-                    "against the converged reference (PSNR of the displayed images, relative MSE of the "
-                    "radiance, FLIP when installed), over the whole image, the pixels with view-dependent "
-                    "materials and each such material. Writes bench.csv, bench.json, bench.md and bench.png into "
-                    "the output directory. Bakes first when the bake is missing or stale.",
-        epilog=f"Methods: {methods}. The errors are deterministic; the times are not.")
-    p.add_argument("scene", metavar="SCENE", nargs="?", help=SCENE_HELP + " (not with --stress)")
-    p.add_argument("-o", "--output", type=Path, metavar="DIR",
-                   help="directory for bench.csv, bench.json, bench.md, bench.png (made if missing; default: "
-                        "bench-NAME in the current directory)")
-    p.add_argument("--camera", action="append", metavar="NAME",
-                   help="a camera of the scene; repeat for several (default: all of them)")
-    p.add_argument("--size", default=DEFAULT_SIZE, metavar="WxH", help=f"image size (default {DEFAULT_SIZE})")
-    p.add_argument("--lobe-samples", default=",".join(map(str, DEFAULT_SAMPLES)), metavar="N,N,...",
-                   help=f"samples per lobe and pixel to sweep, n (default {','.join(map(str, DEFAULT_SAMPLES))}; "
-                        "--samples is the bake's paths per texel, as everywhere)")
-    p.add_argument("--methods", default=",".join(DEFAULT_METHODS), metavar="M,M,...",
-                   help=f"methods to sweep (default: {','.join(DEFAULT_METHODS)}; also: "
-                        f"{','.join(k for k in METHODS if k not in DEFAULT_METHODS)})")
-    p.add_argument("--reference-samples", default=str(DEFAULT_REFERENCE_SAMPLES), metavar="N",
-                   help=f"quasi-random samples per lobe and pixel of the converged reference "
-                        f"(default {DEFAULT_REFERENCE_SAMPLES})")
-    p.add_argument("--frames", default=str(DEFAULT_FRAMES), metavar="N",
-                   help=f"timed frames per method and n, at most {MAX_FRAMES}; the medians are reported "
-                        f"(default {DEFAULT_FRAMES})")
-    p.add_argument("--warmup", default=str(DEFAULT_WARMUP), metavar="N",
-                   help=f"untimed frames first (default {DEFAULT_WARMUP})")
-    p.add_argument("--supersample", default="1", metavar="N",
-                   help="N x N samples per pixel, box-filtered (default 1: the error is the lobe "
-                        "integration's alone)")
-    p.add_argument("--exposure", default="0", metavar="EV", help="exposure of the displayed images (default 0)")
-    p.add_argument("--images", action="store_true",
-                   help="also write the reference and every method's image as PNG into DIR/images")
-    p.add_argument("--no-flip", action="store_true", help="skip FLIP even when flip-evaluator is installed")
-    add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
-    from glint.bench.stress import add_stress_options
-    add_stress_options(p)
-    p.add_argument("--mitsuba", action="store_true",
-                   help="instead of the method sweep: the walkthrough and converged images against Mitsuba 3 "
-                        "rendering the same scene, with Mitsuba's error at 1, 2, 4, ... spp and its seconds: "
-                        "mitsuba.csv, mitsuba.json, mitsuba.png (bench/mitsuba.py)")
-    from glint.bench.mitsuba import add_mitsuba_options
-    add_mitsuba_options(p)
-    p.set_defaults(run=cmd_bench)
-    return p
-
-
 def parse_list(text: str, option: str, *, lo: int, hi: int) -> list[int]:
     parts = [s for s in _LIST.split(text or "") if s]
     if not parts:
@@ -208,16 +159,12 @@ def parse_methods(text: str) -> list[str]:
     if not keys:
         raise GlintError(f"bad --methods '{text}': name at least one of {', '.join(METHODS)}")
     for k in keys:
-        if k in PLANNED:
-            raise GlintError(f"--methods {k}: {PLANNED[k]}")
         if k not in METHODS:
             raise GlintError(f"unknown method '{k}' in --methods; choose from {', '.join(METHODS)}")
     return list(dict.fromkeys(keys))
 
 
 def check_arguments(args) -> dict:
-    from glint.services import number, parse_size
-
     samples = parse_list(args.lobe_samples, "--lobe-samples", lo=1, hi=MAX_SAMPLES)
     parsed = {
         "size": parse_size(args.size),
@@ -246,8 +193,6 @@ def check_arguments(args) -> dict:
 
 
 def choose_cameras(manifest: dict, names: list[str] | None, aspect: float) -> list:
-    from glint.viewer.camera import ViewCamera, find_named, scene_bounds
-
     cameras = manifest.get("cameras") or []
     if names:
         chosen = []
@@ -277,8 +222,8 @@ def region_masks(renderer, bake) -> dict[str, np.ndarray]:
     ids = np.frombuffer(targets["material"].read(alignment=1), np.uint32).reshape(h, w)
     depth = np.frombuffer(targets["depth"].read(alignment=1), np.float32).reshape(h, w)
     normal = np.frombuffer(targets["normal"].read(alignment=1), np.float16).reshape(h, w, 4).astype(np.float32)
-    dark = normal[..., 3] > 0.5
-    material, obj = (ids & 0xFFFF).astype(np.int64), (ids >> 16).astype(np.int64)
+    dark = normal[..., 3] > 0.5 * GB_DARK_BACK_FACE  # as shaders/gbuffer_read.glsl
+    material, obj = (ids & ((1 << GB_ID_BITS) - 1)).astype(np.int64), (ids >> GB_ID_BITS).astype(np.int64)
     manifest = bake.manifest
     objects = manifest["objects"]
     lobed = np.array([bool(m.get("lobes")) for m in manifest["materials"]] + [False])
@@ -331,7 +276,7 @@ def rel_mse(test: np.ndarray, ref: np.ndarray, mask: np.ndarray) -> float:
 def flip_module():
     """NVIDIA's `flip_evaluator`, or None where it is not installed."""
     try:
-        import flip_evaluator
+        import flip_evaluator  # optional (glint[flip]): looked for only when a run measures FLIP
     except ImportError:
         return None
     return flip_evaluator
@@ -370,8 +315,6 @@ def reference_batches(total: int) -> tuple[int, int]:
 def render_reference(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict, float]:
     """The converged image of `camera` (--reference-samples QMC samples per lobe and pixel),
     its regions and the seconds it took."""
-    from glint.viewer.renderer import Renderer
-
     batch, frames = reference_batches(parsed["reference"])
     started = time.perf_counter()
     renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
@@ -391,8 +334,6 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
     """(image, timing) of every (method, n) in `runs` for one camera. All the renderers stay alive
     and the timed frames go round-robin over them, so whatever else the machine does at the
     time slows every method alike; then each one's medians and its last frame's image."""
-    from glint.viewer.skipping import frame_section
-
     renderers = []
     try:
         for method, n in runs:
@@ -428,26 +369,8 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
             renderer.release()
 
 
-def cmd_bench(args) -> int:
-    from tqdm import tqdm
-
-    from glint.core.bake_dir import Bake
-    from glint.services import run_bake
-    from glint.viewer.context import headless_context
-    from glint.viewer.skipping import bake_section
-
-    if args.stress:  # the numerical stress suite (bench/stress.py): its own scenes, no SCENE
-        from glint.bench.stress import run_stress
-
-        if args.scene is not None:
-            raise GlintError("--stress runs its own scenes (scenes/stress.py): give no SCENE with it")
-        return run_stress(args)
-    if args.scene is None:
-        raise GlintError("glint bench needs a SCENE (a built-in name or a .glb/.gltf file), or --stress")
-    if args.mitsuba:
-        from glint.bench.mitsuba import cmd_bench_mitsuba
-
-        return cmd_bench_mitsuba(args)
+def run_sweep(args) -> int:
+    """`glint bench SCENE`: the sweep of the module docstring (bench/command.py chooses it)."""
     parsed = check_arguments(args)
     report = run_bake(args, progress=sys.stderr.isatty())
     bake = Bake(report.bake_dir)
@@ -462,9 +385,6 @@ def cmd_bench(args) -> int:
     ctx = headless_context()
     results, references, skipping = [], [], {}
     try:
-        from glint.viewer.context import describe
-        from glint.viewer.timing import PassTimer
-
         device, timing_method = describe(ctx), PassTimer(ctx).description
         load = [round(x, 2) for x in os.getloadavg()]  # other work on the machine skews the times
         with tqdm(total=len(cameras) * steps, desc="bench", unit="step",
@@ -476,7 +396,7 @@ def cmd_bench(args) -> int:
                                    "regions": {k: int(v.sum()) for k, v in regions.items()}})
                 out.mkdir(parents=True, exist_ok=True)
                 if args.images:
-                    _write_png(out / "images" / f"{_slug(camera.name)}_reference.png", ref["srgb"])
+                    write_png(out / "images" / f"{slug(camera.name)}_reference.png", ref["srgb"])
                 runs = [(method, n) for method in methods for n in method.samples(parsed["samples"])]
                 for (method, n), (image, timing) in zip(runs, sweep(ctx, bake, runs, camera, size, parsed, progress)):
                     # the work skipped in the camera's frame (the same tiles and passes for every method)
@@ -490,7 +410,7 @@ def cmd_bench(args) -> int:
                                        if timing["prefilter_ms"] is not None else {}),
                                     "regions": errors(image, ref, regions, flip)})
                     if args.images:
-                        _write_png(out / "images" / f"{_slug(camera.name)}_{method.key}_n{n}.png", image["srgb"])
+                        write_png(out / "images" / f"{slug(camera.name)}_{method.key}_n{n}.png", image["srgb"])
     finally:
         ctx.release()
 
@@ -529,12 +449,12 @@ def csv_rows(setup: dict, results: list) -> list[dict]:
         for region, e in r["regions"].items():
             ms = r["gpu_ms"]
             row = {"scene": setup["scene"], "camera": r["camera"], "method": r["method"], "n": r["n"],
-                   "region": region, "pixels": e["pixels"], "psnr_db": _num(e["psnr_db"]),
-                   "rel_mse": _num(e["rel_mse"]), "flip": _num(e["flip"]), "ms_specular": _num(ms.get("specular")),
-                   "ms_frame": _num(ms.get("frame")), "lookups_per_pixel": _num(r["lookups_per_pixel"])}
+                   "region": region, "pixels": e["pixels"], "psnr_db": num(e["psnr_db"]),
+                   "rel_mse": num(e["rel_mse"]), "flip": num(e["flip"]), "ms_specular": num(ms.get("specular")),
+                   "ms_frame": num(ms.get("frame")), "lookups_per_pixel": num(r["lookups_per_pixel"])}
             for p in PASSES:
                 if p != "specular":
-                    row[f"ms_{p}"] = _num(ms.get(p))
+                    row[f"ms_{p}"] = num(ms.get(p))
             rows.append(row)
     return rows
 
@@ -573,71 +493,22 @@ def markdown(setup: dict, results: list) -> str:
         out.append(table(camera, lambda r: f"{fmt(r['gpu_ms'].get('specular'), '.1f')} / "
                                            f"{fmt(r['gpu_ms'].get('frame'), '.1f')}") + "\n")
     if setup.get("skipping"):
-        from glint.viewer.skipping import markdown_table
-
         out.append("**Skipped work** (per camera: its frame, the same for every method; viewer/skipping.py)\n\n")
         out.append(markdown_table(setup["skipping"]))
     return "".join(out)
 
 
-def _num(x) -> str:
-    if x is None or (isinstance(x, float) and math.isnan(x)):
-        return ""
-    if isinstance(x, float) and math.isinf(x):
-        return "inf"
-    return f"{x:.6g}" if isinstance(x, float) else str(x)
-
-
-def _json_safe(x):
-    if isinstance(x, float):
-        return None if not math.isfinite(x) else round(x, 6) if abs(x) >= 1e-3 else float(f"{x:.6g}")
-    if isinstance(x, dict):
-        return {k: _json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_safe(v) for v in x]
-    return x
-
-
 def write_results(out: Path, setup: dict, results: list) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    _atomic(out / "bench.json", json.dumps(_json_safe({**setup, "results": results}), indent=1) + "\n")
-    tmp = out / f".bench.csv.{os.getpid()}.tmp"
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
-        writer.writeheader()
-        writer.writerows(csv_rows(setup, results))
-    os.replace(tmp, out / "bench.csv")
-    _atomic(out / "bench.md", markdown(_json_safe(setup), _json_safe(results)))
-
-
-def _atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    except OSError as e:
-        raise GlintError(f"cannot write {path}: {e.strerror}") from e
-
-
-def _slug(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "-", name).strip("-") or "camera"
-
-
-def _write_png(path: Path, srgb: np.ndarray) -> None:
-    from glint.core.image_io import write_image
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_image(path, srgb)
+    write_json(out / "bench.json", {**setup, "results": results})
+    write_csv(out / "bench.csv", CSV_COLUMNS, csv_rows(setup, results))
+    atomic_write_text(out / "bench.md", markdown(json_safe(setup), json_safe(results)))
 
 
 def plot(path: Path, setup: dict, results: list, columns: int = 3) -> None:
     """PSNR against the specular pass's ms: a panel per camera and region (the view-dependent
     pixels, then each material), a curve per method, points labelled n."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     panels = []
     for camera in dict.fromkeys(r["camera"] for r in results):
         regions = dict.fromkeys(k for r in results if r["camera"] == camera for k in r["regions"])
@@ -671,8 +542,4 @@ def plot(path: Path, setup: dict, results: list, columns: int = 3) -> None:
                  f"{setup['reference']['samples_per_lobe_and_pixel']} QMC samples per lobe and pixel; "
                  f"points: n samples per lobe\n{setup['device']}", fontsize=9)
     fig.tight_layout(rect=(0, 0.9 / (3.4 * rows + 0.9) * 0.9, 1, 1 - 0.45 / (3.4 * rows + 0.9)))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path, dpi=110)

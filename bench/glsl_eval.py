@@ -42,10 +42,6 @@ def context() -> moderngl.Context:
     return _context
 
 
-def _glsl_type(width: int) -> str:
-    return "float" if width == 1 else f"vec{width}" if width <= 4 else f"float[{width}]"
-
-
 def _columns(a: np.ndarray) -> np.ndarray:
     a = np.asarray(a, dtype=np.float32)
     if a.ndim == 1:
@@ -117,7 +113,7 @@ def program(include: str, main: str, defines: dict | None = None,
         try:
             _programs[key] = ctx.compute_shader(text)
         except Exception as e:
-            raise shader_source._explain(e, {include: files + ["<glsl_eval main>"]}) from e
+            raise shader_source.explain_compile_error(e, {include: files + ["<glsl_eval main>"]}) from e
     return _programs[key]
 
 

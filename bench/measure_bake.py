@@ -21,13 +21,13 @@ import numpy as np
 from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import PRESETS, resolve_settings
 from glint.bench.mitsuba_reference import MARGIN, POINTS, cornell_box_irradiance, sample_points
+from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
 from glint.scenes import BUILTIN, builtin_path
 from glint.services import bake_scene
 
 
 def cornell_error(scene, bake_dir: Path, reference_cache: dict) -> dict:
-
     chosen, _ = sample_points(scene, POINTS, MARGIN)
     bake = Bake(bake_dir)
     ours = np.array([bake.irradiance(o, np.array([t]), b[None])[0] for o, t, b, _, _ in chosen])
@@ -40,7 +40,7 @@ def cornell_error(scene, bake_dir: Path, reference_cache: dict) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
     ap.add_argument("--scenes", nargs="+", default=list(BUILTIN))
     ap.add_argument("--jobs", type=int, default=2)
@@ -79,7 +79,7 @@ def main() -> None:
         print(f"| {r['scene']} | {r['preset']} | {r['samples']} | {r['texels_per_metre']:g} | {r['texels']} "
               f"| {r['wall_seconds']:.1f} ({r['lightmap_seconds']:.1f} + {r['cubemap_seconds']:.1f}) | {r['rays'] / 1e6:.0f} M | {r['rays_per_second'] / 1e6:.2f} | {err} |")
     if args.json:
-        args.json.write_text(json.dumps(rows, indent=1))
+        atomic_write_text(args.json, json.dumps(rows, indent=1))
 
 
 if __name__ == "__main__":

@@ -18,6 +18,9 @@ import argparse
 import time
 from statistics import median
 
+from glint.viewer.context import describe, headless_context
+from glint.viewer.timing import default_method
+
 VS = """#version 430
 void main() { vec2 p = vec2((gl_VertexID << 1) & 2, gl_VertexID & 2); gl_Position = vec4(p * 2.0 - 1.0, 0.5, 1.0); }"""
 FS_ONE = """#version 430
@@ -60,13 +63,10 @@ def timed(ctx, fn, frames: int, method: str) -> float:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="1920x1080")
     ap.add_argument("--frames", type=int, default=60)
     args = ap.parse_args()
-    from glint.viewer.context import describe, headless_context
-    from glint.viewer.timing import default_method
-
     w, h = (int(x) for x in args.size.lower().split("x"))
     ctx = headless_context()
     method = default_method(ctx)

@@ -20,14 +20,18 @@ import json
 import time
 from pathlib import Path
 
+from glint.bake.settings import resolve_settings
+from glint.core.atomic import atomic_write_text
+from glint.core.bake_dir import Bake, default_bake_dir
+from glint.services import bake_scene, open_scene
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import describe, headless_context
+from glint.viewer.renderer import Renderer
+
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
 
 def load_bake(scene: str, bake_root: Path | None):
-    from glint.bake.settings import resolve_settings
-    from glint.core.bake_dir import Bake, default_bake_dir
-    from glint.services import bake_scene, open_scene
-
     loaded, builtin = open_scene(scene)
     out = bake_root / f"{scene}.bake" if bake_root else default_bake_dir(loaded.source, builtin)
     bake_scene(loaded, resolve_settings(loaded.bake_settings), out, progress=False)  # no-op when up to date
@@ -53,7 +57,7 @@ def time_view(renderer, camera, size, frames: int, warmup: int, mode: str) -> di
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="1920x1080,3840x2160")
     ap.add_argument("--supersample", default="1,2")
     ap.add_argument("--frames", type=int, default=60)
@@ -62,10 +66,6 @@ def main() -> None:
     ap.add_argument("--bake-root", type=Path)
     ap.add_argument("--out", type=Path, default=Path("/tmp/glint-frame-times"))
     args = ap.parse_args()
-    from glint.viewer.camera import ViewCamera
-    from glint.viewer.context import describe, headless_context
-    from glint.viewer.renderer import Renderer
-
     sizes = [tuple(int(x) for x in s.lower().split("x")) for s in args.sizes.split(",")]
     factors = [int(s) for s in args.supersample.split(",")]
     ctx = headless_context()
@@ -93,7 +93,7 @@ def main() -> None:
     device = describe(ctx)
     ctx.release()
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "frame_times.json").write_text(json.dumps(
+    atomic_write_text(args.out / "frame_times.json", json.dumps(
         {"device": device, "frames": args.frames, "warmup": args.warmup, "rows": rows}, indent=1) + "\n")
     lines = [f"Device: {device}; medians of {args.frames} frames after {args.warmup} warm-up frames.", "",
              "| scene | camera | size | supersample | mode | GPU ms (sum of passes) | wall ms/frame | passes (ms) |",
@@ -102,7 +102,7 @@ def main() -> None:
         passes = ", ".join(f"{k} {v:.2f}" for k, v in r["passes_ms"].items())
         lines.append(f"| {r['scene']} | {r['camera']} | {r['size']} | {r['supersample']} | {r['mode']} | "
                      f"{r['gpu_total_ms']:.2f} | {r['wall_ms_per_frame']:.2f} | {passes} |")
-    (args.out / "frame_times.md").write_text("\n".join(lines) + "\n")
+    atomic_write_text(args.out / "frame_times.md", "\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":

@@ -46,6 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from glint.core import bsdf
+from glint.core.atomic import atomic_path
 from glint.viewer import lobe_patterns as P
 
 NS = (1, 3, 5, 7, 9, 11, 15, 19)       # measured
@@ -303,8 +304,10 @@ def main(argv=None) -> int:
             est, ref = measure_samples(pattern, ms, seed, envs, args.r0, args.weights, log)
             print(samples_table(pattern, ms, est, ref), flush=True)
             saved.update({f"{pattern}_est": est, f"{pattern}_ref": ref, f"{pattern}_ms": np.array(ms)})
-        if args.save:
-            np.savez(args.save, ns=np.array(NS), **saved)
+        if args.save:  # np.savez's own naming: ".npz" appended when missing
+            path = args.save if args.save.suffix == ".npz" else args.save.with_name(args.save.name + ".npz")
+            with atomic_path(path) as tmp, open(tmp, "wb") as f:
+                np.savez(f, ns=np.array(NS), **saved)
         print()
     if args.what in ("all", "threshold"):
         seed, envs = (21 if args.seed is None else args.seed), (30 if args.envs is None else args.envs)

@@ -24,6 +24,17 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.bake.gltf_loader import load_scene
+from glint.bake.settings import resolve_settings
+from glint.core.atomic import atomic_write_text
+from glint.core.bake_dir import Bake
+from glint.scenes import resolve
+from glint.scenes.gltf_writer import GltfWriter
+from glint.services import bake_scene
+from glint.viewer.camera import ViewCamera
+from glint.viewer.context import headless_context
+from glint.viewer.renderer import Renderer
+
 
 def quad(center, u, v):
     c, u, v = map(np.asarray, (center, u, v))
@@ -45,8 +56,6 @@ def box(w, name, lo, hi, material):
 
 
 def write_mirror4(path: Path) -> Path:
-    from glint.scenes.gltf_writer import GltfWriter
-
     w = GltfWriter()
 
     def lobe(m, r0=0.04):
@@ -83,9 +92,9 @@ def write_mirror4(path: Path) -> Path:
     w.add_node("Camera", camera=w.add_camera("Camera", math.radians(60)), translation=(1.8, 1.6, 2.5),
                rotation=_look_rotation((1.8, 1.6, 2.5), (-0.6, 0.8, -1.5)))
     w.write(path)
-    path.with_name(path.stem + ".glint.toml").write_text(
-        '[objects."Table top"]\nrole = "planar"\n[objects."Mirror"]\nrole = "planar"\n'
-        '[objects."Panel"]\nrole = "planar"\n')
+    atomic_write_text(path.with_name(path.stem + ".glint.toml"),
+                      '[objects."Table top"]\nrole = "planar"\n[objects."Mirror"]\nrole = "planar"\n'
+                      '[objects."Panel"]\nrole = "planar"\n')
     return path
 
 
@@ -105,21 +114,12 @@ def _look_rotation(eye, target):
 
 
 def bake(scene_file: Path, out: Path):
-    from glint.bake.gltf_loader import load_scene
-    from glint.bake.settings import resolve_settings
-    from glint.core.bake_dir import Bake
-    from glint.services import bake_scene
-
     scene = load_scene(scene_file)
     bake_scene(scene, resolve_settings(scene.bake_settings, quality="preview"), out, progress=False)
     return Bake(out)
 
 
 def measure(bake_obj, budgets, size, frames):
-    from glint.viewer.camera import ViewCamera
-    from glint.viewer.context import headless_context
-    from glint.viewer.renderer import Renderer
-
     ctx = headless_context()
     camera = ViewCamera.from_manifest(bake_obj.manifest["cameras"][0])
     rows = []
@@ -141,7 +141,7 @@ def measure(bake_obj, budgets, size, frames):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--size", default="640x360")
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--out", type=Path, default=Path("/tmp/glint-measure-mirror"))
@@ -149,8 +149,6 @@ def main() -> None:
     size = tuple(int(x) for x in args.size.lower().split("x"))
     args.out.mkdir(parents=True, exist_ok=True)
     scenes = [("mirror-4", bake(write_mirror4(args.out / "mirror-4.glb"), args.out / "mirror-4.bake"), (0, 1, 2, 4))]
-    from glint.scenes import resolve
-
     living = bake(Path(resolve("living-room")), args.out / "living-room.bake")
     scenes.append(("living-room", living, (0, 1, 4)))
     print(f"{size[0]}x{size[1]}, supersample 1, median of {args.frames} frames")

@@ -14,6 +14,7 @@ radiance 1. Printed: the mean absolute difference of the two responses (%) per m
 """
 from __future__ import annotations
 
+import argparse
 import sys
 
 import numpy as np
@@ -85,6 +86,7 @@ def score(xi: np.ndarray) -> np.ndarray:
 
 
 def main() -> None:
+    argparse.ArgumentParser(description=__doc__.split("\n\n")[0]).parse_args()  # no options; --help
     print("mean |estimate - exact| of the edge response (%), per m =", ROUGHNESS)
     for n in (5, 7, 10, 13, 16):
         print(f"n = {n}")

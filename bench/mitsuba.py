@@ -37,9 +37,7 @@ variant and the library.
 from __future__ import annotations
 
 import argparse
-import csv
 import glob
-import json
 import math
 import os
 import re
@@ -50,8 +48,18 @@ import time
 from pathlib import Path
 
 import numpy as np
+from tqdm import tqdm
 
+from glint.bench import glsl_eval, mitsuba_scene
+from glint.bench.bench import check_arguments, choose_cameras, errors, flip_module, reference_batches, region_masks
+from glint.bench.report import num, pyplot, save_figure, slug, write_csv, write_json, write_png
+from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
+from glint.services import number, open_scene, run_bake
+from glint.viewer.context import describe, headless_context
+from glint.viewer.renderer import Renderer
+
+# Mitsuba is optional (glint[test]): imported by the functions that need it, so the rest works without.
 
 VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")  # fastest first
 DEFAULT_REFERENCE_SPP = 4096
@@ -69,7 +77,7 @@ _PROBE = ("import sys, mitsuba as mi; mi.set_variant(sys.argv[1]); "
 
 
 def add_mitsuba_options(p) -> None:
-    """The options of --mitsuba (the flag itself is bench/bench.py's)."""
+    """The options of --mitsuba (the flag itself is bench/command.py's)."""
     g = p.add_argument_group("--mitsuba: against Mitsuba 3")
     g.add_argument("--mitsuba-reference-spp", default=str(DEFAULT_REFERENCE_SPP), metavar="N",
                    help=f"samples per pixel of Mitsuba's reference (default {DEFAULT_REFERENCE_SPP})")
@@ -152,8 +160,6 @@ def display_srgb(linear: np.ndarray, exposure: float, ctx=None) -> np.ndarray:
     """(H, W, 3) uint8: shaders/colour.glsl's aces_narkowicz and srgb_oetf of radiance x 2^EV, run by
     bench/glsl_eval.py in `ctx` (default: its own), rounded as an rgba8 image store does (what
     Renderer.read_srgb returns)."""
-    from glint.bench import glsl_eval
-
     h, w = linear.shape[:2]
     L = np.nan_to_num(np.asarray(linear, np.float32).reshape(-1, 3), nan=0.0, posinf=0.0, neginf=0.0)
     if ctx is None:
@@ -168,8 +174,6 @@ def display_srgb(linear: np.ndarray, exposure: float, ctx=None) -> np.ndarray:
 
 # -- the command --------------------------------------------------------------------------------
 def check_mitsuba_arguments(args) -> dict:
-    from glint.services import number
-
     ref = number(args.mitsuba_reference_spp, "--mitsuba-reference-spp", whole=True, lo=1, hi=MAX_SPP)
     top = number(args.mitsuba_max_spp, "--mitsuba-max-spp", whole=True, lo=1, hi=MAX_SPP)
     if ref < 2 * top:
@@ -186,11 +190,9 @@ def render_batches(spp: int, pixels: int) -> list[int]:
 
 def render_mitsuba(mi_scene, sensor: int, spp: int, seed: int, pixels: int, progress=None) -> np.ndarray:
     """Mean of `render_batches` renders (seeds seed, seed + 1, ...), a progress step after each."""
-    from glint.bench.mitsuba_scene import render
-
     total = 0.0
     for k, n in enumerate(render_batches(spp, pixels)):
-        total = total + render(mi_scene, sensor=sensor, spp=n, seed=seed + k).astype(np.float64) * n
+        total = total + mitsuba_scene.render(mi_scene, sensor=sensor, spp=n, seed=seed + k).astype(np.float64) * n
         if progress is not None:
             progress.update(1)
     return (total / spp).astype(np.float32)
@@ -223,9 +225,6 @@ def glint_images(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict,
     the wall-clock seconds of its --reference-samples still-camera frames (bench/bench.py
     `reference_batches`), after one untimed frame that compiles and uploads everything (Mitsuba's
     kernels are compiled before its timings too)."""
-    from glint.bench.bench import reference_batches, region_masks
-    from glint.viewer.renderer import Renderer
-
     batch, frames = reference_batches(parsed["reference"])
     renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
                         samples_per_frame=batch, max_frames=frames)
@@ -261,28 +260,11 @@ def glint_images(ctx, bake, camera, size, parsed, progress) -> tuple[dict, dict,
 
 
 def cmd_bench_mitsuba(args) -> int:
-    from tqdm import tqdm
-
-    from glint.bench.bench import (
-        _slug,
-        _write_png,
-        check_arguments,
-        choose_cameras,
-        errors,
-        flip_module,
-        reference_batches,
-    )
-    from glint.core.bake_dir import Bake
-    from glint.services import open_scene, run_bake
-    from glint.viewer.context import describe, headless_context
-
     # The sweep's --lobe-samples play no part here (the walkthrough uses the default patterns).
     parsed = check_arguments(argparse.Namespace(**{**vars(args), "lobe_samples": "1"}))
     parsed.update(check_mitsuba_arguments(args))
     setup_variant = choose_variant(args.mitsuba_variant)
-    import mitsuba as mi
-
-    from glint.bench import mitsuba_scene
+    import mitsuba as mi  # present: choose_variant checked
 
     report = run_bake(args, progress=sys.stderr.isatty())
     bake = Bake(report.bake_dir)
@@ -325,10 +307,10 @@ def cmd_bench_mitsuba(args) -> int:
                                     "regions": errors(image, ref, regions, flip)})
                     if args.images:  # --images: the displayed images, as `glint bench --images` writes
                         name = f"{method}_{extra['spp']}spp" if "spp" in extra else method
-                        _write_png(out / "images" / f"{_slug(camera.name)}_{name}.png", image["srgb"])
+                        write_png(out / "images" / f"{slug(camera.name)}_{name}.png", image["srgb"])
 
                 if args.images:
-                    _write_png(out / "images" / f"{_slug(camera.name)}_mitsuba_reference.png", ref["srgb"])
+                    write_png(out / "images" / f"{slug(camera.name)}_mitsuba_reference.png", ref["srgb"])
 
                 row("glint-walkthrough", walk, walk_time["seconds"], frame_ms=walk_time["ms"])
                 row("glint-converged", conv, conv_info["seconds"], samples_per_lobe=parsed["reference"])
@@ -374,33 +356,22 @@ CSV_COLUMNS = ("scene", "camera", "method", "spp", "seconds", "region", "pixels"
 
 
 def write_results(out: Path, setup: dict, results: list) -> None:
-    from glint.bench.bench import _atomic, _json_safe, _num
-
     out.mkdir(parents=True, exist_ok=True)
-    _atomic(out / "mitsuba.json", json.dumps(_json_safe({**setup, "results": results}), indent=1) + "\n")
+    write_json(out / "mitsuba.json", {**setup, "results": results})
     rows = []
     for r in results:
         for region, e in r["regions"].items():
             rows.append({"scene": setup["scene"], "camera": r["camera"], "method": r["method"],
-                         "spp": r.get("spp", ""), "seconds": _num(r["seconds"]), "region": region,
-                         "pixels": e["pixels"], "rel_mse": _num(e["rel_mse"]), "psnr_db": _num(e["psnr_db"]),
-                         "flip": _num(e["flip"])})
-    tmp = out / f".mitsuba.csv.{os.getpid()}.tmp"
-    with open(tmp, "w", newline="") as f:
-        writer = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
-        writer.writeheader()
-        writer.writerows(rows)
-    os.replace(tmp, out / "mitsuba.csv")
+                         "spp": r.get("spp", ""), "seconds": num(r["seconds"]), "region": region,
+                         "pixels": e["pixels"], "rel_mse": num(e["rel_mse"]), "psnr_db": num(e["psnr_db"]),
+                         "flip": num(e["flip"])})
+    write_csv(out / "mitsuba.csv", CSV_COLUMNS, rows)
 
 
 def plot(path: Path, setup: dict, results: list) -> None:
     """rel MSE against seconds, log-log, a panel per camera and region (image, view-dependent):
     Mitsuba's curve (points labelled spp) and the viewer's walkthrough and converged points."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     panels = [(c, region) for c in dict.fromkeys(r["camera"] for r in results)
               for region in ("image", "view-dependent")
               if any(r["camera"] == c and r["regions"].get(region, {}).get("pixels") for r in results)]
@@ -437,8 +408,4 @@ def plot(path: Path, setup: dict, results: list) -> None:
     fig.suptitle(f"{setup['scene']}, {w}x{h}: error against Mitsuba ({setup['mitsuba']['reference_spp']} spp) "
                  f"and time\n" + textwrap.shorten(f"glint: {setup['device']}", 60 * max(len(panels), 1)), fontsize=9)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=110)
-    plt.close(fig)
-    os.replace(tmp, path)
+    save_figure(fig, path, dpi=110)

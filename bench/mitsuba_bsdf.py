@@ -38,6 +38,8 @@ import math
 from glint.bake.lights import LUMA as _LUMA
 from glint.core import bsdf as ref
 
+# Mitsuba and drjit are optional (glint[test]): imported by the functions that need them, so the rest works without.
+
 LUMA = [float(x) for x in _LUMA]  # Python floats: numpy scalars would leak into drjit's scalar variant
 
 PLUGIN = "glint"

@@ -39,6 +39,9 @@ import numpy as np
 
 from glint.bench import mitsuba_bsdf
 from glint.core.scene import Scene
+from glint.viewer.gpu_scene import axis_tangents, tangents
+
+# Mitsuba and drjit are optional (glint[test]): imported by the functions that need them, so the rest works without.
 
 SPOT_PLUGIN = "glint_spot"
 _spot_registered: set[str] = set()
@@ -80,8 +83,6 @@ def bsdf_dict(material) -> dict:
 def mesh(obj, bsdf, emitter=None):
     """One object as an `mi.Mesh` with its BSDF (and area emitter), world space."""
     import mitsuba as mi
-
-    from glint.viewer.gpu_scene import axis_tangents, tangents
 
     positions = np.asarray(obj.positions, np.float64).reshape(-1, 3)
     normals = np.asarray(obj.normals, np.float32).reshape(-1, 3)

@@ -35,15 +35,29 @@ what failed when a count is not zero or a bound does not hold.
 """
 from __future__ import annotations
 
-import json
+import ctypes
 import os
 import sys
 import time
 from pathlib import Path
 
+import moderngl
 import numpy as np
+import OpenImageIO as oiio
+from tqdm import tqdm
 
+from glint.bake.gltf_loader import load_scene
+from glint.bake.settings import resolve_settings
+from glint.bench.report import write_json
+from glint.core.atomic import atomic_write_text
+from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
+from glint.scenes import stress as stress_scenes
+from glint.services import bake_scene
+from glint.viewer.camera import ViewCamera, camera_path_at, clip_range, find_named, path_span
+from glint.viewer.context import describe, headless_context
+from glint.viewer.cubemaps import CubeClass, gl_functions
+from glint.viewer.renderer import Renderer
 
 STRESS_SIZE = (96, 54)
 WALKTHROUGH_SIZE = (48, 27)
@@ -73,8 +87,6 @@ def nonfinite(a: np.ndarray) -> tuple[int, int]:
 def bake_nonfinite(bake_dir: Path, manifest: dict) -> dict:
     """NaN and Inf in the bake's light maps and cube maps, read back from their files, and their
     stored precision (half float only where every value fits, bake/lightmap.py)."""
-    import OpenImageIO as oiio
-
     out = {"nan": 0, "inf": 0, "files": 0, "float32_files": [], "max_value": 0.0}
     files = list(manifest.get("lightmaps", [])) + [o["cubemap"]["file"] for o in manifest["objects"] if o.get("cubemap")]
     for name in files:
@@ -106,10 +118,6 @@ def allocated_bytes(root) -> int:
     """Bytes of the GL textures and buffers reachable from `root` (a Renderer): moderngl objects
     found by walking its attributes, plus the cube-map arrays viewer/cubemaps.py makes through
     ctypes (their size from their class: faces, layers, MIP levels, texel format)."""
-    import moderngl
-
-    from glint.viewer.cubemaps import CubeClass
-
     seen, total, stack = set(), 0, [root]
     texel = {"f1": 1, "f2": 2, "f4": 4, "u1": 1, "u2": 2, "u4": 4, "i1": 1, "i2": 2, "i4": 4}
     while stack:
@@ -140,10 +148,6 @@ def gpu_memory(ctx, renderer=None) -> dict:
     (the whole GPU's use, all processes), and glint's own allocation where a renderer is given."""
     out = {}
     if "GL_NVX_gpu_memory_info" in ctx.extensions:
-        import ctypes
-
-        from glint.viewer.cubemaps import gl_functions
-
         get = gl_functions(ctx)("glGetIntegerv", None, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))
         total, free = ctypes.c_int(0), ctypes.c_int(0)
         get(GL_GPU_MEMORY_INFO_TOTAL_AVAILABLE_MEMORY_NVX, ctypes.byref(total))
@@ -165,10 +169,6 @@ def energy_bound(case) -> float:
 
 # -- one case ---------------------------------------------------------------------------------------
 def bake_case(case, out: Path, jobs: int | None, denoise: bool | None = None):
-    from glint.bake.gltf_loader import load_scene
-    from glint.bake.settings import resolve_settings
-    from glint.services import bake_scene
-
     scene = load_scene(case.path)
     settings = resolve_settings(scene.bake_settings, quality="draft", jobs=jobs, denoise=denoise)
     started = time.perf_counter()
@@ -179,9 +179,6 @@ def bake_case(case, out: Path, jobs: int | None, denoise: bool | None = None):
 def render_case(ctx, bake, size=STRESS_SIZE) -> dict:
     """Walkthrough and still-camera images of every camera: {camera: {"walk", "still"}} and the
     renderer's statistics."""
-    from glint.viewer.camera import ViewCamera
-    from glint.viewer.renderer import Renderer
-
     images = {}
     with Renderer(ctx, bake, samples_per_frame=8, max_frames=STILL_FRAMES) as r:
         for entry in bake.manifest.get("cameras") or []:
@@ -232,9 +229,6 @@ def check_case(case, rendered: dict, bake_counts: dict, reference: dict | None) 
 def walkthrough(ctx, bake, path_name: str, frames: int, size=WALKTHROUGH_SIZE, progress=None) -> dict:
     """`frames` walkthrough frames cycling along the camera path `path_name`; memory at frame
     WARMUP_FRAMES and at the end, and frame 0's view rendered again at the end."""
-    from glint.viewer.camera import camera_path_at, clip_range, find_named, path_span
-    from glint.viewer.renderer import Renderer
-
     path = find_named(bake.manifest.get("camera_paths") or [], path_name, "camera path")
     t0, t1 = path_span(path)
     near, far = clip_range(bake.manifest)
@@ -275,8 +269,6 @@ def walkthrough(ctx, bake, path_name: str, frames: int, size=WALKTHROUGH_SIZE, p
 def accumulation_drift(ctx, bake, camera, frames: int = DRIFT_FRAMES, size=WALKTHROUGH_SIZE) -> float:
     """Largest relative difference between the still camera's mean of `frames` one-sample frames
     and that of frames / 64 frames of 64 samples: the same samples, so equal up to rounding."""
-    from glint.viewer.renderer import Renderer
-
     images = []
     for per_frame in (1, 64):
         with Renderer(ctx, bake, samples_per_frame=per_frame, max_frames=frames // per_frame) as r:
@@ -289,9 +281,7 @@ def accumulation_drift(ctx, bake, camera, frames: int = DRIFT_FRAMES, size=WALKT
 
 # -- the command ------------------------------------------------------------------------------------
 def add_stress_options(p) -> None:
-    """`glint bench --stress` and its options (bench/bench.py's parser)."""
-    from glint.scenes.stress import CASES
-
+    """`glint bench --stress` and its options (bench/command.py's parser)."""
     g = p.add_argument_group("stress suite (--stress: no SCENE; the scenes of scenes/stress.py)")
     g.add_argument("--stress", action="store_true",
                    help="run the numerical stress suite instead: BSDF extremes, grazing and back-facing views, "
@@ -303,34 +293,25 @@ def add_stress_options(p) -> None:
                    help="reduced (default: minutes on a 2-core machine; 50 objects / 200k triangles) or full "
                         "(the issue's sizes: 500 objects / 2 M triangles, 10,000 walkthrough frames)")
     g.add_argument("--stress-cases", metavar="C,C,...",
-                   help=f"run only these cases (default: all of {', '.join(CASES)})")
+                   help=f"run only these cases (default: all of {', '.join(stress_scenes.CASES)})")
     g.add_argument("--walkthrough-frames", type=int, metavar="N",
                    help=f"frames of the walkthrough (default {WALKTHROUGH_FRAMES['reduced']} reduced, "
                         f"{WALKTHROUGH_FRAMES['full']} full) at {WALKTHROUGH_SIZE[0]}x{WALKTHROUGH_SIZE[1]}")
 
 
 def parse_cases(text: str | None) -> list[str]:
-    from glint.scenes.stress import CASES
-
     if not text:
-        return list(CASES)
+        return list(stress_scenes.CASES)
     names = [s.strip() for s in text.split(",") if s.strip()]
-    unknown = [n for n in names if n not in CASES]
+    unknown = [n for n in names if n not in stress_scenes.CASES]
     if unknown or not names:
-        raise GlintError(f"bad --stress-cases '{text}': choose from {', '.join(CASES)}")
+        raise GlintError(f"bad --stress-cases '{text}': choose from {', '.join(stress_scenes.CASES)}")
     if any(n in ("scale-1mm", "scale-10km") for n in names) and "scale-1m" not in names:
         names.append("scale-1m")  # their reference
     return list(dict.fromkeys(names))
 
 
 def run_stress(args) -> int:
-    from tqdm import tqdm
-
-    from glint.core.bake_dir import Bake
-    from glint.scenes import stress
-    from glint.viewer.camera import ViewCamera
-    from glint.viewer.context import describe, headless_context
-
     size = args.stress_size
     names = parse_cases(args.stress_cases)
     frames = args.walkthrough_frames if args.walkthrough_frames is not None else WALKTHROUGH_FRAMES[size]
@@ -342,7 +323,7 @@ def run_stress(args) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise GlintError(f"cannot write into {out}: {e.strerror}") from e
-    cases = stress.build(out / "scenes", size, names)
+    cases = stress_scenes.build(out / "scenes", size, names)
     rows, rendered, walk, failures = [], {}, None, []
     ctx = headless_context()
     try:
@@ -444,8 +425,5 @@ def markdown(setup: dict, rows: list, walk: dict | None, failures: list) -> str:
 
 
 def write_report(out: Path, setup: dict, rows: list, walk: dict | None, failures: list) -> None:
-    from glint.bench.bench import _atomic, _json_safe
-
-    _atomic(out / "stress.json", json.dumps(_json_safe({**setup, "cases_run": rows, "walkthrough": walk,
-                                                         "failures": failures}), indent=1) + "\n")
-    _atomic(out / "stress.md", markdown(setup, rows, walk, failures))
+    write_json(out / "stress.json", {**setup, "cases_run": rows, "walkthrough": walk, "failures": failures})
+    atomic_write_text(out / "stress.md", markdown(setup, rows, walk, failures))

@@ -12,3 +12,9 @@ LOBE_TAN_MAX = 100.0  # Eq. 4.15 caps tan(alpha) here (alpha ~ 89.4 deg): wider 
 # A planar object's pixel reads its plane's mirror buffer where its normal is within 10 degrees of the
 # plane's (shaders/specular.glsl mirror_slot_at; bench/bench.py's region masks use the same test).
 MIRROR_PLANE_COS = 0.985
+# The G-buffer (shaders/gbuffer_layout.glsl; bench/bench.py's region masks read it back): the normal
+# target's w is GB_DARK_BACK_FACE on the back of a single-sided material (it sends the viewer no
+# light), else 0; the integer target holds the material index in its low GB_ID_BITS bits and the
+# object index above them.
+GB_DARK_BACK_FACE = 1.0
+GB_ID_BITS = 16

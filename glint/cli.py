@@ -10,7 +10,7 @@ import sys
 import traceback
 
 from glint import __version__
-from glint.bench.bench import add_bench_parser
+from glint.bench.command import add_bench_parser
 from glint.capture import add_capture_parser
 from glint.core.errors import GlintError
 from glint.core.skipped import summary_line

@@ -7,18 +7,19 @@
 //   GB_MATERIAL  r32ui    bits 0-15: material index, bits 16-31: object index (the object picks its
 //                         cube map; gb_pack_ids / gb_material_id / gb_object_id)
 //   depth        24 bit   window depth; 1.0 (the clear value) = nothing drawn = sky
+// GB_DARK_BACK_FACE and GB_ID_BITS (16) are defines from core/constants.py.
 
-const float GB_DARK_BACK_FACE = 1.0;
+const uint GB_ID_MASK = (1u << GB_ID_BITS) - 1u;
 
 // Material and object index share the one integer target: at most 65536 of each.
 uint gb_pack_ids(int material, int object) {
-    return (uint(object) << 16) | (uint(material) & 0xFFFFu);
+    return (uint(object) << GB_ID_BITS) | (uint(material) & GB_ID_MASK);
 }
 
 int gb_material_id(uint ids) {
-    return int(ids & 0xFFFFu);
+    return int(ids & GB_ID_MASK);
 }
 
 int gb_object_id(uint ids) {
-    return int(ids >> 16);
+    return int(ids >> GB_ID_BITS);
 }

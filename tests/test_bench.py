@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from glint.bench import bench
+from glint.bench import bench, report
 from glint.cli import main
 
 BAKE = ["-q", "draft", "--samples", "8", "--texels-per-metre", "4", "--no-denoise"]
@@ -140,7 +140,7 @@ def test_error_functions():
     assert e["all"]["psnr_db"] > e["m"]["psnr_db"]  # the same error spread over more pixels
     r = ref["linear"][mask].astype(float)
     assert e["m"]["rel_mse"] == pytest.approx(np.mean(0.01 / (r * r + bench.REL_MSE_EPSILON)), rel=1e-5)
-    assert bench._num(math.inf) == "inf" and bench._json_safe({"x": [math.inf, math.nan]}) == {"x": [None, None]}
+    assert report.num(math.inf) == "inf" and report.json_safe({"x": [math.inf, math.nan]}) == {"x": [None, None]}
 
 
 def error_of(capsys, code):

@@ -47,7 +47,8 @@ def read(name: str) -> str:
 def glsl_constants() -> dict:
     """The constants every shader gets as defines: core/constants.py and the BSDF's numerical guards."""
     return {"HALF_MAX": constants.HALF_MAX, "XI1_BORDER": constants.XI1_BORDER, "LOBE_TAN_MAX": constants.LOBE_TAN_MAX,
-            "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "M_MIN": bsdf.M_MIN, "HZ_MIN": bsdf.HZ_MIN,
+            "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "GB_DARK_BACK_FACE": constants.GB_DARK_BACK_FACE,
+            "GB_ID_BITS": constants.GB_ID_BITS, "M_MIN": bsdf.M_MIN, "HZ_MIN": bsdf.HZ_MIN,
             "DOT_MIN": bsdf.DOT_MIN, "COS_MIN": bsdf.COS_MIN, "HALF_MIN": bsdf.HALF_MIN, "XI_MIN": bsdf.XI_MIN}
 
 
@@ -90,7 +91,7 @@ def _literal(value) -> str:
     return repr(value) if isinstance(value, float) else str(value)  # repr keeps '.', 'e' of floats
 
 
-def _explain(error: Exception, stages: dict[str, list[str]]) -> ShaderError:
+def explain_compile_error(error: Exception, stages: dict[str, list[str]]) -> ShaderError:
     """Rewrite the "k:line" locations of a compiler log into "file:line".
 
     moderngl heads each stage's log with a line naming the stage ("vertex_shader",
@@ -117,7 +118,7 @@ def compute_program(ctx: moderngl.Context, name: str, defines: dict | None = Non
     try:
         return ctx.compute_shader(text)
     except Exception as e:
-        raise _explain(e, {name: files}) from e
+        raise explain_compile_error(e, {name: files}) from e
 
 
 def raster_program(ctx: moderngl.Context, vertex: str, fragment: str,
@@ -127,7 +128,7 @@ def raster_program(ctx: moderngl.Context, vertex: str, fragment: str,
     try:
         return ctx.program(vertex_shader=vs, fragment_shader=fs)
     except Exception as e:
-        raise _explain(e, {vertex: vfiles, fragment: ffiles}) from e
+        raise explain_compile_error(e, {vertex: vfiles, fragment: ffiles}) from e
 
 
 def dispatch(program: moderngl.ComputeShader, width: int, height: int) -> None:
