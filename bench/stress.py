@@ -291,7 +291,7 @@ def add_stress_options(p) -> None:
                         "bench-stress); exit status 1 when a check fails")
     g.add_argument("--stress-size", choices=("reduced", "full"), default="reduced",
                    help="reduced (default: minutes on a 2-core machine; 50 objects / 200k triangles) or full "
-                        "(the issue's sizes: 500 objects / 2 M triangles, 10,000 walkthrough frames)")
+                        "(500 objects / 2 M triangles, 10,000 walkthrough frames)")
     g.add_argument("--stress-cases", metavar="C,C,...",
                    help=f"run only these cases (default: all of {', '.join(stress_scenes.CASES)})")
     g.add_argument("--walkthrough-frames", type=int, metavar="N",

@@ -122,3 +122,11 @@ def test_the_bake_never_reaches_the_viewer(graph):
     for module in (m for m in graph if layer(m) == "bake"):
         reached = nx.descendants(graph, module)
         assert not {m for m in reached if layer(m) in ("viewer", "services", "commands", "bench")}, module
+
+
+def test_the_layers_are_documented():
+    """docs/ARCHITECTURE.md describes every folder this test knows (a new folder needs a rule here
+    and a line there)."""
+    text = (ROOT / "docs" / "ARCHITECTURE.md").read_text()
+    for folder in FOLDERS:
+        assert f"`{folder}/`" in text, f"docs/ARCHITECTURE.md does not describe {folder}/"
