@@ -29,16 +29,11 @@ from glint.bake.settings import resolve_settings
 from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
 from glint.scenes import resolve
-from glint.scenes.gltf_writer import GltfWriter
+from glint.scenes.gltf_writer import GltfWriter, quad, room_faces
 from glint.services import bake_scene
 from glint.viewer.camera import ViewCamera
 from glint.viewer.context import headless_context
 from glint.viewer.renderer import Renderer
-
-
-def quad(center, u, v):
-    c, u, v = map(np.asarray, (center, u, v))
-    return np.array([c - u - v, c + u - v, c + u + v, c - u + v], float), np.array([[0, 1, 2], [0, 2, 3]])
 
 
 def box(w, name, lo, hi, material):
@@ -71,21 +66,13 @@ def write_mirror4(path: Path) -> Path:
     lamp = w.add_material("Lamp", base_color=(0.8, 0.8, 0.8), emissive=(1, 1, 1), emissive_strength=15.0)
     red = w.add_material("Red", base_color=(0.7, 0.1, 0.1), roughness=1.0)
     faces = {  # name: (centre, u, v, material); front faces inwards
-        "Floor": ((0, 0, 0), (3, 0, 0), (0, 0, -3), mats["Floor"]),
-        "Ceiling": ((0, 3, 0), (3, 0, 0), (0, 0, 3), wall),
-        "Back wall": ((0, 1.5, -3), (3, 0, 0), (0, 1.5, 0), wall),
-        "Front wall": ((0, 1.5, 3), (-3, 0, 0), (0, 1.5, 0), wall),
-        "Left wall": ((-3, 1.5, 0), (0, 0, -3), (0, 1.5, 0), wall),
-        "Right wall": ((3, 1.5, 0), (0, 0, 3), (0, 1.5, 0), wall),
+        **room_faces(3.0, 3.0, wall, mats["Floor"]),
         "Lamp": ((0, 2.99, 0), (0.5, 0, 0), (0, 0, 0.5), lamp),
         "Mirror": ((0.5, 1.4, -2.99), (0.9, 0, 0), (0, 0.7, 0), mats["Mirror"]),
         "Panel": ((-2.99, 1.3, -0.5), (0, 0, -1.0), (0, 0.8, 0), mats["Panel"]),
         "Table top": ((0.4, 0.75, -1.0), (0.6, 0, 0), (0, 0, -0.4), mats["Table top"]),
     }
-    for name, (c, u, v, m) in faces.items():
-        p, i = quad(c, u, v)
-        n = np.cross(u, v)
-        w.add_node(name, mesh=w.add_mesh(name, p, i, m, normals=np.tile(n / np.linalg.norm(n), (4, 1))))
+    w.add_quads(faces, normals=True)
     box(w, "Cabinet", (1.6, 0, -2.6), (2.6, 1.2, -2.0), red)
     box(w, "Table base", (0.2, 0, -1.2), (0.6, 0.74, -0.8), wall)
     box(w, "Crate", (-1.8, 0, -1.8), (-1.0, 0.6, -1.0), red)

@@ -80,6 +80,22 @@ def _floats(values) -> list[float]:
     return [float(v) for v in np.asarray(values, dtype=np.float64).ravel()]
 
 
+def quad(center, u, v) -> tuple[np.ndarray, np.ndarray]:
+    """(positions (4, 3), indices (2, 3)): two CCW triangles spanning center +- u +- v, front face
+    along cross(u, v)."""
+    c, u, v = map(np.asarray, (center, u, v))
+    return np.array([c - u - v, c + u - v, c + u + v, c - u + v], float), np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def room_faces(half: float, height: float, wall: int, floor: int) -> dict:
+    """The six faces of a closed room 2 half wide and deep and `height` high, standing on y = 0,
+    front faces inwards, for `GltfWriter.add_quads`: Floor, Ceiling, Back (-z), Front, Left (-x), Right."""
+    s, h = float(half), float(height) / 2
+    return {"Floor": ((0, 0, 0), (s, 0, 0), (0, 0, -s), floor), "Ceiling": ((0, 2 * h, 0), (s, 0, 0), (0, 0, s), wall),
+            "Back": ((0, h, -s), (s, 0, 0), (0, h, 0), wall), "Front": ((0, h, s), (-s, 0, 0), (0, h, 0), wall),
+            "Left": ((-s, h, 0), (0, 0, -s), (0, h, 0), wall), "Right": ((s, h, 0), (0, 0, s), (0, h, 0), wall)}
+
+
 class GltfWriter:
     """Collects materials, meshes, cameras, lights and nodes; `write` emits .glb or .gltf."""
 
@@ -241,6 +257,15 @@ class GltfWriter:
         self.lights.append(light)
         self.extensions_used.add("KHR_lights_punctual")
         return len(self.lights) - 1
+
+    def add_quads(self, faces: dict, *, normals: bool = False) -> None:
+        """A node and mesh per `name: (center, u, v, material)` (see `quad`); `normals`: write the
+        face normal as the vertex normals (else the reader computes them)."""
+        for name, (c, u, v, material) in faces.items():
+            p, i = quad(c, u, v)
+            n = np.cross(u, v)
+            self.add_node(name, mesh=self.add_mesh(name, p, i, material,
+                                                   normals=np.tile(n / np.linalg.norm(n), (4, 1)) if normals else None))
 
     def add_node(self, name, mesh=None, camera=None, light=None, translation=None,
                  rotation=None, scale=None, matrix=None, children=(), extras=None) -> int:

@@ -6,15 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from glint.scenes.gltf_writer import GltfWriter
+from glint.scenes.gltf_writer import GltfWriter, quad, room_faces  # noqa: F401 (tests import quad from here)
 from glint.viewer.context import headless_context
-
-
-def quad(center, u, v):
-    """Two CCW triangles spanning center +- u +- v; front face along cross(u, v)."""
-    c, u, v = map(np.asarray, (center, u, v))
-    positions = np.array([c - u - v, c + u - v, c + u + v, c - u + v], float)
-    return positions, np.array([[0, 1, 2], [0, 2, 3]])
 
 
 def write_room(path: Path, *, kd=(0.7, 0.7, 0.7), floor_lobes=None, light=8.0, box_height=0.5,
@@ -25,18 +18,7 @@ def write_room(path: Path, *, kd=(0.7, 0.7, 0.7), floor_lobes=None, light=8.0, b
     extras = None if floor_lobes is None else {"glint": {"lobes": floor_lobes}}
     floor = w.add_material("Floor", base_color=kd, roughness=1.0, extras=extras)
     lamp = w.add_material("Lamp", base_color=(0.8, 0.8, 0.8), emissive=(1, 1, 1), emissive_strength=light)
-    faces = {
-        "Floor": ((0, 0, 0), (1, 0, 0), (0, 0, -1), floor),
-        "Ceiling": ((0, 2, 0), (1, 0, 0), (0, 0, 1), wall),
-        "Back": ((0, 1, -1), (1, 0, 0), (0, 1, 0), wall),
-        "Front": ((0, 1, 1), (-1, 0, 0), (0, 1, 0), wall),
-        "Left": ((-1, 1, 0), (0, 0, -1), (0, 1, 0), wall),
-        "Right": ((1, 1, 0), (0, 0, 1), (0, 1, 0), wall),
-        "Lamp": ((0, 1.99, 0), (0.25, 0, 0), (0, 0, 0.25), lamp),
-    }
-    for name, (c, u, v, m) in faces.items():
-        p, i = quad(c, u, v)
-        w.add_node(name, mesh=w.add_mesh(name, p, i, m))
+    w.add_quads({**room_faces(1.0, 2.0, wall, floor), "Lamp": ((0, 1.99, 0), (0.25, 0, 0), (0, 0, 0.25), lamp)})
     h = box_height / 2
     box = np.array([[x, y, z] for x in (-.3, .3) for y in (0, 2 * h) for z in (-.3, .3)], float)
     import trimesh

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import error_of
 
 from glint.bench import bench, report
 from glint.cli import main
@@ -141,14 +142,6 @@ def test_error_functions():
     r = ref["linear"][mask].astype(float)
     assert e["m"]["rel_mse"] == pytest.approx(np.mean(0.01 / (r * r + bench.REL_MSE_EPSILON)), rel=1e-5)
     assert report.num(math.inf) == "inf" and report.json_safe({"x": [math.inf, math.nan]}) == {"x": [None, None]}
-
-
-def error_of(capsys, code):
-    err = capsys.readouterr().err.strip().splitlines()
-    lines = [line for line in err if not line.startswith("glint: warning:")]
-    assert code == 2 and len(lines) == 1 and lines[0].startswith("glint: "), err
-    assert "Traceback" not in "\n".join(err)
-    return lines[0]
 
 
 @pytest.mark.parametrize("extra, message", [
