@@ -41,8 +41,8 @@ import numpy as np
 
 from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
+from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING
 
-CUBE_OBJECT_BINDING, BOUNDING_PLANE_BINDING = 4, 5
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")  # GL's face order (GL_TEXTURE_CUBE_MAP_POSITIVE_X + k)
 MAX_PLANES = 16  # per object; more are ignored (each is a ray-plane test per sample)
 

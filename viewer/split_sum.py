@@ -49,8 +49,8 @@ ellipse, section 4.5.3, over one sample), times the same albedo. Transmission lo
 around the transmitted direction in the cube map, with their own albedo, as the other methods.
 
     split = SplitSum(ctx, scene)   # GpuScene: prefilters every cube map, builds the LUT
-    split.defines(first_unit)      # shaders/split_sum.glsl's defines (SPLIT_SUM on)
-    split.bind(program, first_unit)
+    split.defines(first_unit, lut_unit)  # shaders/split_sum.glsl's defines (SPLIT_SUM on)
+    split.bind(program, first_unit, lut_unit)
     split.describe()               # prefilter_ms, albedo_ms, levels ... (renderer.stats["split_sum"])
 """
 from __future__ import annotations
@@ -80,6 +80,7 @@ from glint.viewer.cubemaps import (
     GL_TEXTURE_WRAP_T,
     gl_functions,
 )
+from glint.viewer.gl_bindings import PREFILTER_CUBE_UNIT, PREFILTER_IMAGE
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, set_uniforms
 
 PREFILTER_SAMPLES = 64    # importance samples per texel of level 1, doubled per level ...
@@ -88,8 +89,6 @@ LOWEST_FACE = 4           # texels per side of the chain's last level
 M_MAX = 1.0               # the roughness of the last level
 LUT_COS, LUT_PHI = 32, 8  # albedo grid: sqrt(cos theta_v) x view azimuth in [0, pi/2]
 ALBEDO_SAMPLES = 4096     # per albedo (glint.core.bsdf.lobe_albedo)
-PREFILTER_UNIT = 0        # source cube maps' first texture unit while prefiltering
-IMAGE_UNIT = 0
 
 GL_TEXTURE_BASE_LEVEL, GL_TEXTURE_MAX_LEVEL = 0x813C, 0x813D
 GL_WRITE_ONLY = 0x88B9
@@ -179,7 +178,7 @@ class SplitSum:
         self.prefilter_ms = 0.0
         if not self.classes:
             return
-        defines = {**shader_defines(), **cubes.defines(PREFILTER_UNIT)}
+        defines = {**shader_defines(), **cubes.defines(PREFILTER_CUBE_UNIT)}
         programs = {}
         ctx.finish()
         started = time.perf_counter()
@@ -209,10 +208,10 @@ class SplitSum:
                            (GL_TEXTURE_MAX_LEVEL, levels - 1)):
             gl.TexParameteri(GL_TEXTURE_CUBE_MAP_ARRAY, key, value)
         gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
-        cubes.bind(program, PREFILTER_UNIT)
+        cubes.bind(program, PREFILTER_CUBE_UNIT)
         for level in range(levels):
             face = max(cls.size >> level, 1)
-            gl.BindImageTexture(IMAGE_UNIT, name.value, level, 1, 0, GL_WRITE_ONLY, internal)
+            gl.BindImageTexture(PREFILTER_IMAGE, name.value, level, 1, 0, GL_WRITE_ONLY, internal)
             set_uniforms(program, source_class=k, face_size=face, roughness=level_roughness(level, levels),
                          samples=level_samples(level, self.samples))
             program.run(-(-face // LOCAL_SIZE), -(-face // LOCAL_SIZE), 6 * len(cls.objects))
@@ -220,16 +219,16 @@ class SplitSum:
         return name.value
 
     # -- shading ----------------------------------------------------------------------------------
-    def defines(self, first_unit: int) -> dict:
+    def defines(self, first_unit: int, lut_unit: int) -> dict:
         """shaders/split_sum.glsl: the prefiltered classes on units first_unit .. first_unit + C - 1
-        (C = CUBE_CLASSES, at least 1), the albedo LUT on the next one, the LUT's shape."""
-        classes = max(len(self.classes), 1)
-        return {"SPLIT_SUM": 1, "SPLIT_SUM_FIRST_UNIT": int(first_unit), "SPLIT_SUM_LUT_UNIT": int(first_unit) + classes,
+        (C = CUBE_CLASSES, at least 1), the albedo LUT on lut_unit (viewer/gl_bindings.py
+        `shading_units`), the LUT's shape."""
+        return {"SPLIT_SUM": 1, "SPLIT_SUM_FIRST_UNIT": int(first_unit), "SPLIT_SUM_LUT_UNIT": int(lut_unit),
                 "SPLIT_SUM_LUT_COS": LUT_COS, "SPLIT_SUM_LUT_PHI": LUT_PHI, "SPLIT_SUM_M_MAX": float(M_MAX)}
 
-    def bind(self, program, first_unit: int) -> None:
-        """Bind the prefiltered arrays and the LUT as `defines(first_unit)` told the shader."""
-        self.lut.use(first_unit + max(len(self.classes), 1))
+    def bind(self, program, first_unit: int, lut_unit: int) -> None:
+        """Bind the prefiltered arrays and the LUT as `defines(first_unit, lut_unit)` told the shader."""
+        self.lut.use(lut_unit)
         if not self.classes:
             return
         gl = self._gl

@@ -29,6 +29,7 @@ from PIL import Image
 from glint.core.errors import warn
 from glint.viewer.context import GL_REQUIRED, check_context
 from glint.viewer.controls import WalkControls
+from glint.viewer.gl_bindings import BLIT_UNIT
 from glint.viewer.overlay import Overlay
 from glint.viewer.renderer import Renderer
 from glint.viewer.shader_source import raster_program
@@ -119,8 +120,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.wnd.use()
         self.ctx.viewport = (0, 0, width, height)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-        self.renderer.display_texture.use(0)
-        self.blit["image"] = 0
+        self.renderer.display_texture.use(BLIT_UNIT)
         self.blit["opaque"] = True
         self.triangle.render(moderngl.TRIANGLES, vertices=3)
 

@@ -6,10 +6,8 @@ from __future__ import annotations
 
 import moderngl
 
+from glint.viewer.gl_bindings import BASE_UNIT, SHOWN_IMAGE, SOURCE_UNIT, TARGET_IMAGE
 from glint.viewer.shader_source import compute_program, dispatch, set_uniforms
-
-FRAME_UNIT, BASE_UNIT = 0, 1
-SUM_IMAGE, SHOWN_IMAGE = 0, 1
 
 
 class AccumulatePass:
@@ -18,8 +16,6 @@ class AccumulatePass:
     def __init__(self, ctx: moderngl.Context, defines: dict | None = None):
         self.ctx = ctx
         self.program = compute_program(ctx, "accumulate.comp", defines)
-        set_uniforms(self.program, frame_radiance=FRAME_UNIT, base=BASE_UNIT, accumulation=SUM_IMAGE,
-                     shown=SHOWN_IMAGE)
         self.sum: moderngl.Texture | None = None
         self.shown: moderngl.Texture | None = None
         self.base: moderngl.Texture | None = None
@@ -48,9 +44,9 @@ class AccumulatePass:
         """Add `radiance` as frame number `frame` (0 restarts the sum); returns the image to show."""
         self.resize(radiance.size)
         set_uniforms(self.program, frame=int(frame), blend=float(min(max(blend, 0.0), 1.0)))
-        radiance.use(FRAME_UNIT)
+        radiance.use(SOURCE_UNIT)
         self.base.use(BASE_UNIT)
-        self.sum.bind_to_image(SUM_IMAGE, read=True, write=True)
+        self.sum.bind_to_image(TARGET_IMAGE, read=True, write=True)
         self.shown.bind_to_image(SHOWN_IMAGE, read=False, write=True)
         dispatch(self.program, *radiance.size)
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)

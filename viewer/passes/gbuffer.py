@@ -10,10 +10,19 @@ import moderngl
 import numpy as np
 
 from glint.viewer.camera import ViewCamera, gl_bytes
+from glint.viewer.gl_bindings import (
+    GB_DIFFUSE_LOCATION,
+    GB_MATERIAL_LOCATION,
+    GB_NORMAL_LOCATION,
+    GB_TANGENT_LOCATION,
+    KD_TEXTURE_UNIT,
+    LIGHTMAP_UNIT,
+)
 from glint.viewer.shader_source import raster_program, set_uniforms
 
-GB_ATTACHMENTS = {"GB_DIFFUSE": 0, "GB_NORMAL": 1, "GB_TANGENT": 2, "GB_MATERIAL": 3}
-LIGHTMAP_UNIT, KD_TEXTURE_UNIT = 0, 1
+# The colour targets by fragment-output location (gbuffer.frag, shaders/gbuffer_layout.glsl).
+COLOUR_TARGETS = {GB_DIFFUSE_LOCATION: "diffuse", GB_NORMAL_LOCATION: "normal", GB_TANGENT_LOCATION: "tangent",
+                  GB_MATERIAL_LOCATION: "material"}
 
 
 def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
@@ -43,8 +52,7 @@ class GBufferPass:
     def __init__(self, ctx: moderngl.Context, scene, defines: dict):
         self.ctx = ctx
         self.scene = scene
-        self.program = raster_program(ctx, "gbuffer.vert", "gbuffer.frag", {**defines, **GB_ATTACHMENTS})
-        set_uniforms(self.program, lightmaps=LIGHTMAP_UNIT, kd_texture=KD_TEXTURE_UNIT)
+        self.program = raster_program(ctx, "gbuffer.vert", "gbuffer.frag", defines)
         self.size: tuple[int, int] | None = None
         self.fbo = None
         self.targets: dict[str, moderngl.Texture] = {}
@@ -64,7 +72,7 @@ class GBufferPass:
             tex.repeat_x = tex.repeat_y = False
         t["depth"].compare_func = ""  # read raw depth values, not shadow comparisons
         self.targets = t
-        self.fbo = ctx.framebuffer([t["diffuse"], t["normal"], t["tangent"], t["material"]], t["depth"])
+        self.fbo = ctx.framebuffer([t[COLOUR_TARGETS[k]] for k in range(len(COLOUR_TARGETS))], t["depth"])
         self.size = size
 
     def run(self, camera: ViewCamera, aspect: float, hidden=()) -> dict:

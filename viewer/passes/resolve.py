@@ -7,9 +7,8 @@ from __future__ import annotations
 
 import moderngl
 
+from glint.viewer.gl_bindings import SOURCE_UNIT, TARGET_IMAGE
 from glint.viewer.shader_source import compute_program, dispatch, set_uniforms
-
-SOURCE_UNIT, IMAGE_UNIT = 0, 0
 
 
 class ResolvePass:
@@ -18,7 +17,6 @@ class ResolvePass:
     def __init__(self, ctx: moderngl.Context, defines: dict | None = None):
         self.ctx = ctx
         self.program = compute_program(ctx, "resolve.comp", defines)
-        set_uniforms(self.program, radiance=SOURCE_UNIT, resolved=IMAGE_UNIT)
         self.resolved: moderngl.Texture | None = None
 
     def run(self, radiance: moderngl.Texture, factor: int) -> moderngl.Texture:
@@ -34,7 +32,7 @@ class ResolvePass:
             self.resolved.filter = (moderngl.NEAREST, moderngl.NEAREST)
         set_uniforms(self.program, factor=int(factor))
         radiance.use(SOURCE_UNIT)
-        self.resolved.bind_to_image(IMAGE_UNIT, read=False, write=True)
+        self.resolved.bind_to_image(TARGET_IMAGE, read=False, write=True)
         dispatch(self.program, *size)
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
         return self.resolved

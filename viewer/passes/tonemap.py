@@ -8,9 +8,8 @@ from __future__ import annotations
 import moderngl
 import numpy as np
 
+from glint.viewer.gl_bindings import SOURCE_UNIT, TARGET_IMAGE
 from glint.viewer.shader_source import compute_program, dispatch, set_uniforms
-
-SOURCE_UNIT, IMAGE_UNIT = 0, 0
 
 
 class TonemapPass:
@@ -19,7 +18,6 @@ class TonemapPass:
     def __init__(self, ctx: moderngl.Context, defines: dict | None = None):
         self.ctx = ctx
         self.program = compute_program(ctx, "tonemap.comp", defines)
-        set_uniforms(self.program, radiance=SOURCE_UNIT, display=IMAGE_UNIT)
         self.display: moderngl.Texture | None = None
 
     def run(self, radiance: moderngl.Texture, exposure: float) -> moderngl.Texture:
@@ -34,7 +32,7 @@ class TonemapPass:
         scale = float(np.exp2(np.clip(ev, -126.0, 127.0)))  # a finite, normal fp32 scale
         set_uniforms(self.program, exposure_scale=scale)
         radiance.use(SOURCE_UNIT)
-        self.display.bind_to_image(IMAGE_UNIT, read=False, write=True)
+        self.display.bind_to_image(TARGET_IMAGE, read=False, write=True)
         dispatch(self.program, *size)
         self.ctx.memory_barrier(moderngl.ALL_BARRIER_BITS)  # read back, blitted or sampled next
         return self.display
