@@ -142,7 +142,7 @@ def gpu_memory(ctx, renderer=None) -> dict:
     if "GL_NVX_gpu_memory_info" in ctx.extensions:
         import ctypes
 
-        from glint.viewer.cubemaps import gl_functions
+        from glint.viewer.gl import gl_functions
 
         get = gl_functions(ctx)("glGetIntegerv", None, ctypes.c_uint, ctypes.POINTER(ctypes.c_int))
         total, free = ctypes.c_int(0), ctypes.c_int(0)

@@ -42,6 +42,7 @@ import numpy as np
 from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
 from glint.viewer.cubemaps import CubeMaps
+from glint.viewer.gl import software_renderer
 from glint.viewer.gl_bindings import LOBE_BINDING, LOBE_PATTERN_BINDING, MATERIAL_BINDING, PATTERN_BINDING
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
@@ -119,7 +120,7 @@ class GpuScene:
             raise GlintError(f"unknown planar pattern {planar_pattern!r}; use one of {', '.join(PLANAR_PATTERNS)}")
         self.planar_pattern = planar_pattern
         self.ctx = ctx
-        self.software = "llvmpipe" in ctx.info.get("GL_RENDERER", "").lower()
+        self.software = software_renderer(ctx)
         manifest = bake.manifest
         count = len(manifest["materials"])
         for entry in manifest["objects"]:

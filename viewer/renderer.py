@@ -39,7 +39,7 @@ import numpy as np
 
 from glint.core.errors import GlintError
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import check_context, describe
+from glint.viewer.gl import check_context, describe, max_texture_size
 from glint.viewer.gpu_scene import GpuScene, shader_defines
 from glint.viewer.passes.gbuffer import GBufferPass
 from glint.viewer.passes.mirror import MirrorPasses, mirror_defines
@@ -137,7 +137,7 @@ class Renderer:
         """GlintError unless width x height (times the supersampling) can be rendered here."""
         if not (int(width) == width and int(height) == height and width >= 1 and height >= 1):
             raise GlintError(f"bad image size {width}x{height}: width and height must be at least 1")
-        limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+        limit = max_texture_size(self.ctx)
         n = self.supersample
         if max(width, height) * n > limit:
             raise GlintError(f"image size {width}x{height} with supersampling {n} needs "

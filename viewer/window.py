@@ -27,8 +27,8 @@ from moderngl_window.context.base import BaseWindow
 from PIL import Image
 
 from glint.core.errors import warn
-from glint.viewer.context import GL_REQUIRED, check_context
 from glint.viewer.controls import WalkControls
+from glint.viewer.gl import GL_REQUIRED, check_context
 from glint.viewer.gl_bindings import BLIT_UNIT
 from glint.viewer.overlay import Overlay
 from glint.viewer.renderer import Renderer

@@ -46,7 +46,20 @@ import moderngl
 import numpy as np
 
 from glint.viewer.camera import ViewCamera, gl_bytes
-from glint.viewer.cubemaps import gl_functions
+from glint.viewer.gl import (
+    GL,
+    GL_ANY_SAMPLES_PASSED_CONSERVATIVE,
+    GL_CLIP_DISTANCE0,
+    GL_COLOR,
+    GL_COLOR_ATTACHMENT0,
+    GL_DEPTH,
+    GL_DEPTH_ATTACHMENT,
+    GL_FRAMEBUFFER,
+    GL_FRAMEBUFFER_COMPLETE,
+    GL_QUERY_RESULT,
+    GL_QUERY_RESULT_AVAILABLE,
+    GL_RENDERBUFFER,
+)
 from glint.viewer.gl_bindings import (
     LIGHTMAP_UNIT,
     MIP_SOURCE_IMAGE,
@@ -73,13 +86,6 @@ from glint.viewer.reflectors import (
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
 
 SLOT_DTYPE = np.dtype([("view_proj", "<f4", (4, 4)), ("plane", "<f4", 4), ("info", "<f4", 4)])
-
-GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER = 0x8D40, 0x8CE0, 0x8D00, 0x8D41
-GL_FRAMEBUFFER_COMPLETE = 0x8CD5
-GL_COLOR, GL_DEPTH = 0x1800, 0x1801
-GL_CLIP_DISTANCE0 = 0x3000
-GL_ANY_SAMPLES_PASSED_CONSERVATIVE = 0x8D6A
-GL_QUERY_RESULT, GL_QUERY_RESULT_AVAILABLE = 0x8866, 0x8867
 TARGETS = ("radiance", "position", "normal")  # the order of mirror_units' texture units
 # Each target's colour attachment = fragment-output location of mirror.frag and mirror_sky.frag.
 LOCATIONS = {"radiance": MIRROR_RADIANCE_LOCATION, "position": MIRROR_POSITION_LOCATION,
@@ -124,32 +130,6 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
     return out
 
 
-class _MirrorGL:
-    """The GL calls moderngl does not offer: framebuffers on array layers, clip distances,
-    occlusion queries whose availability can be asked without waiting."""
-
-    def __init__(self, ctx: moderngl.Context):
-        fn = gl_functions(ctx)
-        u, i = ctypes.c_uint, ctypes.c_int
-        self.GenFramebuffers = fn("glGenFramebuffers", None, i, ctypes.POINTER(u))
-        self.DeleteFramebuffers = fn("glDeleteFramebuffers", None, i, ctypes.POINTER(u))
-        self.BindFramebuffer = fn("glBindFramebuffer", None, u, u)
-        self.FramebufferTextureLayer = fn("glFramebufferTextureLayer", None, u, u, u, i, i)
-        self.FramebufferRenderbuffer = fn("glFramebufferRenderbuffer", None, u, u, u, u)
-        self.CheckFramebufferStatus = fn("glCheckFramebufferStatus", u, u)
-        self.DrawBuffers = fn("glDrawBuffers", None, i, ctypes.POINTER(u))
-        self.ClearBufferfv = fn("glClearBufferfv", None, u, i, ctypes.POINTER(ctypes.c_float))
-        self.Enable = fn("glEnable", None, u)
-        self.Disable = fn("glDisable", None, u)
-        self.ColorMask = fn("glColorMask", None, ctypes.c_ubyte, ctypes.c_ubyte, ctypes.c_ubyte, ctypes.c_ubyte)
-        self.DepthMask = fn("glDepthMask", None, ctypes.c_ubyte)
-        self.GenQueries = fn("glGenQueries", None, i, ctypes.POINTER(u))
-        self.DeleteQueries = fn("glDeleteQueries", None, i, ctypes.POINTER(u))
-        self.BeginQuery = fn("glBeginQuery", None, u, u)
-        self.EndQuery = fn("glEndQuery", None, u)
-        self.GetQueryObjectuiv = fn("glGetQueryObjectuiv", None, u, u, ctypes.POINTER(u))
-
-
 class MirrorPasses:
     name = "mirror"
 
@@ -174,7 +154,7 @@ class MirrorPasses:
         self._queries: dict[str, int] = {}   # reflector name -> GL query object
         self._pending: set[str] = set()      # queries issued and not yet read
         self._drawn: list[dict] = []
-        self._gl = _MirrorGL(ctx)
+        self._gl = GL(ctx)
         self.raster = raster_program(ctx, "gbuffer.vert", "mirror.frag", {**defines, "MIRROR_CLIP": 1})
         self.occluder = raster_program(ctx, "gbuffer.vert", "occlusion.frag", defines)
         self.sky = raster_program(ctx, "blit.vert", "mirror_sky.frag", {**defines, "FAR_PLANE": 1})
@@ -209,19 +189,21 @@ class MirrorPasses:
             return
         self._release_targets()
         gl = self._gl
-        self.targets = self._arrays(size, self.layers)
-        self.depth = self.ctx.depth_renderbuffer(size)
+        with gl.checked(f"allocate {self.layers} mirror buffers of {size[0]} x {size[1]}"):
+            self.targets = self._arrays(size, self.layers)
+            self.depth = self.ctx.depth_renderbuffer(size)
         for layer in range(self.layers):
             name = ctypes.c_uint(0)
-            gl.GenFramebuffers(1, ctypes.byref(name))
-            gl.BindFramebuffer(GL_FRAMEBUFFER, name.value)
-            for target, location in LOCATIONS.items():
-                gl.FramebufferTextureLayer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + location,
-                                           self.targets[target].glo, 0, layer)
-            gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, self.depth.glo)
-            buffers = (ctypes.c_uint * len(LOCATIONS))(*(GL_COLOR_ATTACHMENT0 + k for k in range(len(LOCATIONS))))
-            gl.DrawBuffers(len(LOCATIONS), buffers)
-            status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
+            with gl.checked(f"make the framebuffer of mirror-buffer layer {layer} ({size[0]} x {size[1]})"):
+                gl.GenFramebuffers(1, ctypes.byref(name))
+                gl.BindFramebuffer(GL_FRAMEBUFFER, name.value)
+                for target, location in LOCATIONS.items():
+                    gl.FramebufferTextureLayer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + location,
+                                               self.targets[target].glo, 0, layer)
+                gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, self.depth.glo)
+                buffers = (ctypes.c_uint * len(LOCATIONS))(*(GL_COLOR_ATTACHMENT0 + k for k in range(len(LOCATIONS))))
+                gl.DrawBuffers(len(LOCATIONS), buffers)
+                status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
             if status != GL_FRAMEBUFFER_COMPLETE:
                 raise RuntimeError(f"mirror-buffer framebuffer incomplete (status 0x{status:x})")
             fbo = self.ctx.detect_framebuffer(name.value)  # moderngl's handle, for use() and viewport

@@ -26,6 +26,7 @@ import moderngl
 import numpy as np
 
 from glint.viewer.camera import ViewCamera
+from glint.viewer.gl import check_compute_texture_units
 from glint.viewer.gl_bindings import (
     GB_DEPTH_UNIT,
     GB_DIFFUSE_UNIT,
@@ -74,6 +75,9 @@ class ShadingPass:
         self.split_sum = split_sum
         if split_sum is not None:
             extra.update(split_sum.defines(self.units["SPLIT_SUM_FIRST_UNIT"], self.units["SPLIT_SUM_LUT_UNIT"]))
+        last = self.units["SPLIT_SUM_LUT_UNIT"] if split_sum is not None else self.units["MIRROR_NORMAL_UNIT"]
+        check_compute_texture_units(ctx, last + 1, f"shading this scene (cube maps of {len(scene.cubemaps.classes)} "
+                                                   f"face sizes{', split-sum' if split_sum is not None else ''})")
         self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
         self.specular = compute_program(ctx, "specular.comp", {**defines, **extra})
         # Specular work is possible only where a material with lobes meets an object with a cube map
