@@ -128,6 +128,26 @@ def gl_bytes(m: np.ndarray) -> bytes:
     return np.ascontiguousarray(np.asarray(m, np.float32).T).tobytes()
 
 
+# -- frustum culling ----------------------------------------------------------------------------------
+def frustum_planes(view_proj: np.ndarray) -> np.ndarray:
+    """The six planes (6, 4) of an OpenGL view-projection (Gribb & Hartmann), inside where
+    dot(plane, (x, 1)) >= 0: -w <= x, y, z <= w in clip space; order left, right, bottom, top,
+    near, far. Not normalised."""
+    r0, r1, r2, r3 = np.asarray(view_proj, np.float64)
+    return np.array([r3 + r0, r3 - r0, r3 + r1, r3 - r1, r3 + r2, r3 - r2])
+
+
+def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
+    """False only when the box [lo, hi] certainly lies outside the view of `view_proj`: wholly
+    beyond one of its planes (`frustum_planes`), tested with the box corner farthest along the
+    plane's normal. Conservative: a box off a frustum edge or corner may count as inside. A box
+    behind the eye is beyond the near plane."""
+    planes = frustum_planes(view_proj)
+    lo, hi = np.asarray(bounds, np.float64)
+    farthest = np.where(planes[:, :3] >= 0, hi, lo)
+    return not bool(np.any(np.einsum("ij,ij->i", planes[:, :3], farthest) + planes[:, 3] < 0))
+
+
 # -- camera paths ---------------------------------------------------------------------------------
 def path_span(path: dict) -> tuple[float, float]:
     keys = path["keys"]

@@ -1,15 +1,14 @@
 """G-buffer pass: rasterise the visible objects once into the targets the shading pass reads.
 
 Targets and their encoding: shaders/gbuffer_layout.glsl. Objects whose bounding box
-lies outside the view frustum are not drawn (`in_frustum`); nothing is culled by
+lies outside the view frustum are not drawn (viewer/camera.py `in_frustum`); nothing is culled by
 facing, because back faces must show (black for single-sided materials, as in Mitsuba).
 """
 from __future__ import annotations
 
 import moderngl
-import numpy as np
 
-from glint.viewer.camera import ViewCamera, gl_bytes
+from glint.viewer.camera import ViewCamera, gl_bytes, in_frustum
 from glint.viewer.gl_bindings import (
     GB_DIFFUSE_LOCATION,
     GB_MATERIAL_LOCATION,
@@ -23,19 +22,6 @@ from glint.viewer.shader_source import raster_program, set_uniforms
 # The colour targets by fragment-output location (gbuffer.frag, shaders/gbuffer_layout.glsl).
 COLOUR_TARGETS = {GB_DIFFUSE_LOCATION: "diffuse", GB_NORMAL_LOCATION: "normal", GB_TANGENT_LOCATION: "tangent",
                   GB_MATERIAL_LOCATION: "material"}
-
-
-def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
-    """False only when the box certainly lies outside: all 8 corners beyond one clip plane
-    (-w <= x, y, z <= w in homogeneous clip space, so corners behind the eye count correctly)."""
-    lo, hi = np.asarray(bounds, np.float64)
-    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    clip = corners @ np.asarray(view_proj, np.float64).T
-    w = clip[:, 3]
-    for axis in range(3):
-        if np.all(clip[:, axis] > w) or np.all(clip[:, axis] < -w):
-            return False
-    return True
 
 
 def draw_object(program, scene, obj) -> None:

@@ -45,7 +45,7 @@ import ctypes
 import moderngl
 import numpy as np
 
-from glint.viewer.camera import ViewCamera, gl_bytes
+from glint.viewer.camera import ViewCamera, gl_bytes, in_frustum
 from glint.viewer.gl import (
     GL,
     GL_ANY_SAMPLES_PASSED_CONSERVATIVE,
@@ -74,7 +74,7 @@ from glint.viewer.gl_bindings import (
 )
 from glint.viewer.gpu_scene import SKY_MODES
 from glint.viewer.mirror_camera import group_coplanar
-from glint.viewer.passes.gbuffer import draw_object, in_frustum
+from glint.viewer.passes.gbuffer import draw_object
 from glint.viewer.reflectors import (
     DEFAULT_BUDGET,
     MirrorPlan,
