@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import pyrr
 
 DEFAULT_YFOV = math.radians(50.0)  # bake/sidecar.py's default for cameras without one
 WORLD_UP = np.array([0.0, 1.0, 0.0])
@@ -94,6 +95,7 @@ class ViewCamera:
     # -- matrices --------------------------------------------------------------------------------
     def view_matrix(self) -> np.ndarray:
         """World -> eye space (camera at the origin looking down -Z)."""
+        # Not pyrr's create_look_at: it re-normalises the axes in another order, an ulp off for most cameras.
         f, u, r = self.forward, self.up, self.right
         m = np.eye(4)
         m[0, :3], m[1, :3], m[2, :3] = r, u, -f
@@ -102,15 +104,9 @@ class ViewCamera:
 
     def projection_matrix(self, aspect: float) -> np.ndarray:
         """Eye -> clip space: the OpenGL perspective matrix (gluPerspective), depth in [-1, 1]."""
-        t = 1.0 / math.tan(self.yfov / 2)
-        n, f = self.znear, self.zfar
-        m = np.zeros((4, 4))
-        m[0, 0] = t / aspect
-        m[1, 1] = t
-        m[2, 2] = (f + n) / (n - f)
-        m[2, 3] = 2 * f * n / (n - f)
-        m[3, 2] = -1.0
-        return m.astype(np.float32)
+        m = pyrr.matrix44.create_perspective_projection(math.degrees(self.yfov), aspect, self.znear, self.zfar,
+                                                        dtype=np.float64)
+        return m.T.astype(np.float32)  # pyrr's matrices act on row vectors: the transpose of ours
 
     def view_projection(self, aspect: float) -> np.ndarray:
         return (self.projection_matrix(aspect).astype(np.float64)
