@@ -192,6 +192,21 @@ class GL:
             if name:
                 self.DeleteTextures(1, ctypes.byref(ctypes.c_uint(name)))
 
+    @contextmanager
+    def _new_cube_array(self, what: str):
+        """`with gl._new_cube_array("upload ...") as name:` a new cube-map array, bound on moderngl's
+        scratch unit inside the block and unbound after it; deleted again when a call inside fails."""
+        name = 0
+        try:
+            with self.checked(what):
+                name = self.new_texture(GL_TEXTURE_CUBE_MAP_ARRAY)
+                yield name
+        except GlintError:
+            self.delete_textures([name])
+            raise
+        finally:
+            self.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
+
     def upload_cube_array(self, pixels: np.ndarray, what: str) -> int:
         """A new cube-map array holding `pixels`, (layers x 6, S, S, 4) float16 or float32 (layer-face
         = layer * 6 + face, rows from t = 0), RGBA16F or RGBA32F to match, with a full MIP chain
@@ -203,36 +218,22 @@ class GL:
         self.GetIntegerv(GL_PIXEL_UNPACK_BUFFER_BINDING, ctypes.byref(unpack))
         self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0)  # read the pixels from client memory
         self.PixelStorei(GL_UNPACK_ALIGNMENT, 1)
-        name = 0
         try:
-            with self.checked(f"upload {what}"):
-                name = self.new_texture(GL_TEXTURE_CUBE_MAP_ARRAY)
+            with self._new_cube_array(f"upload {what}") as name:
                 self.TexImage3D(GL_TEXTURE_CUBE_MAP_ARRAY, 0, GL_RGBA16F if half else GL_RGBA32F, size, size, depth,
                                 0, GL_RGBA, GL_HALF_FLOAT if half else GL_FLOAT, pixels.ctypes.data)
                 self._cube_array_parameters()
                 self.GenerateMipmap(GL_TEXTURE_CUBE_MAP_ARRAY)
-        except GlintError:
-            self.delete_textures([name])
-            raise
         finally:
-            self.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
             self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, unpack.value)
         return name
 
     def allocate_cube_array(self, size: int, depth: int, levels: int, internal: int, what: str) -> int:
         """A new immutable cube-map array of `levels` levels, faces of `size` texels, `depth`
         layer-faces (layers x 6), format `internal`, contents undefined; CUBE_ARRAY_PARAMETERS."""
-        name = 0
-        try:
-            with self.checked(f"allocate {what}"):
-                name = self.new_texture(GL_TEXTURE_CUBE_MAP_ARRAY)
-                self.TexStorage3D(GL_TEXTURE_CUBE_MAP_ARRAY, levels, internal, size, size, depth)
-                self._cube_array_parameters(levels)
-        except GlintError:
-            self.delete_textures([name])
-            raise
-        finally:
-            self.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
+        with self._new_cube_array(f"allocate {what}") as name:
+            self.TexStorage3D(GL_TEXTURE_CUBE_MAP_ARRAY, levels, internal, size, size, depth)
+            self._cube_array_parameters(levels)
         return name
 
     def _cube_array_parameters(self, levels: int | None = None) -> None:
