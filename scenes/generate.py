@@ -836,8 +836,6 @@ role = "planar"
 [objects."Aluminium panel"]
 role = "planar"
 """
-PC_ROLES = {"Stone floor": "Polished stone", "Wood platform top": "Varnished wood",
-            "Tile panel": "Glossy tiles", "Aluminium panel": "Blurry aluminium"}
 
 
 def planar_classes() -> GltfWriter:

@@ -396,9 +396,6 @@ class MirrorPasses:
             targets[name].use(unit)
         self.bind_buffers()
 
-    def slot_of(self, name: str) -> int | None:
-        return None if self.plan_ is None else self.plan_.pass_for(name)
-
     def read(self, slot: int, target: str = "radiance") -> np.ndarray:
         """(H, W, 4) float32 of one slot's target at level 0, GL orientation (row 0 = bottom),
         as bench/mirror_projection.py indexes images. For tests and debugging (waits for the GPU)."""
