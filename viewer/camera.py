@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pyrr
 
+from glint.core.errors import GlintError
+
 DEFAULT_YFOV = math.radians(50.0)  # bake/sidecar.py's default for cameras without one
 WORLD_UP = np.array([0.0, 1.0, 0.0])
 
@@ -203,8 +205,6 @@ def _hermite(p: np.ndarray, times: np.ndarray, i: int, s: float, closed: bool) -
 def find_named(entries: list[dict], name: str, what: str = "camera",
                none: str = "the scene has no cameras") -> dict:
     """The manifest entry called `name`, or a one-line GlintError listing the names there are."""
-    from glint.core.errors import GlintError
-
     entry = next((e for e in entries if e["name"] == name), None)
     if entry is None:
         have = ", ".join(e["name"] for e in entries)

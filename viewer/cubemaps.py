@@ -39,6 +39,7 @@ import numpy as np
 
 from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
+from glint.core.image_io import read_image
 from glint.viewer.gl import GL, GL_TEXTURE_CUBE_MAP_SEAMLESS
 from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING
 
@@ -54,8 +55,6 @@ def read_cubemap(path: str | Path) -> np.ndarray:
     """The one reader of the bake's cube-map files: (6, S, S, 4) float32 in GL face order, each
     face's row 0 at t = 0 (see the module docstring); alpha = 1 where the file has none.
     Non-finite or negative radiance becomes 0."""
-    from glint.core.image_io import read_image
-
     image = read_image(path, "cube map")
     h, w, c = image.shape
     if h != 6 * w or c < 3:

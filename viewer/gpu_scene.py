@@ -41,6 +41,7 @@ import numpy as np
 
 from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
+from glint.core.image_io import read_image
 from glint.viewer.cubemaps import CubeMaps
 from glint.viewer.gl import software_renderer
 from glint.viewer.gl_bindings import LOBE_BINDING, LOBE_PATTERN_BINDING, MATERIAL_BINDING, PATTERN_BINDING
@@ -170,8 +171,6 @@ class GpuScene:
 
     # -- materials -------------------------------------------------------------------------------
     def _materials(self, bake) -> None:
-        from glint.core.image_io import read_image
-
         entries = bake.manifest["materials"]
         mats = np.zeros(max(len(entries), 1), MATERIAL_DTYPE)
         lobe_rows = []
@@ -305,8 +304,6 @@ class GpuScene:
             return
         self.sky_scale = _clean(sky.get("radiance", (1, 1, 1))).astype(np.float32)
         if sky.get("map"):
-            from glint.core.image_io import read_image
-
             image = _clean(read_image(bake.path / sky["map"])[..., :3])
             h, w = image.shape[:2]
             rgba = np.concatenate([image, np.ones((h, w, 1))], axis=-1).astype(np.float32)

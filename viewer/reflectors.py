@@ -67,6 +67,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from glint.core.bsdf import theta_thresh
+from glint.core.geometry import plane_of
 from glint.viewer.camera import ViewCamera, in_frustum
 from glint.viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HEIGHT, MirrorCamera, group_coplanar
 
@@ -103,8 +104,6 @@ class Reflector:
     @classmethod
     def from_object(cls, obj) -> "Reflector":
         """From a `glint.core.scene.Object` whose role is `planar` (plane by `glint.core.geometry.plane_of`)."""
-        from glint.core.geometry import plane_of
-
         point, normal = plane_of(obj)
         return cls(obj.name, point, normal, obj.bounds, obj.area)
 

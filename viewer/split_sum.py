@@ -61,8 +61,10 @@ import time
 import moderngl
 import numpy as np
 
+from glint.core import bsdf
 from glint.viewer.gl import GL, GL_RGBA16F, GL_RGBA32F, GL_WRITE_ONLY
 from glint.viewer.gl_bindings import PREFILTER_CUBE_UNIT, PREFILTER_IMAGE
+from glint.viewer.gpu_scene import shader_defines
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, set_uniforms
 
 PREFILTER_SAMPLES = 64    # importance samples per texel of level 1, doubled per level ...
@@ -101,8 +103,6 @@ def lut_views() -> np.ndarray:
 def albedo_lut(lobe_table: np.ndarray, samples: int = ALBEDO_SAMPLES) -> np.ndarray:
     """(lobes, LUT_COS, LUT_PHI) float32: each lobe's directional albedo (without ks) at the grid's
     views. Lobes with the same parameters are computed once; isotropic ones for one azimuth."""
-    from glint.core import bsdf
-
     views = lut_views()
     out = np.zeros((max(len(lobe_table), 1), LUT_COS, LUT_PHI), np.float32)
     done: dict[tuple, np.ndarray] = {}
@@ -124,8 +124,6 @@ class SplitSum:
     per-lobe albedo LUT of a GpuScene."""
 
     def __init__(self, ctx, scene, samples: int = PREFILTER_SAMPLES):
-        from glint.viewer.gpu_scene import shader_defines
-
         self.ctx = ctx
         self.samples = int(samples)
         cubes = scene.cubemaps

@@ -33,6 +33,7 @@ from glint.viewer.gl_bindings import BLIT_UNIT
 from glint.viewer.overlay import Overlay
 from glint.viewer.renderer import Renderer
 from glint.viewer.shader_source import raster_program
+from glint.viewer.skipping import frame_section, one_line
 
 GL_VERSION = (GL_REQUIRED // 100, GL_REQUIRED % 100 // 10)
 BLEND_FRAMES = 4  # from the walkthrough image to the running mean when the camera stops
@@ -126,8 +127,6 @@ class ViewerWindow(moderngl_window.WindowConfig):
 
         if self.overlay.visible and self.overlay.due(frame_time):
             # stats waits for the GPU's timer queries: read it only when the text is redrawn
-            from glint.viewer.skipping import frame_section, one_line
-
             stats = self.renderer.stats
             self.overlay.update(stats["gpu_ms_median"], self.controls.status, [one_line(frame_section(stats))])
         self.overlay.draw(height)

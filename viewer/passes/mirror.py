@@ -45,6 +45,7 @@ import ctypes
 import moderngl
 import numpy as np
 
+from glint.core.geometry import fit_plane
 from glint.viewer.camera import ViewCamera, gl_bytes, in_frustum
 from glint.viewer.gl import (
     GL,
@@ -103,8 +104,6 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
     others have nothing to read a mirror buffer for: the cube-map bake renders without lobes):
     its `plane` entry (bake/pipeline.py), or the best-fit plane of its mesh for a manifest
     without one. Names are made unique (the occlusion results are kept by name)."""
-    from glint.core.geometry import fit_plane
-
     out, seen = [], set()
     materials = bake.manifest["materials"]
     for i, entry in enumerate(bake.manifest["objects"]):
