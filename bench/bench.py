@@ -57,7 +57,8 @@ from glint.core.constants import GB_DARK_BACK_FACE, GB_ID_BITS, MIRROR_PLANE_COS
 from glint.core.errors import GlintError
 from glint.services import number, parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
-from glint.viewer.context import describe, headless_context
+from glint.viewer.context import headless_context
+from glint.viewer.gl import describe
 from glint.viewer.renderer import Renderer
 from glint.viewer.skipping import bake_section, frame_section, markdown_table
 from glint.viewer.timing import PassTimer

@@ -18,7 +18,8 @@ import argparse
 import time
 from statistics import median
 
-from glint.viewer.context import describe, headless_context
+from glint.viewer.context import headless_context
+from glint.viewer.gl import describe
 from glint.viewer.timing import default_method
 
 VS = """#version 430

@@ -25,7 +25,8 @@ from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake, default_bake_dir
 from glint.services import bake_scene, open_scene
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import describe, headless_context
+from glint.viewer.context import headless_context
+from glint.viewer.gl import describe
 from glint.viewer.renderer import Renderer
 
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")

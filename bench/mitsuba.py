@@ -56,7 +56,8 @@ from glint.bench.report import num, pyplot, save_figure, slug, write_csv, write_
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.services import number, open_scene, run_bake
-from glint.viewer.context import describe, headless_context
+from glint.viewer.context import headless_context
+from glint.viewer.gl import describe
 from glint.viewer.renderer import Renderer
 
 # Mitsuba is optional (glint[test]): imported by the functions that need it, so the rest works without.

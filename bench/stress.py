@@ -55,8 +55,9 @@ from glint.core.errors import GlintError
 from glint.scenes import stress as stress_scenes
 from glint.services import bake_scene
 from glint.viewer.camera import ViewCamera, camera_path_at, clip_range, find_named, path_span
-from glint.viewer.context import describe, headless_context
-from glint.viewer.cubemaps import CubeClass, gl_functions
+from glint.viewer.context import headless_context
+from glint.viewer.cubemaps import CubeClass
+from glint.viewer.gl import describe, gl_functions
 from glint.viewer.renderer import Renderer
 
 STRESS_SIZE = (96, 54)

@@ -19,7 +19,8 @@ from glint.bake.cubemap import FACES, FAR_MARGIN, NEAR_PER_FAR, SKY_DISTANCE, SU
 from glint.core.bake_dir import Bake
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import describe, headless_context
+from glint.viewer.context import headless_context
+from glint.viewer.gl import describe
 from glint.viewer.renderer import Renderer
 
 

@@ -5,10 +5,10 @@
 #include "common.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
-layout(rgba32f) uniform image2D accumulation;          // sum of frames 0 .. frame
-layout(rgba32f) uniform writeonly image2D shown;
-uniform sampler2D frame_radiance;                       // this frame's estimate
-uniform sampler2D base;                                 // the walkthrough image (read when blend < 1)
+layout(rgba32f, binding = TARGET_IMAGE) uniform image2D accumulation;     // sum of frames 0 .. frame
+layout(rgba32f, binding = SHOWN_IMAGE) uniform writeonly image2D shown;
+layout(binding = SOURCE_UNIT) uniform sampler2D frame_radiance;            // this frame's estimate
+layout(binding = BASE_UNIT) uniform sampler2D base;  // the walkthrough image (read when blend < 1)
 uniform int frame;                                      // index of this frame: 0 starts a new sum
 uniform float blend;                                    // weight of the mean against `base`
 

@@ -5,7 +5,7 @@
 in vec2 uv;
 out vec4 colour;
 
-uniform sampler2D image;
+layout(binding = BLIT_UNIT) uniform sampler2D image;
 uniform bool opaque;  // the frame: alpha 1 so a compositing window manager shows no see-through
 
 void main() {

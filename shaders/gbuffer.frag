@@ -4,10 +4,10 @@
 #include "raster_surface.glsl"
 #include "gbuffer_layout.glsl"
 
-layout(location = GB_DIFFUSE) out vec4 out_diffuse;
-layout(location = GB_NORMAL) out vec4 out_normal;
-layout(location = GB_TANGENT) out vec4 out_tangent;
-layout(location = GB_MATERIAL) out uint out_material;
+layout(location = GB_DIFFUSE_LOCATION) out vec4 out_diffuse;
+layout(location = GB_NORMAL_LOCATION) out vec4 out_normal;
+layout(location = GB_TANGENT_LOCATION) out vec4 out_tangent;
+layout(location = GB_MATERIAL_LOCATION) out uint out_material;
 
 void main() {
     RasterSurface s = raster_surface();

@@ -1,5 +1,5 @@
-// The G-buffer's render targets (viewer/passes/gbuffer.py allocates them; attachment numbers
-// come in as defines GB_*):
+// The G-buffer's render targets (viewer/passes/gbuffer.py allocates them; their attachment numbers
+// come in as defines GB_*_LOCATION from viewer/gl_bindings.py):
 //   GB_DIFFUSE   rgba32f  rgb: light-mapped diffuse radiance kd/pi * E (0 on dark back faces)
 //   GB_NORMAL    rgba16f  xyz: unit shading normal on the side the viewer sees;
 //                         w: GB_DARK_BACK_FACE on back faces of single-sided materials, else 0

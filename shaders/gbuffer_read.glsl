@@ -4,11 +4,11 @@
 #include "camera.glsl"
 #include "gbuffer_layout.glsl"
 
-uniform sampler2D gb_diffuse;
-uniform sampler2D gb_normal;
-uniform sampler2D gb_tangent;
-uniform usampler2D gb_material;
-uniform sampler2D gb_depth;
+layout(binding = GB_DIFFUSE_UNIT) uniform sampler2D gb_diffuse;
+layout(binding = GB_NORMAL_UNIT) uniform sampler2D gb_normal;
+layout(binding = GB_TANGENT_UNIT) uniform sampler2D gb_tangent;
+layout(binding = GB_MATERIAL_UNIT) uniform usampler2D gb_material;
+layout(binding = GB_DEPTH_UNIT) uniform sampler2D gb_depth;
 
 // One visible surface point, as the shading pass and its per-pixel hooks see it.
 struct Surface {

@@ -1,6 +1,6 @@
 // The section 3.3 material (Eq. 3.6: kd/pi + lobes, plus emission) as viewer/gpu_scene.py packs
-// it into shader storage buffers (std430). Flags (MAT_*) and bindings come in as defines from
-// gpu_scene.py, so the Python packer and this declaration cannot drift apart.
+// it into shader storage buffers (std430). Flags (MAT_*) come in as defines from gpu_scene.py and
+// bindings from gl_bindings.py, so the Python packer and this declaration cannot drift apart.
 
 struct Material {
     vec4 kd;        // rgb: diffuse reflectance kd; a: unused

@@ -6,9 +6,9 @@
 
 #include "raster_surface.glsl"
 
-layout(location = 0) out vec4 out_radiance;  // rgba16f: outgoing radiance towards the mirrored eye
-layout(location = 1) out vec4 out_position;  // rgba32f: xyz world position, w = 1 (0 where nothing was drawn)
-layout(location = 2) out vec4 out_normal;    // rgba16f: xyz unit normal on the seen side (0 where nothing was drawn)
+layout(location = MIRROR_RADIANCE_LOCATION) out vec4 out_radiance;  // rgba16f: outgoing radiance towards the mirrored eye
+layout(location = MIRROR_POSITION_LOCATION) out vec4 out_position;  // rgba32f: xyz world position, w = 1 (0 where nothing was drawn)
+layout(location = MIRROR_NORMAL_LOCATION) out vec4 out_normal;    // rgba16f: xyz unit normal on the seen side (0 where nothing was drawn)
 
 void main() {
     RasterSurface s = raster_surface();

@@ -6,8 +6,8 @@
 #include "common.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
-layout(rgba16f, binding = 0) uniform readonly image2DArray finer;
-layout(rgba16f, binding = 1) uniform writeonly image2DArray coarser;
+layout(rgba16f, binding = MIP_SOURCE_IMAGE) uniform readonly image2DArray finer;
+layout(rgba16f, binding = MIP_TARGET_IMAGE) uniform writeonly image2DArray coarser;
 
 void main() {
     ivec3 p = ivec3(gl_GlobalInvocationID.xy, gl_GlobalInvocationID.z);

@@ -13,9 +13,9 @@
 uniform vec3 mirror_normal_world;  // the plane's unit normal
 uniform ivec2 buffer_size;
 
-layout(location = 0) out vec4 out_radiance;
-layout(location = 1) out vec4 out_position;
-layout(location = 2) out vec4 out_normal;
+layout(location = MIRROR_RADIANCE_LOCATION) out vec4 out_radiance;
+layout(location = MIRROR_POSITION_LOCATION) out vec4 out_position;
+layout(location = MIRROR_NORMAL_LOCATION) out vec4 out_normal;
 
 void main() {
     vec3 ray = view_ray(ivec2(gl_FragCoord.xy), buffer_size);

@@ -6,8 +6,8 @@
 #include "materials.glsl"
 
 uniform int material_index;
-uniform sampler2D kd_texture;       // the material's base colour (1x1 white when it has none)
-uniform sampler2DArray lightmaps;   // irradiance E (rgb), one layer per page
+layout(binding = KD_TEXTURE_UNIT) uniform sampler2D kd_texture;   // the material's base colour (1x1 white: none)
+layout(binding = LIGHTMAP_UNIT) uniform sampler2DArray lightmaps;  // irradiance E (rgb), one layer per page
 uniform vec3 eye;                   // the eye the pass looks from (a mirror pass: the mirrored eye)
 
 in vec3 v_position;

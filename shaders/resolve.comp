@@ -4,8 +4,8 @@
 #include "common.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
-layout(rgba32f) uniform writeonly image2D resolved;
-uniform sampler2D radiance;
+layout(rgba32f, binding = TARGET_IMAGE) uniform writeonly image2D resolved;
+layout(binding = SOURCE_UNIT) uniform sampler2D radiance;
 uniform int factor;  // N
 
 void main() {

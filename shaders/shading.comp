@@ -13,7 +13,7 @@
 #include "specular.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
-layout(rgba32f) uniform writeonly image2D radiance_out;
+layout(rgba32f, binding = RADIANCE_IMAGE) uniform writeonly image2D radiance_out;
 
 // Eq. 3.6 towards the eye without the lobes: light-mapped diffuse (Eq. 4.1, from the G-buffer) +
 // emission. A dark back face sends nothing, emission included (Mitsuba's one-sided emitters).

@@ -8,7 +8,7 @@
 
 uniform int sky_mode;        // SKY_NONE, SKY_CONSTANT or SKY_MAP
 uniform vec3 sky_scale;      // radiance (constant sky) or the map's multiplier
-uniform sampler2D sky_map;
+layout(binding = SKY_UNIT) uniform sampler2D sky_map;
 
 vec2 equirect_uv(vec3 d) {
     // atan(0, 0) is undefined in GLSL; numpy's arctan2(0, 0) = 0 gives u = 0.5 at the poles.

@@ -7,7 +7,7 @@
 #include "specular.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
-layout(rgba32f) uniform image2D radiance_out;  // read: the view-independent part; write: the sum
+layout(rgba32f, binding = RADIANCE_IMAGE) uniform image2D radiance_out;  // read: the view-independent part; write: the sum
 
 void main() {
     uint tile = specular_tiles[gl_WorkGroupID.x];

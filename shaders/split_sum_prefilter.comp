@@ -12,7 +12,7 @@
 #include "cubemaps.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
-layout(SPLIT_SUM_FORMAT, binding = 0) writeonly uniform imageCubeArray prefiltered;
+layout(SPLIT_SUM_FORMAT, binding = PREFILTER_IMAGE) writeonly uniform imageCubeArray prefiltered;
 
 uniform int source_class;  // the size class (viewer/cubemaps.py) this dispatch filters
 uniform int face_size;     // texels per face side of the level written

@@ -4,8 +4,8 @@
 #include "colour.glsl"
 
 layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
-layout(rgba8) uniform writeonly image2D display;
-uniform sampler2D radiance;
+layout(rgba8, binding = TARGET_IMAGE) uniform writeonly image2D display;
+layout(binding = SOURCE_UNIT) uniform sampler2D radiance;
 uniform float exposure_scale;  // 2^EV
 
 void main() {

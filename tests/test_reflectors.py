@@ -6,14 +6,12 @@ import pytest
 from conftest import quad
 
 from glint.core.scene import Object
-from glint.viewer.camera import ViewCamera
+from glint.viewer.camera import ViewCamera, in_frustum
 from glint.viewer.mirror_camera import MirrorCamera
 from glint.viewer.reflectors import (
     OcclusionResults,
     Reflector,
     SkipReason,
-    box_outside_frustum,
-    frustum_planes,
     plan_mirror_passes,
     projected_area,
     reflectors_of,
@@ -147,11 +145,10 @@ def test_budget_is_spent_on_visible_reflectors_only(camera):
 
 
 def test_frustum_helpers(camera):
-    planes = frustum_planes(camera.view_projection(ASPECT))
-    assert not box_outside_frustum(np.array([[-0.1, 0.5, -1.1], [0.1, 0.7, -0.9]]), planes)
-    assert box_outside_frustum(np.array([[-0.1, 0.5, 4], [0.1, 0.7, 5]]), planes)  # behind
-    # Screen area: a box filling the view; a box straddling the eye plane is clipped, not inverted.
     vp = camera.view_projection(ASPECT)
+    assert in_frustum(np.array([[-0.1, 0.5, -1.1], [0.1, 0.7, -0.9]]), vp)
+    assert not in_frustum(np.array([[-0.1, 0.5, 4], [0.1, 0.7, 5]]), vp)  # behind
+    # Screen area: a box filling the view; a box straddling the eye plane is clipped, not inverted.
     assert projected_area(np.array([[-50, -50, -60], [50, 50, -40]]), vp) == pytest.approx(1.0)
     straddle = projected_area(np.array([[-0.2, 0.0, -1.0], [0.2, 0.1, 6.0]]), vp)
     assert 0 < straddle <= 1

@@ -17,8 +17,7 @@ import pytest
 
 from glint.core.bake_dir import FORMAT_VERSION, Bake, save_meshes, write_json
 from glint.core.image_io import write_image
-from glint.viewer.camera import ViewCamera, camera_path_at, gl_bytes
-from glint.viewer.passes.gbuffer import in_frustum
+from glint.viewer.camera import ViewCamera, camera_path_at, gl_bytes, in_frustum
 from glint.viewer.passes.resolve import ResolvePass
 from glint.viewer.passes.tonemap import TonemapPass
 from glint.viewer.renderer import Renderer

@@ -323,7 +323,8 @@ def plane_lookup(p, d, centre, planes):
 def test_bounding_plane_lookup_matches_numpy():
     """shaders/cubemaps.glsl bounding_plane_direction over random rays, floor and ceiling planes."""
     from glint.bench import glsl_eval
-    from glint.viewer.cubemaps import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, CUBE_OBJECT_DTYPE, PLANE_DTYPE
+    from glint.viewer.cubemaps import CUBE_OBJECT_DTYPE, PLANE_DTYPE
+    from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING
 
     rng = np.random.default_rng(4)
     centre = np.array([0.3, 1.0, -0.2])

@@ -16,6 +16,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import pyrr
+
+from glint.core.errors import GlintError
 
 DEFAULT_YFOV = math.radians(50.0)  # bake/sidecar.py's default for cameras without one
 WORLD_UP = np.array([0.0, 1.0, 0.0])
@@ -94,6 +97,7 @@ class ViewCamera:
     # -- matrices --------------------------------------------------------------------------------
     def view_matrix(self) -> np.ndarray:
         """World -> eye space (camera at the origin looking down -Z)."""
+        # Not pyrr's create_look_at: it re-normalises the axes in another order, an ulp off for most cameras.
         f, u, r = self.forward, self.up, self.right
         m = np.eye(4)
         m[0, :3], m[1, :3], m[2, :3] = r, u, -f
@@ -102,15 +106,9 @@ class ViewCamera:
 
     def projection_matrix(self, aspect: float) -> np.ndarray:
         """Eye -> clip space: the OpenGL perspective matrix (gluPerspective), depth in [-1, 1]."""
-        t = 1.0 / math.tan(self.yfov / 2)
-        n, f = self.znear, self.zfar
-        m = np.zeros((4, 4))
-        m[0, 0] = t / aspect
-        m[1, 1] = t
-        m[2, 2] = (f + n) / (n - f)
-        m[2, 3] = 2 * f * n / (n - f)
-        m[3, 2] = -1.0
-        return m.astype(np.float32)
+        m = pyrr.matrix44.create_perspective_projection(math.degrees(self.yfov), aspect, self.znear, self.zfar,
+                                                        dtype=np.float64)
+        return m.T.astype(np.float32)  # pyrr's matrices act on row vectors: the transpose of ours
 
     def view_projection(self, aspect: float) -> np.ndarray:
         return (self.projection_matrix(aspect).astype(np.float64)
@@ -126,6 +124,26 @@ class ViewCamera:
 def gl_bytes(m: np.ndarray) -> bytes:
     """A numpy (4, 4) matrix as GLSL's column-major mat4."""
     return np.ascontiguousarray(np.asarray(m, np.float32).T).tobytes()
+
+
+# -- frustum culling ----------------------------------------------------------------------------------
+def frustum_planes(view_proj: np.ndarray) -> np.ndarray:
+    """The six planes (6, 4) of an OpenGL view-projection (Gribb & Hartmann), inside where
+    dot(plane, (x, 1)) >= 0: -w <= x, y, z <= w in clip space; order left, right, bottom, top,
+    near, far. Not normalised."""
+    r0, r1, r2, r3 = np.asarray(view_proj, np.float64)
+    return np.array([r3 + r0, r3 - r0, r3 + r1, r3 - r1, r3 + r2, r3 - r2])
+
+
+def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
+    """False only when the box [lo, hi] certainly lies outside the view of `view_proj`: wholly
+    beyond one of its planes (`frustum_planes`), tested with the box corner farthest along the
+    plane's normal. Conservative: a box off a frustum edge or corner may count as inside. A box
+    behind the eye is beyond the near plane."""
+    planes = frustum_planes(view_proj)
+    lo, hi = np.asarray(bounds, np.float64)
+    farthest = np.where(planes[:, :3] >= 0, hi, lo)
+    return not bool(np.any(np.einsum("ij,ij->i", planes[:, :3], farthest) + planes[:, 3] < 0))
 
 
 # -- camera paths ---------------------------------------------------------------------------------
@@ -187,8 +205,6 @@ def _hermite(p: np.ndarray, times: np.ndarray, i: int, s: float, closed: bool) -
 def find_named(entries: list[dict], name: str, what: str = "camera",
                none: str = "the scene has no cameras") -> dict:
     """The manifest entry called `name`, or a one-line GlintError listing the names there are."""
-    from glint.core.errors import GlintError
-
     entry = next((e for e in entries if e["name"] == name), None)
     if entry is None:
         have = ", ".join(e["name"] for e in entries)

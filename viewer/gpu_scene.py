@@ -41,11 +41,12 @@ import numpy as np
 
 from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
-from glint.viewer.cubemaps import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, CubeMaps
+from glint.core.image_io import read_image
+from glint.viewer.cubemaps import CubeMaps
+from glint.viewer.gl import software_renderer
+from glint.viewer.gl_bindings import LOBE_BINDING, LOBE_PATTERN_BINDING, MATERIAL_BINDING, PATTERN_BINDING
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
-MATERIAL_BINDING, LOBE_BINDING = 0, 1
-PATTERN_BINDING, LOBE_PATTERN_BINDING = 2, 3  # shaders/specular.glsl; viewer/cubemaps.py uses 4 and 5
 MATERIAL_FLAGS = {
     "MAT_TWO_SIDED": 1,    # glTF doubleSided, or thin transmissive (the bake treats both as two-sided)
     "MAT_EMISSIVE": 2,
@@ -71,11 +72,9 @@ VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_u
 
 
 def shader_defines() -> dict:
-    """The constants shaders/materials.glsl, sky.glsl, specular.glsl and cubemaps.glsl take as defines."""
-    return {"MATERIAL_BINDING": MATERIAL_BINDING, "LOBE_BINDING": LOBE_BINDING,
-            "PATTERN_BINDING": PATTERN_BINDING, "LOBE_PATTERN_BINDING": LOBE_PATTERN_BINDING,
-            "CUBE_OBJECT_BINDING": CUBE_OBJECT_BINDING, "BOUNDING_PLANE_BINDING": BOUNDING_PLANE_BINDING,
-            **MATERIAL_FLAGS, **LOBE_KINDS, **SKY_MODES}
+    """The constants shaders/materials.glsl, sky.glsl and specular.glsl take as defines (their buffer
+    bindings every program gets: viewer/gl_bindings.py)."""
+    return {**MATERIAL_FLAGS, **LOBE_KINDS, **SKY_MODES}
 
 
 def _clean(a, lo=0.0, hi=None) -> np.ndarray:
@@ -122,7 +121,7 @@ class GpuScene:
             raise GlintError(f"unknown planar pattern {planar_pattern!r}; use one of {', '.join(PLANAR_PATTERNS)}")
         self.planar_pattern = planar_pattern
         self.ctx = ctx
-        self.software = "llvmpipe" in ctx.info.get("GL_RENDERER", "").lower()
+        self.software = software_renderer(ctx)
         manifest = bake.manifest
         count = len(manifest["materials"])
         for entry in manifest["objects"]:
@@ -172,8 +171,6 @@ class GpuScene:
 
     # -- materials -------------------------------------------------------------------------------
     def _materials(self, bake) -> None:
-        from glint.core.image_io import read_image
-
         entries = bake.manifest["materials"]
         mats = np.zeros(max(len(entries), 1), MATERIAL_DTYPE)
         lobe_rows = []
@@ -307,8 +304,6 @@ class GpuScene:
             return
         self.sky_scale = _clean(sky.get("radiance", (1, 1, 1))).astype(np.float32)
         if sky.get("map"):
-            from glint.core.image_io import read_image
-
             image = _clean(read_image(bake.path / sky["map"])[..., :3])
             h, w = image.shape[:2]
             rgba = np.concatenate([image, np.ones((h, w, 1))], axis=-1).astype(np.float32)

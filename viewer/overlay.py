@@ -11,6 +11,8 @@ import moderngl
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
+from glint.viewer.gl_bindings import BLIT_UNIT
+
 UPDATE_INTERVAL = 0.25  # s
 MARGIN = 8  # px from the window's edges
 PADDING = 6  # px around the text
@@ -80,8 +82,7 @@ class Overlay:
         self.ctx.enable(moderngl.BLEND)
         # Colour blends by the text's alpha; the frame's alpha (1) stays, so the window stays opaque.
         self.ctx.blend_func = moderngl.SRC_ALPHA, moderngl.ONE_MINUS_SRC_ALPHA, moderngl.ZERO, moderngl.ONE
-        self.texture.use(0)
-        self.blit["image"] = 0
+        self.texture.use(BLIT_UNIT)
         self.blit["opaque"] = False
         self.triangle.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.disable(moderngl.BLEND)

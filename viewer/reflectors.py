@@ -62,7 +62,8 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from glint.core.bsdf import theta_thresh
-from glint.viewer.camera import ViewCamera
+from glint.core.geometry import plane_of
+from glint.viewer.camera import ViewCamera, in_frustum
 from glint.viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HEIGHT, MirrorCamera, group_coplanar
 
 DEFAULT_BUDGET = 4  # mirror passes per frame
@@ -98,8 +99,6 @@ class Reflector:
     @classmethod
     def from_object(cls, obj) -> "Reflector":
         """From a `glint.core.scene.Object` whose role is `planar` (plane by `glint.core.geometry.plane_of`)."""
-        from glint.core.geometry import plane_of
-
         point, normal = plane_of(obj)
         return cls(obj.name, point, normal, obj.bounds, obj.area)
 
@@ -221,23 +220,6 @@ _CORNERS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)])
 _EDGES = [(a, b) for a in range(8) for b in range(a + 1, 8) if bin(a ^ b).count("1") == 1]
 
 
-def frustum_planes(view_proj: np.ndarray) -> np.ndarray:
-    """The six planes (6, 4) of an OpenGL view-projection (Gribb & Hartmann), inside
-    where dot(plane, (x, 1)) >= 0; order left, right, bottom, top, near, far. Not normalised."""
-    m = np.asarray(view_proj, np.float64)
-    r0, r1, r2, r3 = m
-    return np.array([r3 + r0, r3 - r0, r3 + r1, r3 - r1, r3 + r2, r3 - r2])
-
-
-def box_outside_frustum(bounds: np.ndarray, planes: np.ndarray) -> bool:
-    """True when the box [lo, hi] lies entirely outside one frustum plane (conservative:
-    a box near a frustum corner may be reported inside)."""
-    lo, hi = np.asarray(bounds, np.float64)
-    # The box corner farthest along each plane normal (the "p-vertex").
-    pv = np.where(planes[:, :3] >= 0, hi, lo)
-    return bool(np.any(np.einsum("ij,ij->i", planes[:, :3], pv) + planes[:, 3] < 0))
-
-
 def box_distance(bounds: np.ndarray, x: np.ndarray) -> float:
     lo, hi = np.asarray(bounds, np.float64)
     return float(np.linalg.norm(np.maximum(0.0, np.maximum(lo - x, x - hi))))
@@ -270,13 +252,12 @@ def plan_mirror_passes(reflectors: Sequence[Reflector], camera: ViewCamera, aspe
                        offset: float = GROUP_OFFSET) -> MirrorPlan:
     """This frame's mirror passes; see the module docstring for the rules and their order."""
     vp = camera.view_projection(aspect).astype(np.float64)
-    planes = frustum_planes(vp)
     eye = camera.eye
     skipped: list[Skipped] = []
     queries: list[Reflector] = []
     alive: list[Reflector] = []
     for r in reflectors:
-        if box_outside_frustum(r.bounds, planes):
+        if not in_frustum(r.bounds, vp):
             skipped.append(Skipped(r, SkipReason.OUTSIDE_FRUSTUM))
             continue
         if not float((eye - r.point) @ r.normal) > MIN_EYE_HEIGHT:

@@ -39,12 +39,12 @@ import numpy as np
 
 from glint.core.errors import GlintError
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import check_context, describe
+from glint.viewer.gl import check_context, describe, max_texture_size
 from glint.viewer.gpu_scene import GpuScene, shader_defines
 from glint.viewer.passes.gbuffer import GBufferPass
 from glint.viewer.passes.mirror import MirrorPasses, mirror_defines
 from glint.viewer.passes.resolve import ResolvePass
-from glint.viewer.passes.shading import SKY_UNIT, ShadingPass, mirror_first_unit
+from glint.viewer.passes.shading import ShadingPass, scene_units
 from glint.viewer.passes.tonemap import TonemapPass
 from glint.viewer.progressive import DEFAULT_MAX_FRAMES, DEFAULT_SAMPLES_PER_FRAME, Progressive
 from glint.viewer.reflectors import DEFAULT_BUDGET
@@ -95,11 +95,11 @@ class Renderer:
             self.scene.set_lobe_samples(lobe_samples)
         if not (isinstance(mirror_budget, (int, np.integer)) and mirror_budget >= 0):
             raise GlintError(f"the mirror-pass budget must be a whole number of at least 0 (got {mirror_budget!r})")
-        mirror_unit = mirror_first_unit(self.scene)
+        mirror_unit = scene_units(self.scene)["MIRROR_RADIANCE_UNIT"]
         defines = {**shader_defines(), **mirror_defines(mirror_unit)}
         self.gbuffer = GBufferPass(ctx, self.scene, defines)
         self.mirror = MirrorPasses(ctx, self.scene, bake, defines, budget=int(mirror_budget))
-        self.mirror.set_units(mirror_unit, SKY_UNIT)
+        self.mirror.set_units(mirror_unit)
         self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
         self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror,
                                    split_sum=self.split_sum)
@@ -137,7 +137,7 @@ class Renderer:
         """GlintError unless width x height (times the supersampling) can be rendered here."""
         if not (int(width) == width and int(height) == height and width >= 1 and height >= 1):
             raise GlintError(f"bad image size {width}x{height}: width and height must be at least 1")
-        limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
+        limit = max_texture_size(self.ctx)
         n = self.supersample
         if max(width, height) * n > limit:
             raise GlintError(f"image size {width}x{height} with supersampling {n} needs "

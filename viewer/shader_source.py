@@ -21,6 +21,7 @@ from importlib import resources
 import moderngl
 
 from glint.core import bsdf, constants
+from glint.viewer import gl_bindings
 
 GLSL_VERSION = "#version 430 core"
 PACKAGE = "glint.shaders"
@@ -45,11 +46,13 @@ def read(name: str) -> str:
 
 
 def glsl_constants() -> dict:
-    """The constants every shader gets as defines: core/constants.py and the BSDF's numerical guards."""
+    """The constants every shader gets as defines: core/constants.py, the BSDF's numerical guards and
+    the fixed texture units and buffer bindings (viewer/gl_bindings.py)."""
     return {"HALF_MAX": constants.HALF_MAX, "XI1_BORDER": constants.XI1_BORDER, "LOBE_TAN_MAX": constants.LOBE_TAN_MAX,
             "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "GB_DARK_BACK_FACE": constants.GB_DARK_BACK_FACE,
             "GB_ID_BITS": constants.GB_ID_BITS, "M_MIN": bsdf.M_MIN, "HZ_MIN": bsdf.HZ_MIN,
-            "DOT_MIN": bsdf.DOT_MIN, "COS_MIN": bsdf.COS_MIN, "HALF_MIN": bsdf.HALF_MIN, "XI_MIN": bsdf.XI_MIN}
+            "DOT_MIN": bsdf.DOT_MIN, "COS_MIN": bsdf.COS_MIN, "HALF_MIN": bsdf.HALF_MIN, "XI_MIN": bsdf.XI_MIN,
+            **gl_bindings.glsl_defines()}
 
 
 def preprocess(name: str, defines: dict | None = None) -> tuple[str, list[str]]:

@@ -49,37 +49,22 @@ ellipse, section 4.5.3, over one sample), times the same albedo. Transmission lo
 around the transmitted direction in the cube map, with their own albedo, as the other methods.
 
     split = SplitSum(ctx, scene)   # GpuScene: prefilters every cube map, builds the LUT
-    split.defines(first_unit)      # shaders/split_sum.glsl's defines (SPLIT_SUM on)
-    split.bind(program, first_unit)
+    split.defines(first_unit, lut_unit)  # shaders/split_sum.glsl's defines (SPLIT_SUM on)
+    split.bind(program, first_unit, lut_unit)
     split.describe()               # prefilter_ms, albedo_ms, levels ... (renderer.stats["split_sum"])
 """
 from __future__ import annotations
 
-import ctypes
 import math
 import time
 
 import moderngl
 import numpy as np
 
-from glint.viewer.cubemaps import (
-    _GL,
-    GL_CLAMP_TO_EDGE,
-    GL_FLOAT,
-    GL_LINEAR,
-    GL_LINEAR_MIPMAP_LINEAR,
-    GL_RGBA,
-    GL_RGBA16F,
-    GL_RGBA32F,
-    GL_TEXTURE0,
-    GL_TEXTURE_CUBE_MAP_ARRAY,
-    GL_TEXTURE_MAG_FILTER,
-    GL_TEXTURE_MIN_FILTER,
-    GL_TEXTURE_WRAP_R,
-    GL_TEXTURE_WRAP_S,
-    GL_TEXTURE_WRAP_T,
-    gl_functions,
-)
+from glint.core import bsdf
+from glint.viewer.gl import GL, GL_RGBA16F, GL_RGBA32F, GL_WRITE_ONLY
+from glint.viewer.gl_bindings import PREFILTER_CUBE_UNIT, PREFILTER_IMAGE
+from glint.viewer.gpu_scene import shader_defines
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, set_uniforms
 
 PREFILTER_SAMPLES = 64    # importance samples per texel of level 1, doubled per level ...
@@ -88,13 +73,6 @@ LOWEST_FACE = 4           # texels per side of the chain's last level
 M_MAX = 1.0               # the roughness of the last level
 LUT_COS, LUT_PHI = 32, 8  # albedo grid: sqrt(cos theta_v) x view azimuth in [0, pi/2]
 ALBEDO_SAMPLES = 4096     # per albedo (glint.core.bsdf.lobe_albedo)
-PREFILTER_UNIT = 0        # source cube maps' first texture unit while prefiltering
-IMAGE_UNIT = 0
-
-GL_TEXTURE_BASE_LEVEL, GL_TEXTURE_MAX_LEVEL = 0x813C, 0x813D
-GL_WRITE_ONLY = 0x88B9
-GL_PACK_ALIGNMENT = 0x0D05
-GL_PIXEL_PACK_BUFFER, GL_PIXEL_PACK_BUFFER_BINDING = 0x88EB, 0x88ED
 
 
 def level_count(face_size: int) -> int:
@@ -125,8 +103,6 @@ def lut_views() -> np.ndarray:
 def albedo_lut(lobe_table: np.ndarray, samples: int = ALBEDO_SAMPLES) -> np.ndarray:
     """(lobes, LUT_COS, LUT_PHI) float32: each lobe's directional albedo (without ks) at the grid's
     views. Lobes with the same parameters are computed once; isotropic ones for one azimuth."""
-    from glint.core import bsdf
-
     views = lut_views()
     out = np.zeros((max(len(lobe_table), 1), LUT_COS, LUT_PHI), np.float32)
     done: dict[tuple, np.ndarray] = {}
@@ -143,25 +119,11 @@ def albedo_lut(lobe_table: np.ndarray, samples: int = ALBEDO_SAMPLES) -> np.ndar
     return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
 
 
-class _SplitSumGL(_GL):
-    """The cube-map entry points plus those the prefilter needs."""
-
-    def __init__(self, ctx):
-        super().__init__(ctx)
-        fn = gl_functions(ctx)
-        u, i, p = ctypes.c_uint, ctypes.c_int, ctypes.c_void_p
-        self.TexStorage3D = fn("glTexStorage3D", None, u, i, u, i, i, i)
-        self.BindImageTexture = fn("glBindImageTexture", None, u, u, i, ctypes.c_ubyte, i, u, u)
-        self.GetTexImage = fn("glGetTexImage", None, u, i, u, u, p)
-
-
 class SplitSum:
     """Prefiltered cube-map arrays (one per size class of viewer/cubemaps.py, same layers) and the
     per-lobe albedo LUT of a GpuScene."""
 
     def __init__(self, ctx, scene, samples: int = PREFILTER_SAMPLES):
-        from glint.viewer.gpu_scene import shader_defines
-
         self.ctx = ctx
         self.samples = int(samples)
         cubes = scene.cubemaps
@@ -175,11 +137,11 @@ class SplitSum:
         self.classes = cubes.classes
         self.levels = [level_count(c.size) for c in self.classes]
         self.textures: list[int] = []
-        self._gl = _SplitSumGL(ctx) if self.classes else None
+        self._gl = GL(ctx) if self.classes else None
         self.prefilter_ms = 0.0
         if not self.classes:
             return
-        defines = {**shader_defines(), **cubes.defines(PREFILTER_UNIT)}
+        defines = {**shader_defines(), **cubes.defines(PREFILTER_CUBE_UNIT)}
         programs = {}
         ctx.finish()
         started = time.perf_counter()
@@ -197,65 +159,45 @@ class SplitSum:
     def _prefilter(self, program, cubes, k: int, cls, levels: int) -> int:
         """The prefiltered chain of class k: a new cube-map array, each level written by one dispatch."""
         gl = self._gl
-        name = ctypes.c_uint(0)
-        gl.GenTextures(1, ctypes.byref(name))
-        gl.ActiveTexture(GL_TEXTURE0 + self.ctx.default_texture_unit)
-        gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, name.value)
         internal = GL_RGBA16F if cls.dtype == "f2" else GL_RGBA32F
-        gl.TexStorage3D(GL_TEXTURE_CUBE_MAP_ARRAY, levels, internal, cls.size, cls.size, 6 * len(cls.objects))
-        for key, value in ((GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR), (GL_TEXTURE_MAG_FILTER, GL_LINEAR),
-                           (GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE), (GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE),
-                           (GL_TEXTURE_WRAP_R, GL_CLAMP_TO_EDGE), (GL_TEXTURE_BASE_LEVEL, 0),
-                           (GL_TEXTURE_MAX_LEVEL, levels - 1)):
-            gl.TexParameteri(GL_TEXTURE_CUBE_MAP_ARRAY, key, value)
-        gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
-        cubes.bind(program, PREFILTER_UNIT)
-        for level in range(levels):
-            face = max(cls.size >> level, 1)
-            gl.BindImageTexture(IMAGE_UNIT, name.value, level, 1, 0, GL_WRITE_ONLY, internal)
-            set_uniforms(program, source_class=k, face_size=face, roughness=level_roughness(level, levels),
-                         samples=level_samples(level, self.samples))
-            program.run(-(-face // LOCAL_SIZE), -(-face // LOCAL_SIZE), 6 * len(cls.objects))
+        what = (f"the split-sum prefiltered cube maps of face size {cls.size} ({len(cls.objects)} objects, "
+                f"{levels} levels, {'RGBA16F' if cls.dtype == 'f2' else 'RGBA32F'})")
+        name = gl.allocate_cube_array(cls.size, 6 * len(cls.objects), levels, internal, what)
+        cubes.bind(program, PREFILTER_CUBE_UNIT)
+        with gl.checked(f"prefilter {what}"):  # an image binding GL refuses leaves the level unwritten
+            for level in range(levels):
+                face = max(cls.size >> level, 1)
+                gl.BindImageTexture(PREFILTER_IMAGE, name, level, 1, 0, GL_WRITE_ONLY, internal)
+                set_uniforms(program, source_class=k, face_size=face, roughness=level_roughness(level, levels),
+                             samples=level_samples(level, self.samples))
+                program.run(-(-face // LOCAL_SIZE), -(-face // LOCAL_SIZE), 6 * len(cls.objects))
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
-        return name.value
+        return name
 
     # -- shading ----------------------------------------------------------------------------------
-    def defines(self, first_unit: int) -> dict:
+    def defines(self, first_unit: int, lut_unit: int) -> dict:
         """shaders/split_sum.glsl: the prefiltered classes on units first_unit .. first_unit + C - 1
-        (C = CUBE_CLASSES, at least 1), the albedo LUT on the next one, the LUT's shape."""
-        classes = max(len(self.classes), 1)
-        return {"SPLIT_SUM": 1, "SPLIT_SUM_FIRST_UNIT": int(first_unit), "SPLIT_SUM_LUT_UNIT": int(first_unit) + classes,
+        (C = CUBE_CLASSES, at least 1), the albedo LUT on lut_unit (viewer/gl_bindings.py
+        `shading_units`), the LUT's shape."""
+        return {"SPLIT_SUM": 1, "SPLIT_SUM_FIRST_UNIT": int(first_unit), "SPLIT_SUM_LUT_UNIT": int(lut_unit),
                 "SPLIT_SUM_LUT_COS": LUT_COS, "SPLIT_SUM_LUT_PHI": LUT_PHI, "SPLIT_SUM_M_MAX": float(M_MAX)}
 
-    def bind(self, program, first_unit: int) -> None:
-        """Bind the prefiltered arrays and the LUT as `defines(first_unit)` told the shader."""
-        self.lut.use(first_unit + max(len(self.classes), 1))
+    def bind(self, program, first_unit: int, lut_unit: int) -> None:
+        """Bind the prefiltered arrays and the LUT as `defines(first_unit, lut_unit)` told the shader."""
+        self.lut.use(lut_unit)
         if not self.classes:
             return
-        gl = self._gl
-        for k, glo in enumerate(self.textures):
-            gl.ActiveTexture(GL_TEXTURE0 + first_unit + k)
-            gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, glo)
-        gl.ActiveTexture(GL_TEXTURE0 + self.ctx.default_texture_unit)
+        self._gl.bind_cube_arrays(first_unit, self.textures)
         if program is not None and "split_sum_levels" in program:
             program["split_sum_levels"].write(np.array(self.levels, np.float32).tobytes())
 
     def read_level(self, k: int, level: int) -> np.ndarray:
         """(layers, 6, s, s, 4) float32: level `level` of class k's prefiltered chain, faces in GL
         order, row 0 at t = 0 (for tests and debugging)."""
-        cls, gl = self.classes[k], self._gl
+        cls = self.classes[k]
         s = max(cls.size >> level, 1)
         out = np.zeros((len(cls.objects), 6, s, s, 4), np.float32)
-        pack = ctypes.c_int(0)
-        gl.GetIntegerv(GL_PIXEL_PACK_BUFFER_BINDING, ctypes.byref(pack))
-        gl.BindBuffer(GL_PIXEL_PACK_BUFFER, 0)
-        gl.PixelStorei(GL_PACK_ALIGNMENT, 1)
-        gl.ActiveTexture(GL_TEXTURE0 + self.ctx.default_texture_unit)
-        gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, self.textures[k])
-        gl.GetTexImage(GL_TEXTURE_CUBE_MAP_ARRAY, level, GL_RGBA, GL_FLOAT, out.ctypes.data)
-        gl.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
-        gl.BindBuffer(GL_PIXEL_PACK_BUFFER, pack.value)
-        return out
+        return self._gl.read_cube_array(self.textures[k], level, out, f"level {level} of split-sum class {k}")
 
     def describe(self) -> dict:
         return {"prefilter_ms": round(self.prefilter_ms, 3), "albedo_ms": round(self.albedo_ms, 3),
@@ -267,7 +209,6 @@ class SplitSum:
 
     def release(self) -> None:
         if self._gl is not None:
-            for glo in self.textures:
-                self._gl.DeleteTextures(1, ctypes.byref(ctypes.c_uint(glo)))
+            self._gl.delete_textures(self.textures)
         self.textures = []
         self.lut.release()

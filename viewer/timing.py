@@ -26,12 +26,13 @@ from statistics import median
 
 import moderngl
 
+from glint.viewer.gl import software_renderer
+
 QUERY_INVALID = 2 ** 31  # ns; a 32-bit result this large is a wrapped negative (seen on llvmpipe)
 
 
 def default_method(ctx: moderngl.Context) -> str:
-    renderer = ctx.info.get("GL_RENDERER", "").lower()
-    return "finish" if any(s in renderer for s in ("llvmpipe", "softpipe", "swrast")) else "query"
+    return "finish" if software_renderer(ctx) else "query"
 
 
 class PassTimer:

@@ -27,11 +27,13 @@ from moderngl_window.context.base import BaseWindow
 from PIL import Image
 
 from glint.core.errors import warn
-from glint.viewer.context import GL_REQUIRED, check_context
 from glint.viewer.controls import WalkControls
+from glint.viewer.gl import GL_REQUIRED, check_context
+from glint.viewer.gl_bindings import BLIT_UNIT
 from glint.viewer.overlay import Overlay
 from glint.viewer.renderer import Renderer
 from glint.viewer.shader_source import raster_program
+from glint.viewer.skipping import frame_section, one_line
 
 GL_VERSION = (GL_REQUIRED // 100, GL_REQUIRED % 100 // 10)
 BLEND_FRAMES = 4  # from the walkthrough image to the running mean when the camera stops
@@ -119,15 +121,12 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.wnd.use()
         self.ctx.viewport = (0, 0, width, height)
         self.ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-        self.renderer.display_texture.use(0)
-        self.blit["image"] = 0
+        self.renderer.display_texture.use(BLIT_UNIT)
         self.blit["opaque"] = True
         self.triangle.render(moderngl.TRIANGLES, vertices=3)
 
         if self.overlay.visible and self.overlay.due(frame_time):
             # stats waits for the GPU's timer queries: read it only when the text is redrawn
-            from glint.viewer.skipping import frame_section, one_line
-
             stats = self.renderer.stats
             self.overlay.update(stats["gpu_ms_median"], self.controls.status, [one_line(frame_section(stats))])
         self.overlay.draw(height)

@@ -6,31 +6,18 @@ from __future__ import annotations
 
 import moderngl
 
-from glint.viewer.shader_source import compute_program, dispatch, set_uniforms
-
-FRAME_UNIT, BASE_UNIT = 0, 1
-SUM_IMAGE, SHOWN_IMAGE = 0, 1
+from glint.viewer.gl_bindings import BASE_UNIT, SHOWN_IMAGE, SOURCE_UNIT, TARGET_IMAGE
+from glint.viewer.passes import ImagePass
 
 
-class AccumulatePass:
+class AccumulatePass(ImagePass):
     name = "accumulate"
-
-    def __init__(self, ctx: moderngl.Context, defines: dict | None = None):
-        self.ctx = ctx
-        self.program = compute_program(ctx, "accumulate.comp", defines)
-        set_uniforms(self.program, frame_radiance=FRAME_UNIT, base=BASE_UNIT, accumulation=SUM_IMAGE,
-                     shown=SHOWN_IMAGE)
-        self.sum: moderngl.Texture | None = None
-        self.shown: moderngl.Texture | None = None
-        self.base: moderngl.Texture | None = None
+    shader = "accumulate.comp"
+    images = ("sum", "shown", "base")
 
     def resize(self, size: tuple[int, int]) -> None:
-        if self.sum is not None and self.sum.size == size:
-            return
-        self._release_images()
-        self.sum, self.shown, self.base = (self.ctx.texture(size, 4, dtype="f4") for _ in range(3))
-        for tex in (self.sum, self.shown, self.base):
-            tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        for attribute in self.images:
+            self._image(attribute, size, "f4")
 
     def keep_base(self, image: moderngl.Texture) -> None:
         """Copy `image` (same size, rgba32f) as the image the mean is blended from."""
@@ -47,21 +34,10 @@ class AccumulatePass:
     def run(self, radiance: moderngl.Texture, frame: int, blend: float = 1.0) -> moderngl.Texture:
         """Add `radiance` as frame number `frame` (0 restarts the sum); returns the image to show."""
         self.resize(radiance.size)
-        set_uniforms(self.program, frame=int(frame), blend=float(min(max(blend, 0.0), 1.0)))
-        radiance.use(FRAME_UNIT)
+        radiance.use(SOURCE_UNIT)
         self.base.use(BASE_UNIT)
-        self.sum.bind_to_image(SUM_IMAGE, read=True, write=True)
+        self.sum.bind_to_image(TARGET_IMAGE, read=True, write=True)
         self.shown.bind_to_image(SHOWN_IMAGE, read=False, write=True)
-        dispatch(self.program, *radiance.size)
-        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        self._dispatch(radiance.size, moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT,
+                       frame=int(frame), blend=float(min(max(blend, 0.0), 1.0)))
         return self.shown
-
-    def _release_images(self) -> None:
-        for tex in (self.sum, self.shown, self.base):
-            if tex is not None:
-                tex.release()
-        self.sum = self.shown = self.base = None
-
-    def release(self) -> None:
-        self._release_images()
-        self.program.release()

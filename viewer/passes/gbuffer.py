@@ -1,32 +1,27 @@
 """G-buffer pass: rasterise the visible objects once into the targets the shading pass reads.
 
 Targets and their encoding: shaders/gbuffer_layout.glsl. Objects whose bounding box
-lies outside the view frustum are not drawn (`in_frustum`); nothing is culled by
+lies outside the view frustum are not drawn (viewer/camera.py `in_frustum`); nothing is culled by
 facing, because back faces must show (black for single-sided materials, as in Mitsuba).
 """
 from __future__ import annotations
 
 import moderngl
-import numpy as np
 
-from glint.viewer.camera import ViewCamera, gl_bytes
+from glint.viewer.camera import ViewCamera, gl_bytes, in_frustum
+from glint.viewer.gl_bindings import (
+    GB_DIFFUSE_LOCATION,
+    GB_MATERIAL_LOCATION,
+    GB_NORMAL_LOCATION,
+    GB_TANGENT_LOCATION,
+    KD_TEXTURE_UNIT,
+    LIGHTMAP_UNIT,
+)
 from glint.viewer.shader_source import raster_program, set_uniforms
 
-GB_ATTACHMENTS = {"GB_DIFFUSE": 0, "GB_NORMAL": 1, "GB_TANGENT": 2, "GB_MATERIAL": 3}
-LIGHTMAP_UNIT, KD_TEXTURE_UNIT = 0, 1
-
-
-def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
-    """False only when the box certainly lies outside: all 8 corners beyond one clip plane
-    (-w <= x, y, z <= w in homogeneous clip space, so corners behind the eye count correctly)."""
-    lo, hi = np.asarray(bounds, np.float64)
-    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    clip = corners @ np.asarray(view_proj, np.float64).T
-    w = clip[:, 3]
-    for axis in range(3):
-        if np.all(clip[:, axis] > w) or np.all(clip[:, axis] < -w):
-            return False
-    return True
+# The colour targets by fragment-output location (gbuffer.frag, shaders/gbuffer_layout.glsl).
+COLOUR_TARGETS = {GB_DIFFUSE_LOCATION: "diffuse", GB_NORMAL_LOCATION: "normal", GB_TANGENT_LOCATION: "tangent",
+                  GB_MATERIAL_LOCATION: "material"}
 
 
 def draw_object(program, scene, obj) -> None:
@@ -43,8 +38,7 @@ class GBufferPass:
     def __init__(self, ctx: moderngl.Context, scene, defines: dict):
         self.ctx = ctx
         self.scene = scene
-        self.program = raster_program(ctx, "gbuffer.vert", "gbuffer.frag", {**defines, **GB_ATTACHMENTS})
-        set_uniforms(self.program, lightmaps=LIGHTMAP_UNIT, kd_texture=KD_TEXTURE_UNIT)
+        self.program = raster_program(ctx, "gbuffer.vert", "gbuffer.frag", defines)
         self.size: tuple[int, int] | None = None
         self.fbo = None
         self.targets: dict[str, moderngl.Texture] = {}
@@ -64,7 +58,7 @@ class GBufferPass:
             tex.repeat_x = tex.repeat_y = False
         t["depth"].compare_func = ""  # read raw depth values, not shadow comparisons
         self.targets = t
-        self.fbo = ctx.framebuffer([t["diffuse"], t["normal"], t["tangent"], t["material"]], t["depth"])
+        self.fbo = ctx.framebuffer([t[COLOUR_TARGETS[k]] for k in range(len(COLOUR_TARGETS))], t["depth"])
         self.size = size
 
     def run(self, camera: ViewCamera, aspect: float, hidden=()) -> dict:

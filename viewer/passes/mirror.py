@@ -46,11 +46,37 @@ import ctypes
 import moderngl
 import numpy as np
 
-from glint.viewer.camera import ViewCamera, gl_bytes
-from glint.viewer.cubemaps import gl_functions
+from glint.core.geometry import fit_plane
+from glint.viewer.camera import ViewCamera, gl_bytes, in_frustum
+from glint.viewer.gl import (
+    GL,
+    GL_ANY_SAMPLES_PASSED_CONSERVATIVE,
+    GL_CLIP_DISTANCE0,
+    GL_COLOR,
+    GL_COLOR_ATTACHMENT0,
+    GL_DEPTH,
+    GL_DEPTH_ATTACHMENT,
+    GL_FRAMEBUFFER,
+    GL_FRAMEBUFFER_COMPLETE,
+    GL_QUERY_RESULT,
+    GL_QUERY_RESULT_AVAILABLE,
+    GL_RENDERBUFFER,
+)
+from glint.viewer.gl_bindings import (
+    LIGHTMAP_UNIT,
+    MIP_SOURCE_IMAGE,
+    MIP_TARGET_IMAGE,
+    MIRROR_NORMAL_LOCATION,
+    MIRROR_OBJECT_BINDING,
+    MIRROR_POSITION_LOCATION,
+    MIRROR_RADIANCE_LOCATION,
+    MIRROR_SLOT_BINDING,
+    SKY_UNIT,
+    mirror_units,
+)
 from glint.viewer.gpu_scene import SKY_MODES
 from glint.viewer.mirror_camera import group_coplanar
-from glint.viewer.passes.gbuffer import KD_TEXTURE_UNIT, LIGHTMAP_UNIT, draw_object, in_frustum
+from glint.viewer.passes.gbuffer import draw_object
 from glint.viewer.reflectors import (
     DEFAULT_BUDGET,
     MirrorPlan,
@@ -61,28 +87,17 @@ from glint.viewer.reflectors import (
 )
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
 
-# Storage buffers 0-5: viewer/gpu_scene.py and cubemaps.py; 6-7: glsl_eval.py; 8-9: shading.py.
-MIRROR_SLOT_BINDING, MIRROR_OBJECT_BINDING = 10, 11
-# specular.comp's image units (0 is the radiance it adds to): the still camera's plane sums.
-PLANE_POSITION_IMAGE, PLANE_NORMAL_IMAGE = 1, 2
 SLOT_DTYPE = np.dtype([("view_proj", "<f4", (4, 4)), ("plane", "<f4", 4), ("info", "<f4", 4)])
-
-GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER = 0x8D40, 0x8CE0, 0x8D00, 0x8D41
-GL_FRAMEBUFFER_COMPLETE = 0x8CD5
-GL_COLOR, GL_DEPTH = 0x1800, 0x1801
-GL_CLIP_DISTANCE0 = 0x3000
-GL_ANY_SAMPLES_PASSED_CONSERVATIVE = 0x8D6A
-GL_QUERY_RESULT, GL_QUERY_RESULT_AVAILABLE = 0x8866, 0x8867
-TARGETS = ("radiance", "position", "normal")
+TARGETS = ("radiance", "position", "normal")  # the order of mirror_units' texture units
+# Each target's colour attachment = fragment-output location of mirror.frag and mirror_sky.frag.
+LOCATIONS = {"radiance": MIRROR_RADIANCE_LOCATION, "position": MIRROR_POSITION_LOCATION,
+             "normal": MIRROR_NORMAL_LOCATION}
 
 
 def mirror_defines(first_unit: int) -> dict:
-    """The constants shaders/mirror_buffer.glsl takes: its three array textures on units
-    first_unit .. first_unit + 2, its buffers' bindings, specular.comp's plane images."""
-    return {"MIRROR_RADIANCE_UNIT": first_unit, "MIRROR_POSITION_UNIT": first_unit + 1,
-            "MIRROR_NORMAL_UNIT": first_unit + 2, "MIRROR_SLOT_BINDING": MIRROR_SLOT_BINDING,
-            "MIRROR_OBJECT_BINDING": MIRROR_OBJECT_BINDING,
-            "MIRROR_PLANE_POSITION_IMAGE": PLANE_POSITION_IMAGE, "MIRROR_PLANE_NORMAL_IMAGE": PLANE_NORMAL_IMAGE}
+    """The units shaders/mirror_buffer.glsl takes: its three array textures on units
+    first_unit .. first_unit + 2 (its buffer bindings every program gets: viewer/gl_bindings.py)."""
+    return mirror_units(first_unit)
 
 
 def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
@@ -90,8 +105,6 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
     others have nothing to read a mirror buffer for: the cube-map bake renders without lobes):
     its `plane` entry (bake/pipeline.py), or the best-fit plane of its mesh for a manifest
     without one. Names are made unique (the occlusion results are kept by name)."""
-    from glint.core.geometry import fit_plane
-
     out, seen = [], set()
     materials = bake.manifest["materials"]
     for i, entry in enumerate(bake.manifest["objects"]):
@@ -115,32 +128,6 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
         reach = max(lobe_reach(lobe.get("mx", 0.0), lobe.get("my", 0.0)) for lobe in lobes)  # the guard band
         out.append((i, Reflector(name, point, normal, np.asarray(entry["bounds"], np.float64), reach=reach)))
     return out
-
-
-class _MirrorGL:
-    """The GL calls moderngl does not offer: framebuffers on array layers, clip distances,
-    occlusion queries whose availability can be asked without waiting."""
-
-    def __init__(self, ctx: moderngl.Context):
-        fn = gl_functions(ctx)
-        u, i = ctypes.c_uint, ctypes.c_int
-        self.GenFramebuffers = fn("glGenFramebuffers", None, i, ctypes.POINTER(u))
-        self.DeleteFramebuffers = fn("glDeleteFramebuffers", None, i, ctypes.POINTER(u))
-        self.BindFramebuffer = fn("glBindFramebuffer", None, u, u)
-        self.FramebufferTextureLayer = fn("glFramebufferTextureLayer", None, u, u, u, i, i)
-        self.FramebufferRenderbuffer = fn("glFramebufferRenderbuffer", None, u, u, u, u)
-        self.CheckFramebufferStatus = fn("glCheckFramebufferStatus", u, u)
-        self.DrawBuffers = fn("glDrawBuffers", None, i, ctypes.POINTER(u))
-        self.ClearBufferfv = fn("glClearBufferfv", None, u, i, ctypes.POINTER(ctypes.c_float))
-        self.Enable = fn("glEnable", None, u)
-        self.Disable = fn("glDisable", None, u)
-        self.ColorMask = fn("glColorMask", None, ctypes.c_ubyte, ctypes.c_ubyte, ctypes.c_ubyte, ctypes.c_ubyte)
-        self.DepthMask = fn("glDepthMask", None, ctypes.c_ubyte)
-        self.GenQueries = fn("glGenQueries", None, i, ctypes.POINTER(u))
-        self.DeleteQueries = fn("glDeleteQueries", None, i, ctypes.POINTER(u))
-        self.BeginQuery = fn("glBeginQuery", None, u, u)
-        self.EndQuery = fn("glEndQuery", None, u)
-        self.GetQueryObjectuiv = fn("glGetQueryObjectuiv", None, u, u, ctypes.POINTER(u))
 
 
 class MirrorPasses:
@@ -167,9 +154,8 @@ class MirrorPasses:
         self._queries: dict[str, int] = {}   # reflector name -> GL query object
         self._pending: set[str] = set()      # queries issued and not yet read
         self._drawn: list[dict] = []
-        self._gl = _MirrorGL(ctx)
+        self._gl = GL(ctx)
         self.raster = raster_program(ctx, "gbuffer.vert", "mirror.frag", {**defines, "MIRROR_CLIP": 1})
-        set_uniforms(self.raster, lightmaps=LIGHTMAP_UNIT, kd_texture=KD_TEXTURE_UNIT)
         self.occluder = raster_program(ctx, "gbuffer.vert", "occlusion.frag", defines)
         self.sky = raster_program(ctx, "blit.vert", "mirror_sky.frag", {**defines, "FAR_PLANE": 1})
         self.sky_vao = ctx.vertex_array(self.sky, [])
@@ -203,18 +189,21 @@ class MirrorPasses:
             return
         self._release_targets()
         gl = self._gl
-        self.targets = self._arrays(size, self.layers)
-        self.depth = self.ctx.depth_renderbuffer(size)
+        with gl.checked(f"allocate {self.layers} mirror buffers of {size[0]} x {size[1]}"):
+            self.targets = self._arrays(size, self.layers)
+            self.depth = self.ctx.depth_renderbuffer(size)
         for layer in range(self.layers):
             name = ctypes.c_uint(0)
-            gl.GenFramebuffers(1, ctypes.byref(name))
-            gl.BindFramebuffer(GL_FRAMEBUFFER, name.value)
-            for k, target in enumerate(TARGETS):
-                gl.FramebufferTextureLayer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + k, self.targets[target].glo, 0, layer)
-            gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, self.depth.glo)
-            buffers = (ctypes.c_uint * 3)(*(GL_COLOR_ATTACHMENT0 + k for k in range(3)))
-            gl.DrawBuffers(3, buffers)
-            status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
+            with gl.checked(f"make the framebuffer of mirror-buffer layer {layer} ({size[0]} x {size[1]})"):
+                gl.GenFramebuffers(1, ctypes.byref(name))
+                gl.BindFramebuffer(GL_FRAMEBUFFER, name.value)
+                for target, location in LOCATIONS.items():
+                    gl.FramebufferTextureLayer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + location,
+                                               self.targets[target].glo, 0, layer)
+                gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, self.depth.glo)
+                buffers = (ctypes.c_uint * len(LOCATIONS))(*(GL_COLOR_ATTACHMENT0 + k for k in range(len(LOCATIONS))))
+                gl.DrawBuffers(len(LOCATIONS), buffers)
+                status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
             if status != GL_FRAMEBUFFER_COMPLETE:
                 raise RuntimeError(f"mirror-buffer framebuffer incomplete (status 0x{status:x})")
             fbo = self.ctx.detect_framebuffer(name.value)  # moderngl's handle, for use() and viewport
@@ -273,9 +262,9 @@ class MirrorPasses:
         sky = (0.0, 0.0, 0.0) if sky_map else tuple(map(float, self.scene.sky_uniforms()["sky_scale"]))
         if self.scene.sky_mode == SKY_MODES["SKY_NONE"]:
             sky = (0.0, 0.0, 0.0)
-        gl.ClearBufferfv(GL_COLOR, 0, (ctypes.c_float * 4)(*sky, 1.0))
-        for attachment in (1, 2):
-            gl.ClearBufferfv(GL_COLOR, attachment, zero)
+        gl.ClearBufferfv(GL_COLOR, LOCATIONS["radiance"], (ctypes.c_float * 4)(*sky, 1.0))
+        for target in ("position", "normal"):
+            gl.ClearBufferfv(GL_COLOR, LOCATIONS[target], zero)
         gl.ClearBufferfv(GL_DEPTH, 0, (ctypes.c_float * 1)(1.0))
         ctx.enable_only(moderngl.DEPTH_TEST)
         ctx.depth_func = "<"
@@ -325,7 +314,7 @@ class MirrorPasses:
         set_uniforms(self.sky, eye=vec(camera.eye), cam_forward=vec(forward), cam_right=vec(right),
                      cam_up=vec(up), mirror_normal_world=vec(mirror.normal), buffer_size=tuple(self.size),
                      **self.scene.sky_uniforms())
-        self.scene.sky_map.use(self._sky_unit)
+        self.scene.sky_map.use(SKY_UNIT)
         ctx.depth_func = "<="
         gl.DepthMask(0)
         try:
@@ -341,8 +330,8 @@ class MirrorPasses:
         w, h = self.size
         for level in range(1, max_level(self.size) + 1):
             lw, lh = max(w >> level, 1), max(h >> level, 1)
-            radiance.bind_to_image(0, read=True, write=False, level=level - 1)
-            radiance.bind_to_image(1, read=False, write=True, level=level)
+            radiance.bind_to_image(MIP_SOURCE_IMAGE, read=True, write=False, level=level - 1)
+            radiance.bind_to_image(MIP_TARGET_IMAGE, read=False, write=True, level=level)
             self.mips.run(-(-lw // LOCAL_SIZE), -(-lh // LOCAL_SIZE), count)
             ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
         ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT)
@@ -392,11 +381,9 @@ class MirrorPasses:
             self._pending.discard(name)
 
     # -- for the shading passes --------------------------------------------------------------------
-    def set_units(self, first_unit: int, sky_unit: int) -> None:
+    def set_units(self, first_unit: int) -> None:
         """Texture units of the arrays (as `mirror_defines(first_unit)` told the shaders)."""
-        self._units = (first_unit, first_unit + 1, first_unit + 2)
-        self._sky_unit = sky_unit
-        set_uniforms(self.sky, sky_map=sky_unit)
+        self._units = tuple(mirror_defines(first_unit).values())
 
     def bind_buffers(self) -> None:
         self.slot_buffer.bind_to_storage_buffer(MIRROR_SLOT_BINDING)
@@ -408,9 +395,6 @@ class MirrorPasses:
         for unit, name in zip(self._units, TARGETS):
             targets[name].use(unit)
         self.bind_buffers()
-
-    def slot_of(self, name: str) -> int | None:
-        return None if self.plan_ is None else self.plan_.pass_for(name)
 
     def read(self, slot: int, target: str = "radiance") -> np.ndarray:
         """(H, W, 4) float32 of one slot's target at level 0, GL orientation (row 0 = bottom),

@@ -7,19 +7,14 @@ from __future__ import annotations
 
 import moderngl
 
-from glint.viewer.shader_source import compute_program, dispatch, set_uniforms
+from glint.viewer.gl_bindings import SOURCE_UNIT, TARGET_IMAGE
+from glint.viewer.passes import ImagePass
 
-SOURCE_UNIT, IMAGE_UNIT = 0, 0
 
-
-class ResolvePass:
+class ResolvePass(ImagePass):
     name = "resolve"
-
-    def __init__(self, ctx: moderngl.Context, defines: dict | None = None):
-        self.ctx = ctx
-        self.program = compute_program(ctx, "resolve.comp", defines)
-        set_uniforms(self.program, radiance=SOURCE_UNIT, resolved=IMAGE_UNIT)
-        self.resolved: moderngl.Texture | None = None
+    shader = "resolve.comp"
+    images = ("resolved",)
 
     def run(self, radiance: moderngl.Texture, factor: int) -> moderngl.Texture:
         """(W N, H N) rgba32f -> (W, H) rgba32f block means."""
@@ -27,19 +22,9 @@ class ResolvePass:
         if w % factor or h % factor:
             raise ValueError(f"image {w}x{h} is not a multiple of the supersampling factor {factor}")
         size = (w // factor, h // factor)
-        if self.resolved is None or self.resolved.size != size:
-            if self.resolved is not None:
-                self.resolved.release()
-            self.resolved = self.ctx.texture(size, 4, dtype="f4")
-            self.resolved.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        set_uniforms(self.program, factor=int(factor))
+        resolved = self._image("resolved", size, "f4")
         radiance.use(SOURCE_UNIT)
-        self.resolved.bind_to_image(IMAGE_UNIT, read=False, write=True)
-        dispatch(self.program, *size)
-        self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
-        return self.resolved
-
-    def release(self) -> None:
-        if self.resolved is not None:
-            self.resolved.release()
-        self.program.release()
+        resolved.bind_to_image(TARGET_IMAGE, read=False, write=True)
+        self._dispatch(size, moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT,
+                       factor=int(factor))
+        return resolved

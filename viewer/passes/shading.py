@@ -26,24 +26,33 @@ import moderngl
 import numpy as np
 
 from glint.viewer.camera import ViewCamera
-from glint.viewer.passes.mirror import PLANE_NORMAL_IMAGE, PLANE_POSITION_IMAGE
+from glint.viewer.gl import check_compute_texture_units
+from glint.viewer.gl_bindings import (
+    GB_DEPTH_UNIT,
+    GB_DIFFUSE_UNIT,
+    GB_MATERIAL_UNIT,
+    GB_NORMAL_UNIT,
+    GB_TANGENT_UNIT,
+    MIRROR_PLANE_NORMAL_IMAGE,
+    MIRROR_PLANE_POSITION_IMAGE,
+    RADIANCE_IMAGE,
+    SKY_UNIT,
+    SPECULAR_FLAGS_BINDING,
+    SPECULAR_WORK_BINDING,
+    shading_units,
+)
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, dispatch, set_uniforms
 
-GBUFFER_UNITS = {"gb_diffuse": 0, "gb_normal": 1, "gb_tangent": 2, "gb_material": 3, "gb_depth": 4}
-SKY_UNIT = 5
-CUBE_FIRST_UNIT = 6  # cube-map classes on units 6, 7, ...
-IMAGE_UNIT = 0
-# Storage buffers 0-5: viewer/gpu_scene.py and viewer/cubemaps.py; 6-7: bench/glsl_eval.py.
-SPECULAR_WORK_BINDING, SPECULAR_FLAGS_BINDING = 8, 9
+GBUFFER_UNITS = {"diffuse": GB_DIFFUSE_UNIT, "normal": GB_NORMAL_UNIT, "tangent": GB_TANGENT_UNIT,
+                 "material": GB_MATERIAL_UNIT, "depth": GB_DEPTH_UNIT}  # shaders/gbuffer_read.glsl
 SPECULAR_MODES = {"SPECULAR_PATTERNS": 0, "SPECULAR_QMC": 1, "SPECULAR_FILTERED_IS": 2, "SPECULAR_SPLIT_SUM": 3}
-MIRROR_UNITS = 3  # the mirror buffers' texture arrays (viewer/passes/mirror.py mirror_defines)
 WEIGHTS = ("eq4.25", "eq4.24")  # Eq. 4.25 (the thesis' choice) or Eq. 4.24 for the walkthrough estimate
 WORK_HEADER = 8  # uints before the tile list (shaders/specular.glsl SpecularWork)
 
 
-def mirror_first_unit(scene) -> int:
-    """Texture unit of the mirror buffers' first array (after the cube-map classes)."""
-    return CUBE_FIRST_UNIT + scene.cubemaps.defines(CUBE_FIRST_UNIT)["CUBE_CLASSES"]
+def scene_units(scene) -> dict:
+    """The shading programs' scene-dependent texture units (viewer/gl_bindings.py `shading_units`)."""
+    return shading_units(len(scene.cubemaps.classes))
 
 
 class ShadingPass:
@@ -51,7 +60,7 @@ class ShadingPass:
 
     def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "eq4.25", mirror=None,
                  split_sum=None):
-        """defines: shader_defines() with mirror_defines(mirror_first_unit(scene)); mirror: the
+        """defines: shader_defines() with the mirror buffers' units of scene_units(scene); mirror: the
         frame's MirrorPasses (None: no planar reflectors are shaded); split_sum: a
         viewer/split_sum.py SplitSum, which compiles SPECULAR_SPLIT_SUM in (None: not)."""
         if weights not in WEIGHTS:
@@ -59,18 +68,18 @@ class ShadingPass:
         self.ctx = ctx
         self.scene = scene
         self.mirror = mirror
-        extra = {**scene.cubemaps.defines(CUBE_FIRST_UNIT), **SPECULAR_MODES,
-                 "SPECULAR_WORK_BINDING": SPECULAR_WORK_BINDING, "SPECULAR_FLAGS_BINDING": SPECULAR_FLAGS_BINDING}
+        self.units = scene_units(scene)
+        extra = {**scene.cubemaps.defines(self.units["CUBE_FIRST_UNIT"]), **SPECULAR_MODES}
         if weights == "eq4.24":
             extra["WEIGHTS_EQ_4_24"] = 1
         self.split_sum = split_sum
-        self.split_sum_unit = mirror_first_unit(scene) + MIRROR_UNITS  # after the mirror buffers
         if split_sum is not None:
-            extra.update(split_sum.defines(self.split_sum_unit))
+            extra.update(split_sum.defines(self.units["SPLIT_SUM_FIRST_UNIT"], self.units["SPLIT_SUM_LUT_UNIT"]))
+        last = self.units["SPLIT_SUM_LUT_UNIT"] if split_sum is not None else self.units["MIRROR_NORMAL_UNIT"]
+        check_compute_texture_units(ctx, last + 1, f"shading this scene (cube maps of {len(scene.cubemaps.classes)} "
+                                                   f"face sizes{', split-sum' if split_sum is not None else ''})")
         self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
         self.specular = compute_program(ctx, "specular.comp", {**defines, **extra})
-        for program in (self.program, self.specular):
-            set_uniforms(program, sky_map=SKY_UNIT, radiance_out=IMAGE_UNIT, **GBUFFER_UNITS)
         # Specular work is possible only where a material with lobes meets an object with a cube map
         # or a planar reflector that can get a mirror pass.
         planar = {i for i, _ in mirror.objects} if mirror is not None and mirror.active else set()
@@ -105,7 +114,7 @@ class ShadingPass:
         set_uniforms(program, eye=vec(camera.eye), cam_forward=vec(forward), cam_right=vec(right),
                      cam_up=vec(up), znear=camera.znear, zfar=camera.zfar, **self.scene.sky_uniforms())
         for name, unit in GBUFFER_UNITS.items():
-            gbuffer[name[3:]].use(unit)
+            gbuffer[name].use(unit)
         self.scene.bind_materials()
         self.scene.bind_specular()
         if self.mirror is not None:
@@ -122,7 +131,7 @@ class ShadingPass:
         self.flags.clear()
         self._bind_common(self.program, gbuffer, camera, aspect)
         self.scene.sky_map.use(SKY_UNIT)
-        self.radiance.bind_to_image(IMAGE_UNIT, read=False, write=True)
+        self.radiance.bind_to_image(RADIANCE_IMAGE, read=False, write=True)
         dispatch(self.program, *self.radiance.size)
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
                                 | moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT)
@@ -140,12 +149,12 @@ class ShadingPass:
         program = self.specular
         self._bind_common(program, gbuffer, camera, aspect)
         set_uniforms(program, specular_mode=SPECULAR_MODES[mode], qmc_first=int(qmc_first), qmc_count=int(qmc_count))
-        self.cube_maps_bound = self.scene.cubemaps.bind(program, CUBE_FIRST_UNIT)
+        self.cube_maps_bound = self.scene.cubemaps.bind(program, self.units["CUBE_FIRST_UNIT"])
         if self.split_sum is not None:
-            self.split_sum.bind(program, self.split_sum_unit)
-        self.radiance.bind_to_image(IMAGE_UNIT, read=True, write=True)
-        self.planes[0].bind_to_image(PLANE_POSITION_IMAGE, read=True, write=True)
-        self.planes[1].bind_to_image(PLANE_NORMAL_IMAGE, read=True, write=True)
+            self.split_sum.bind(program, self.units["SPLIT_SUM_FIRST_UNIT"], self.units["SPLIT_SUM_LUT_UNIT"])
+        self.radiance.bind_to_image(RADIANCE_IMAGE, read=True, write=True)
+        self.planes[0].bind_to_image(MIRROR_PLANE_POSITION_IMAGE, read=True, write=True)
+        self.planes[1].bind_to_image(MIRROR_PLANE_NORMAL_IMAGE, read=True, write=True)
         program.run_indirect(self.work)
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
                                 | moderngl.BUFFER_UPDATE_BARRIER_BIT)
