@@ -303,6 +303,41 @@ def test_cube_map_lookups_filter_across_face_edges(tmp_path):
     np.testing.assert_allclose(out["L"], np.tile((FACE_COLOURS[0] + FACE_COLOURS[2]) / 2, (3, 1)), atol=2e-3)
 
 
+def test_more_cube_maps_than_an_array_has_layers_get_more_classes(tmp_path, monkeypatch):
+    """An array holds GL_MAX_ARRAY_TEXTURE_LAYERS / 6 cube maps (341 on llvmpipe; an external
+    interior has 548 of one size): with the limit lowered to 2 maps per array, 5 maps of one size
+    make 3 classes and every object still finds its own map. Catches the upload of one array past
+    the limit (GL_INVALID_VALUE, which went unnoticed before uploads were checked) and a wrong
+    class or layer in the per-object table (the colours would swap)."""
+    from types import SimpleNamespace
+
+    from glint.bench import glsl_eval
+    from glint.viewer.cubemaps import CubeMaps
+
+    ctx = glsl_eval.context()
+    monkeypatch.setitem(ctx.info, "GL_MAX_ARRAY_TEXTURE_LAYERS", 12)
+    (tmp_path / "cubemaps").mkdir()
+    colours = np.array([[0.1, 0.2, 0.3], [1.0, 0.5, 0.0], [0.0, 0.7, 0.2], [0.9, 0.9, 0.1], [0.4, 0.0, 0.6]])
+    objects = []
+    for i, c in enumerate(colours):
+        write_image(tmp_path / f"cubemaps/{i}.exr", cube_file(lambda d, c=c: np.broadcast_to(c, d.shape), 4),
+                    channels=("R", "G", "B", "A"))
+        objects.append({"name": f"o{i}", "bounds": [[0, 0, 0], [1, 1, 1]],
+                        "cubemap": {"file": f"cubemaps/{i}.exr", "size": 4, "centre": [0, 0, 0]}})
+    cubes = CubeMaps(ctx, SimpleNamespace(path=tmp_path, manifest={"objects": objects}))
+    try:
+        assert [len(c.objects) for c in cubes.classes] == [2, 2, 1]
+        cubes.bind_buffers()
+        assert cubes.bind(None, 8) == 5
+        d = np.tile([[0.3, 0.5, 0.81]], (5, 1))
+        k = np.arange(5, dtype=np.float64)[:, None]
+        out = glsl_eval.evaluate("cubemaps.glsl", "L = cube_radiance(cube_objects[int(k.x)], d, 0.0);",
+                                 {"d": d, "k": np.repeat(k, 3, axis=1)}, {"L": 3}, defines=cubes.defines(8))
+    finally:
+        cubes.release()
+    np.testing.assert_allclose(out["L"], colours, atol=2e-3)
+
+
 # -- bounding planes (section 4.4.1) ---------------------------------------------------------------
 def plane_lookup(p, d, centre, planes):
     """The look-up direction of the ray p + t d: towards the nearest plane hit from the centre,

@@ -8,7 +8,8 @@ transmissive object, as seen from its bounding-box centre, plus its bounding pla
 
 Cube maps differ in size (the bake picks one per object), and a cube-map *array*
 needs one size, so they are grouped into size classes: one `samplerCubeArray`
-per distinct face size, an object's map is one layer of its class. Per object a
+per distinct face size (several where one size has more maps than an array has
+layers), an object's map is one layer of its class. Per object a
 storage buffer row (`CUBE_OBJECT_DTYPE`) says where: class (-1: no cube map),
 layer, and its bounding planes' range; the planes (point, unit normal) follow in
 a second buffer. Objects without a cube map (diffuse, planar) cost nothing.
@@ -98,7 +99,12 @@ class CubeMaps:
             table[i]["info"][2:] = (len(planes), len(rows))
             planes.extend(rows)
         sizes = sorted({f.shape[1] for f in faces.values()})
-        self.classes = [CubeClass(s, "f2", [i for i, f in faces.items() if f.shape[1] == s]) for s in sizes]
+        # A cube-map array holds at most GL_MAX_ARRAY_TEXTURE_LAYERS / 6 maps (341 on llvmpipe):
+        # a size with more objects gets several classes.
+        per_class = max(int(ctx.info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 2048)) // 6, 1)
+        self.classes = [CubeClass(s, "f2", same[k:k + per_class]) for s in sizes
+                        for same in [[i for i, f in faces.items() if f.shape[1] == s]]
+                        for k in range(0, len(same), per_class)]
         for k, cls in enumerate(self.classes):
             for layer, i in enumerate(cls.objects):
                 table[i]["info"][:2] = (k, layer)
