@@ -6,15 +6,7 @@ import pytest
 
 from glint.core.errors import GlintError
 from glint.viewer import gl_bindings
-from glint.viewer.context import headless_context
 from glint.viewer.gl import GL, GL_RGBA16F, check_compute_texture_units
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    c = headless_context()
-    yield c
-    c.release()
 
 
 def test_a_refused_allocation_is_a_glint_error_naming_it(ctx):

@@ -22,17 +22,9 @@ from glint.core import bsdf
 from glint.core.bake_dir import Bake, write_json
 from glint.core.errors import GlintError
 from glint.viewer.camera import ViewCamera
-from glint.viewer.context import headless_context
 from glint.viewer.mirror_camera import MirrorCamera
 from glint.viewer.passes.mirror import mirror_defines
 from glint.viewer.renderer import Renderer
-
-
-@pytest.fixture(scope="module")
-def ctx():
-    context = headless_context()
-    yield context
-    context.release()
 
 
 def _unit(v):
