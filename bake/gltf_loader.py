@@ -410,8 +410,10 @@ class _SceneBuilder:
         for i, gm in enumerate(_list(self.tree, "materials", self.source)):
             name = gm.get("name") or f"material{i}"
             names.add(name)
+            rgba = self._base_color_texture(gm, name)
             out.append(material_from_gltf(
-                gm, name, kd_texture=self._base_color_texture(gm, name),
+                gm, name, kd_texture=None if rgba is None else np.ascontiguousarray(rgba[..., :3]),
+                alpha_texture=None if rgba is None else np.ascontiguousarray(rgba[..., 3]),
                 diffuse_roughness=side.diffuse_roughness, override=side.materials.get(name),
                 warnings=self.warnings, source=self.source))
         self._default_material = None
@@ -431,6 +433,7 @@ class _SceneBuilder:
         return self._default_material
 
     def _base_color_texture(self, gm: dict, name: str) -> np.ndarray | None:
+        """(H, W, 4) float32: linear RGB and alpha, or None."""
         info = gm.get("pbrMetallicRoughness", {}).get("baseColorTexture")
         if info is None:
             return None
@@ -465,12 +468,13 @@ class _SceneBuilder:
                 else:
                     data = (self.doc.path.parent / urllib.parse.unquote(uri)).read_bytes()
             with Image.open(io.BytesIO(data)) as img:
-                rgb = np.asarray(img.convert("RGB"), np.float32) / 255.0
+                rgba = np.asarray(img.convert("RGBA"), np.float32) / 255.0
         except Exception as err:  # any unreadable image: warn and fall back to the factor
             self.warn(f"{where}: cannot read base colour texture (image {index}: "
                       f"{type(err).__name__}: {err}); using baseColorFactor only")
             return None
-        return srgb_to_linear(rgb)
+        # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
+        return np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
 
     # ---- geometry
 

@@ -2,7 +2,7 @@
 
 geometry   -> unwrap + texel positions (meshes.npz)
 lightmaps  -> geometry + everything diffuse transport reads: kd (and textures),
-              emission, transmission lobes (glass lets light through), lights, sky,
+              alpha coverage (MASK, BLEND), emission, transmission lobes (glass lets light through), lights, sky,
               transport settings. Reflection lobes, roles and cameras are not in it:
               they only change the manifest, never a light map.
 cubemaps   -> one hash per cube map: lightmaps + its object, face size, projection centre,
@@ -69,6 +69,10 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
         h.value([m.kd, m.emission, m.double_sided, [lobe.to_dict() for lobe in m.transmit_lobes]])
         if m.kd_texture is not None:
             h.array(m.kd_texture)
+        if m.has_coverage:  # only then: opaque materials keep the hashes of existing bakes
+            h.value(["alpha", m.alpha_mode, float(m.alpha_cutoff), float(m.alpha)])
+            if m.alpha_texture is not None:
+                h.array(m.alpha_texture)
     for light in (*scene.point_lights, *scene.spot_lights, *scene.directional_lights):
         h.value(type(light).__name__).value({k: v for k, v in vars(light).items() if k != "name"})
     if scene.sky is not None:

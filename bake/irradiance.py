@@ -18,6 +18,8 @@ light at run time, so a specular edit needs no re-bake):
   T = sum of the transmit lobes' ks x (1 - Schlick F(cos))), chosen with probability
   proportional to luminance. Shadow rays pass such surfaces multiplied by T (up to
   MAX_FILTERS of them). Transmissive surfaces count as two-sided.
+- MASK and BLEND materials (glTF alpha coverage): path rays, shadow rays and the back-face
+  statistic pass through their missing parts (bake/alpha.py).
 - A path that hits the back face of a single-sided, non-transmissive material ends (black), like
   Mitsuba's one-sided diffuse. The fraction of the texel's own hemisphere rays whose first hit is
   a back face (of any material) is returned as `backface` (texels inside walls).
@@ -43,6 +45,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glint.bake.alpha import MAX_CUTOUTS, Coverage
 from glint.bake.lights import LightSet, luminance
 from glint.bake.raytrace import RayTracer
 from glint.core.scene import Scene
@@ -168,6 +171,7 @@ class _Transport:
         self.emission = self.lights.area.material_emission if len(mats) else np.zeros((1, 3))
         self.emissive = self.emission.max(axis=1) > 0 if len(mats) else np.zeros(1, bool)
         self.emitter_pdf_area = self.lights.area.material_pdf_area if len(mats) else np.zeros(1)
+        self.coverage = Coverage(scene, tracer)
 
     def transmittance(self, mat: np.ndarray, cos: np.ndarray) -> np.ndarray:
         """Straight-through weight of thin transmissive surfaces: sum_l ks_l (1 - Schlick F_l(cos))."""
@@ -201,18 +205,26 @@ class _Transport:
         """Which segments o + t d, 0 < t < tmax, let light through: (mask (N,) bool, T (N, 3) or None).
 
         T multiplies the light where it passed thin transmissive surfaces (each re-shot from just past
-        it, MAX_FILTERS at most); it is None when the scene has none (a plain occlusion query)."""
-        tr = self.tracer
-        if not self.any_transmissive:
+        it, MAX_FILTERS at most) and the missing parts of MASK and BLEND surfaces (weight: the open
+        fraction c, MAX_CUTOUTS more; a surface both is c + (1 - c) T); it is None when the scene has
+        neither (a plain occlusion query)."""
+        tr, cov = self.tracer, self.coverage
+        if not self.any_transmissive and not cov.any:
             return ~tr.occluded(o, d, tmax), None
         T = np.ones((len(o), 3))
         clear = np.ones(len(o), bool)
         live = np.arange(len(o))
+        filters = np.zeros(len(o), np.int64)  # transmissive surfaces passed so far
         o, tmax = o.copy(), tmax.copy()
-        for k in range(MAX_FILTERS + 1):
+        rounds = MAX_FILTERS + (MAX_CUTOUTS if cov.any else 0)
+        for k in range(rounds + 1):
             rows, h = tr.intersect_hits(o[live], d[live], tmax[live])
             live = live[rows]
-            passes = self.transmissive[h.material] if k < MAX_FILTERS else np.zeros(len(live), bool)
+            glass = self.transmissive[h.material] & (filters[live] < MAX_FILTERS) & (k < rounds)
+            passes = glass.copy()
+            if cov.any:
+                c = cov.hit_open_fraction(h) if k < rounds else np.zeros(len(live))
+                passes |= c > 0
             clear[live[~passes]] = False
             p = np.flatnonzero(passes)
             live = live[p]
@@ -220,7 +232,14 @@ class _Transport:
                 break
             dl = d[live]
             ng = h.ng[p]
-            T[live] *= self.transmittance(h.material[p], np.abs(_dot(dl, ng)))
+            w = np.where(glass[p, None], self.transmittance(h.material[p], np.abs(_dot(dl, ng))), 0.0)
+            if cov.any:
+                c = c[p]
+                w = c[:, None] + (1.0 - c)[:, None] * w
+                filters[live] += glass[p] & (c < 1.0)
+            else:
+                filters[live] += 1
+            T[live] *= w
             new_o = tr.offset(h.position[p], ng, dl, h.eps[p])
             tmax[live] -= _dot(new_o - o[live], dl)
             o[live] = new_o
@@ -391,7 +410,8 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
         if not len(idx):
             break
 
-        rows, h = tr.intersect_hits(o, d)
+        rows, h = tp.coverage.intersect_hits(  # a uniform per (path, depth, cut-out layer) for BLEND
+            o, d, uniform=lambda r, k: _uniform2(np.take(key, r), (1 << 20) + 64 * depth + k)[0])
         if depth == 0:
             backface[idx[rows]] = ~h.front
         if len(rows) < len(idx):

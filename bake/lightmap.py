@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glint.bake.alpha import cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
 from glint.bake.executor import LocalExecutor
@@ -42,7 +43,8 @@ def _job(state, task):
 
 
 def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None) -> LightmapPages:
-    covered = [p.object >= 0 for p in pages]
+    # Texels in the cut-out parts of MASK materials are never seen: not traced, left to dilation.
+    covered = [(p.object >= 0) & ~_cut_out(scene, p) for p in pages]
     points = np.concatenate([p.position[c] for p, c in zip(pages, covered)])
     normals = np.concatenate([p.normal[c] for p, c in zip(pages, covered)])
     n = len(points)
@@ -73,6 +75,15 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         irradiance.append(image)
         baked.append(mask)
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays)
+
+
+def _cut_out(scene: Scene, page: TexelPage) -> np.ndarray:
+    out = np.zeros(page.object.shape, bool)
+    if page.texcoord is None or not any(m.alpha_mode == "MASK" for m in scene.materials):
+        return out
+    where = np.nonzero(page.object >= 0)
+    out[where] = cut_out_texels(scene, page.object[where], page.texcoord[where].astype(np.float64))
+    return out
 
 
 def _fill(image: np.ndarray, valid: np.ndarray, settings) -> np.ndarray:

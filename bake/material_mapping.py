@@ -31,9 +31,14 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   walls stay in the `diffuse` role (light map only). Metal and transmit lobes are
   always kept. Lobes whose ks is 0 are dropped.
 - Emission (radiance, W/(m^2 sr)) = e * k.
+- Coverage (glTF 3.9.4): alphaMode, alphaCutoff (default 0.5) and the alpha of
+  baseColorFactor and of the base colour texture go to `Material.alpha_mode`,
+  `alpha_cutoff`, `alpha` and `alpha_texture` unchanged; OPAQUE drops the alpha (the
+  spec: "the rendered output is fully opaque and any alpha value is ignored"). An
+  unknown mode warns and is opaque.
 - Ignored, with a warning: metallicRoughness, normal and emissive textures
-  (the factors are used), alphaMode BLEND/MASK (opaque). Occlusion textures are
-  ignored silently (the bake computes occlusion itself).
+  (the factors are used). Occlusion textures are ignored silently (the bake computes
+  occlusion itself).
 
 Overrides
 ---------
@@ -165,13 +170,34 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str]) -> GltfPbr:
     if ignored:
         add_warning(warnings, f"{where}: {', '.join(ignored)} not supported, "
                               "the constant factors are used")
-    if gm.get("alphaMode", "OPAQUE") != "OPAQUE":
-        add_warning(warnings, f"{where}: alphaMode {gm['alphaMode']} not supported, "
-                              "rendered opaque (use KHR_materials_transmission for glass)")
     return p
 
 
+ALPHA_MODES = ("OPAQUE", "MASK", "BLEND")
+
+
+def coverage_from_gltf(gm: dict, alpha_texture: np.ndarray | None, where: str,
+                       warnings: list[str]) -> dict:
+    """alphaMode, alphaCutoff and the base colour alpha (glTF 3.9.4) -> Material's alpha fields."""
+    mode = gm.get("alphaMode", "OPAQUE")
+    if mode not in ALPHA_MODES:
+        add_warning(warnings, f"{where}: alphaMode {mode!r} is not one of {', '.join(ALPHA_MODES)}; "
+                              "rendered opaque")
+        mode = "OPAQUE"
+    if mode == "OPAQUE":
+        return {}
+    cutoff = _float(gm.get("alphaCutoff", 0.5), where, "alphaCutoff")
+    factor = _floats(gm.get("pbrMetallicRoughness", {}).get("baseColorFactor", [1, 1, 1, 1]), 4, where,
+                     "baseColorFactor")[3]
+    texture = None
+    if alpha_texture is not None and float(np.min(alpha_texture, initial=1.0)) < 1.0:
+        texture = np.clip(np.nan_to_num(np.asarray(alpha_texture, np.float32)), 0.0, 1.0)
+    return {"alpha_mode": mode, "alpha_cutoff": max(cutoff, 0.0),
+            "alpha": float(np.clip(factor, 0.0, 1.0)), "alpha_texture": texture}
+
+
 def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = None,
+                       alpha_texture: np.ndarray | None = None,
                        diffuse_roughness: float = DIFFUSE_ROUGHNESS,
                        override: dict | None = None, warnings: list[str] | None = None,
                        source: str = "") -> Material:
@@ -180,7 +206,8 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     where = f"{source}: material '{name}'" if source else f"material '{name}'"
     kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings), diffuse_roughness)
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
-                   double_sided=bool(gm.get("doubleSided", False)))
+                   double_sided=bool(gm.get("doubleSided", False)),
+                   **coverage_from_gltf(gm, alpha_texture, where, warnings))
     extras = gm.get("extras")
     if isinstance(extras, dict) and "glint" in extras:
         apply_override(mat, parse_material_override(extras["glint"], f"{where} extras.glint",

@@ -82,7 +82,8 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
         objects.append(entry)
     materials = [{"name": m.name, "kd": vec(m.kd), "emission": vec(m.emission),
                   "double_sided": bool(m.double_sided), "lobes": [lobe.to_dict() for lobe in m.lobes],
-                  "kd_texture": f"textures/material_{i}.exr" if m.kd_texture is not None else None}
+                  "kd_texture": f"textures/material_{i}.exr" if m.kd_texture is not None else None,
+                  **_coverage_entry(m)}
                  for i, m in enumerate(scene.materials)]
     lights = {
         "point": [{"name": l.name, "position": vec(l.position), "intensity": vec(l.intensity)}
@@ -102,6 +103,14 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     paths = [{"name": p.name, "keys": p.keys} for p in scene.camera_paths]
     return {"objects": objects, "materials": materials, "lights": lights, "sky": sky,
             "cameras": cameras, "camera_paths": paths}
+
+
+def _coverage_entry(m) -> dict:
+    """A MASK or BLEND material's `alpha_mode`, `alpha_cutoff` and `alpha` (baseColorFactor[3]);
+    nothing for opaque ones, whose manifest entries stay as they were (readers default to OPAQUE)."""
+    if not m.has_coverage:
+        return {}
+    return {"alpha_mode": m.alpha_mode, "alpha_cutoff": float(m.alpha_cutoff), "alpha": float(m.alpha)}
 
 
 # Renders cube-map plans into a bake directory written so far; returns statistics
@@ -196,7 +205,10 @@ def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: Ba
 
 def _write_textures(scene: Scene, path: Path) -> None:
     for i, m in enumerate(scene.materials):
-        if m.kd_texture is not None:
+        if m.kd_texture is not None and m.has_coverage and m.alpha_texture is not None:
+            rgba = np.concatenate([m.kd_texture, m.alpha_texture[..., None]], axis=-1)
+            write_image(path / "textures" / f"material_{i}.exr", rgba, channels=("R", "G", "B", "A"))
+        elif m.kd_texture is not None:
             write_image(path / "textures" / f"material_{i}.exr", m.kd_texture)
     if scene.sky is not None and scene.sky.map is not None:
         write_image(path / "sky.exr", scene.sky.map, half=False)

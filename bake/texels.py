@@ -27,6 +27,7 @@ class TexelPage:
     normal: np.ndarray  # (H, W, 3) float32 unit interpolated shading normal (0 where empty)
     object: np.ndarray  # (H, W) int32 object index, -1 where no triangle covers the texel
     triangle: np.ndarray  # (H, W) int32 triangle index within the object, -1 where empty
+    texcoord: np.ndarray | None = None  # (H, W, 2) float32 TEXCOORD_0 at the sample (0 without uvs)
 
 
 def rasterize_texels(objects, atlas) -> list[TexelPage]:
@@ -160,6 +161,7 @@ def _page(objects, atlas, owner, bary, tri_obj, tri_idx, W, H) -> TexelPage:
     normal = np.zeros((H * W, 3), np.float32)
     obj_map = np.full(H * W, -1, np.int32)
     tri_map = np.full(H * W, -1, np.int32)
+    texcoord = np.zeros((H * W, 2), np.float32)
     covered = np.nonzero(owner >= 0)[0]
     k_of = tri_obj[owner[covered]]
     for k in np.unique(k_of):
@@ -180,9 +182,12 @@ def _page(objects, atlas, owner, bary, tri_obj, tri_idx, W, H) -> TexelPage:
             nrm[flat] = g
             length[flat] = np.linalg.norm(g, axis=1)
         nrm /= np.maximum(length, 1e-300)[:, None]
+        if obj.uvs is not None:  # for the coverage of MASK materials (bake/alpha.py)
+            texcoord[texels] = (bw * np.asarray(obj.uvs, np.float64)[corners]).sum(axis=1)
         position[texels] = pos
         normal[texels] = nrm
         obj_map[texels] = k
         tri_map[texels] = tris
     return TexelPage(position=position.reshape(H, W, 3), normal=normal.reshape(H, W, 3),
-                     object=obj_map.reshape(H, W), triangle=tri_map.reshape(H, W))
+                     object=obj_map.reshape(H, W), triangle=tri_map.reshape(H, W),
+                     texcoord=texcoord.reshape(H, W, 2))

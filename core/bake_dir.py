@@ -9,7 +9,10 @@
                            indices -- vertices already split along light-map chart seams
     lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;
                            half float unless a value does not fit
-    textures/material_<i>.exr   base-colour textures (linear)
+    textures/material_<i>.exr   base-colour textures (linear); RGBA, A the base colour alpha
+                           (linear), for materials whose manifest entry has `alpha_mode` MASK or
+                           BLEND (with `alpha_cutoff` and `alpha` = baseColorFactor[3]; entries
+                           without `alpha_mode` are OPAQUE: older bake dirs stay readable)
     cubemaps/<i>.exr       cube map of object i, only for curved and transmissive objects
                            (bake/cubemap.py): RGBA, S wide and 6 S high, the faces +X, -X, +Y,
                            -Y, +Z, -Z stacked top to bottom, each with its first row at GL's

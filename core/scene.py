@@ -43,6 +43,12 @@ class Material:
     kd_texture, when present, is an (H, W, 3) float32 array of linear RGB that
     multiplies kd, looked up with the object's `uvs` (glTF TEXCOORD_0).
     emission is emitted radiance (W / (m^2 sr)); non-zero makes the object an area light.
+
+    Coverage (glTF 3.9.4 "Alpha Coverage"): alpha_mode is "OPAQUE", "MASK" or "BLEND"; the
+    alpha is `alpha` (baseColorFactor[3]) x `alpha_texture` (the base colour texture's alpha,
+    (H, W) float32, linear, same uv as kd_texture; None = 1). MASK: the surface exists where
+    alpha >= alpha_cutoff and not at all elsewhere; BLEND: it covers the fraction alpha.
+    OPAQUE ignores the alpha.
     """
 
     name: str
@@ -51,6 +57,15 @@ class Material:
     lobes: list[Lobe] = field(default_factory=list)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     double_sided: bool = False
+    alpha_mode: str = "OPAQUE"
+    alpha_cutoff: float = 0.5
+    alpha: float = 1.0
+    alpha_texture: np.ndarray | None = None
+
+    @property
+    def has_coverage(self) -> bool:
+        """MASK or BLEND: parts of the surface let everything through."""
+        return self.alpha_mode in ("MASK", "BLEND")
 
     @property
     def is_emissive(self) -> bool:

@@ -162,8 +162,12 @@ class GltfWriter:
 
     def add_material(self, name, base_color=(0.8, 0.8, 0.8, 1.0), metallic=0.0, roughness=1.0,
                      emissive=(0, 0, 0), emissive_strength=1.0, double_sided=False,
-                     base_color_texture=None, extensions=None, extras=None) -> int:
+                     base_color_texture=None, extensions=None, extras=None, alpha_mode=None,
+                     alpha_cutoff=None) -> int:
         """A metallic-roughness material; `base_color` is linear RGB(A).
+
+        `alpha_mode` ("OPAQUE", "MASK", "BLEND") and `alpha_cutoff` are written when given; the
+        alpha comes from base_color[3] and an RGBA `base_color_texture`.
 
         `emissive_strength` != 1 adds KHR_materials_emissive_strength (glTF clamps
         emissiveFactor to [0, 1], so brighter emitters need the extension).
@@ -184,6 +188,10 @@ class GltfWriter:
             mat["emissiveFactor"] = emissive
         if double_sided:
             mat["doubleSided"] = True
+        if alpha_mode is not None:
+            mat["alphaMode"] = str(alpha_mode)
+        if alpha_cutoff is not None:
+            mat["alphaCutoff"] = float(alpha_cutoff)
         ext = dict(extensions or {})
         if float(emissive_strength) != 1.0:
             ext["KHR_materials_emissive_strength"] = {"emissiveStrength": float(emissive_strength)}

@@ -3,8 +3,8 @@
 // bindings from gl_bindings.py, so the Python packer and this declaration cannot drift apart.
 
 struct Material {
-    vec4 kd;        // rgb: diffuse reflectance kd; a: unused
-    vec4 emission;  // rgb: emitted radiance, W/(m^2 sr); a: unused
+    vec4 kd;        // rgb: diffuse reflectance kd; a: base colour alpha factor (MAT_ALPHA_* only)
+    vec4 emission;  // rgb: emitted radiance, W/(m^2 sr); a: alphaCutoff (MAT_ALPHA_MASK only)
     ivec4 info;     // x: MAT_* flags, y: kd texture index (-1: none), z: first lobe, w: lobe count
 };
 

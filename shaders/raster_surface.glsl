@@ -26,6 +26,27 @@ struct RasterSurface {
     bool dark;            // back face of a single-sided material: sends no light
 };
 
+// Coverage of MASK and BLEND materials (glTF 3.9.4 "Alpha Coverage"): alpha = the material's
+// baseColorFactor alpha x the base colour texture's alpha (viewer/gpu_scene.py uploads it for these
+// materials only). MASK keeps alpha >= alphaCutoff. BLEND has no order-independent answer in a
+// deferred renderer; it keeps a fragment where a 4 x 4 ordered-dither threshold lies below alpha,
+// so a block of supersamples keeps the fraction alpha and the resolve averages it (docs/SCENES.md),
+// shifted per object so that stacked layers do not drop the same pixels.
+bool coverage_discards(Material m) {
+    bool mask = has_flag(m, MAT_ALPHA_MASK);
+    if (!mask && !has_flag(m, MAT_ALPHA_BLEND))
+        return false;
+    float alpha = m.kd.a;
+    if (has_flag(m, MAT_KD_TEXTURE))
+        alpha *= texture(kd_texture, v_uv).a;
+    if (mask)
+        return alpha < m.emission.a;
+    const float bayer[16] = float[16](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
+                                      3.0, 11.0, 1.0, 9.0, 15.0, 7.0, 13.0, 5.0);
+    ivec2 p = (ivec2(gl_FragCoord.xy) + ivec2(v_object, 3 * v_object)) & 3;
+    return (bayer[p.y * 4 + p.x] + 0.5) / 16.0 >= alpha;
+}
+
 RasterSurface raster_surface() {
     RasterSurface s;
     Material m = materials[material_index];
@@ -58,5 +79,8 @@ RasterSurface raster_surface() {
     s.tangent = safe_normalize(v_tangent.xyz - n * dot(v_tangent.xyz, n), vec3(0.0));
     float sign_b = v_tangent.w < 0.0 ? -1.0 : 1.0;
     s.bitangent_sign = back ? -sign_b : sign_b;
+    // Last, so the derivatives and implicit-LOD look-ups above run in uniform control flow.
+    if (coverage_discards(m))
+        discard;
     return s;
 }

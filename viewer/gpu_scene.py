@@ -28,7 +28,8 @@ Everything here is read-only after upload; passes bind what they need.
   `LOBE_DTYPE`, std430; GLSL side in shaders/materials.glsl).
 - Base-colour textures: one 2-D texture per textured material (sizes differ, so
   no array), mip-mapped, repeating (the glTF default sampler). A draw binds its
-  material's texture; the others bind a 1x1 white one.
+  material's texture; the others bind a 1x1 white one. A is the base colour alpha for
+  MASK and BLEND materials (the raster passes' coverage test), 1 for the others.
 - Sky: none, a constant radiance, or the equirectangular sky.exr (times the
   radiance as a scale), repeating in u and clamped in v as bake/lights.py samples it.
 """
@@ -53,6 +54,8 @@ MATERIAL_FLAGS = {
     "MAT_KD_TEXTURE": 4,
     "MAT_SPECULAR": 8,     # has reflection or transmission lobes: the shading pass calls the lobe hook
     "MAT_TRANSMISSIVE": 16,
+    "MAT_ALPHA_MASK": 32,   # glTF alphaMode MASK: fragments with alpha < cutoff are discarded
+    "MAT_ALPHA_BLEND": 64,  # glTF alphaMode BLEND: dithered coverage (shaders/raster_surface.glsl)
 }
 LOBE_KINDS = {"LOBE_REFLECT": 0, "LOBE_TRANSMIT": 1}
 SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
@@ -188,10 +191,18 @@ class GpuScene:
             emission = _clean(m.get("emission", (0, 0, 0)))
             if np.any(emission > 0):
                 flags |= MATERIAL_FLAGS["MAT_EMISSIVE"]
+            mode = m.get("alpha_mode", "OPAQUE")
+            if mode in ("MASK", "BLEND"):
+                flags |= MATERIAL_FLAGS[f"MAT_ALPHA_{mode}"]
+                mats[i]["kd"][3] = float(np.clip(_clean(m.get("alpha", 1.0)), 0.0, 1.0))
+                mats[i]["emission"][3] = float(_clean(m.get("alpha_cutoff", 0.5)))
             texture = None
             if m.get("kd_texture"):
                 image = read_image(bake.path / m["kd_texture"])
-                texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0), mipmaps=True)
+                # the base colour alpha only where the coverage reads it (shaders/materials.glsl)
+                alpha = image[..., 3:4] if mode in ("MASK", "BLEND") and image.shape[-1] >= 4 else None
+                texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0), mipmaps=True,
+                                        alpha=None if alpha is None else np.clip(_clean(alpha), 0.0, 1.0))
                 flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"]
             self.kd_textures.append(texture)
             mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
@@ -259,9 +270,9 @@ class GpuScene:
         t = self.kd_textures[material] if 0 <= material < len(self.kd_textures) else None
         return t if t is not None else self.white
 
-    def _texture(self, rgb: np.ndarray, *, mipmaps: bool) -> moderngl.Texture:
+    def _texture(self, rgb: np.ndarray, *, mipmaps: bool, alpha: np.ndarray | None = None) -> moderngl.Texture:
         h, w = rgb.shape[:2]
-        rgba = np.concatenate([rgb, np.ones((h, w, 1))], axis=-1)
+        rgba = np.concatenate([rgb, np.ones((h, w, 1)) if alpha is None else alpha.reshape(h, w, 1)], axis=-1)
         tex = self.ctx.texture((w, h), 4, rgba.astype(np.float16).tobytes(), dtype="f2")
         tex.repeat_x = tex.repeat_y = True
         if mipmaps:
