@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from glint.bake.validate import add_warning, check_number, check_rgb, warn_unknown_keys
-from glint.core.errors import GlintError
+from glint.core.errors import GlintError, WarningKind
 from glint.core.scene import Lobe, Material
 
 DIFFUSE_ROUGHNESS = 0.5
@@ -63,6 +63,13 @@ MATERIAL_EXTENSIONS = (
     "KHR_materials_volume",  # thickness/attenuation: meaningless for thin surfaces, ignored
 )
 OVERRIDE_KEYS = ("kd", "emission", "lobes")
+# Warnings that repeat per material: one summary line each (glint.core.errors.WarningKind).
+ANISOTROPY_ROTATION = WarningKind("{n} materials have an anisotropyRotation, not supported yet; "
+                                  "the anisotropy runs along the texture u direction")
+IGNORED_TEXTURES = WarningKind("{n} materials have textures glint does not read; "
+                               "the constant factors are used")
+ALPHA_MODE = WarningKind("{n} materials have alphaMode BLEND or MASK, not supported; rendered "
+                         "opaque (use KHR_materials_transmission for glass)")
 LOBE_KEYS = ("kind", "ks", "mx", "my", "m", "r0", "alpha")
 
 
@@ -122,8 +129,9 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS):
     return kd.astype(np.float32), lobes, np.clip(emission, 0.0, None).astype(np.float32)
 
 
-def pbr_from_gltf(gm: dict, where: str, warnings: list[str]) -> GltfPbr:
-    """Read a glTF material JSON object into GltfPbr; warn about what the rule ignores."""
+def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = None) -> GltfPbr:
+    """Read a glTF material JSON object into GltfPbr; warn about what the rule ignores
+    (`name`: the material's, for the summary of a warning repeated over many materials)."""
     pmr = gm.get("pbrMetallicRoughness", {})
     ext = gm.get("extensions", {})
     p = GltfPbr(
@@ -147,7 +155,8 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str]) -> GltfPbr:
     p.anisotropy = _float(e.get("anisotropyStrength", 0.0), where, "anisotropyStrength")
     if _float(e.get("anisotropyRotation", 0.0), where, "anisotropyRotation") != 0.0:
         add_warning(warnings, f"{where}: anisotropyRotation is not supported yet; "
-                              "the anisotropy runs along the texture u direction")
+                              "the anisotropy runs along the texture u direction",
+                    ANISOTROPY_ROTATION, name, ignored=["anisotropyRotation"])
     e = ext.get("KHR_materials_clearcoat", {})
     p.clearcoat = _float(e.get("clearcoatFactor", 0.0), where, "clearcoatFactor")
     p.clearcoat_roughness = _float(e.get("clearcoatRoughnessFactor", 0.0), where,
@@ -164,10 +173,13 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str]) -> GltfPbr:
         ("clearcoatNormalTexture", ext.get("KHR_materials_clearcoat", {}))) if key in table]
     if ignored:
         add_warning(warnings, f"{where}: {', '.join(ignored)} not supported, "
-                              "the constant factors are used")
+                              "the constant factors are used",
+                    IGNORED_TEXTURES, name, detail=", ".join(ignored), ignored=ignored)
     if gm.get("alphaMode", "OPAQUE") != "OPAQUE":
         add_warning(warnings, f"{where}: alphaMode {gm['alphaMode']} not supported, "
-                              "rendered opaque (use KHR_materials_transmission for glass)")
+                              "rendered opaque (use KHR_materials_transmission for glass)",
+                    ALPHA_MODE, name, detail=str(gm["alphaMode"]),
+                    ignored=[f"alphaMode {gm['alphaMode']}"])
     return p
 
 
@@ -178,7 +190,7 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     """One glTF material -> Material: the rule, then `extras.glint`, then the sidecar override."""
     warnings = [] if warnings is None else warnings
     where = f"{source}: material '{name}'" if source else f"material '{name}'"
-    kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings), diffuse_roughness)
+    kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings, name), diffuse_roughness)
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
                    double_sided=bool(gm.get("doubleSided", False)))
     extras = gm.get("extras")
