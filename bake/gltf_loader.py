@@ -21,8 +21,11 @@ Conventions:
 - Primitives without a material get "default": a grey (kd 0.8) diffuse material.
 - KHR_lights_punctual: intensity is candela (point, spot) or lux (directional);
   with `[lights] units = "photometric"` (default) it is divided by 683 lm/W to
-  W/sr and W/m^2. Lights shine along the node's -Z; `range` is ignored (the
-  inverse-square law applies everywhere).
+  W/sr and W/m^2. Lights shine along the node's -Z; `range` is ignored with a
+  warning (the inverse-square law applies everywhere).
+- What is not supported (vertex colours, skins, morph targets, animations, texture
+  samplers other than bilinear repeating, ...) is warned about, with a kind where it
+  repeats per object or material, and counted in Scene.ignored_features.
 - Cameras: every perspective camera on a node (eye = node origin, forward = -Z,
   up = +Y, in world space); orthographic cameras are skipped with a warning.
   The sidecar's [cameras] follow the glTF's.
@@ -89,6 +92,18 @@ SPOT_CONES = WarningKind("{n} spot lights have cone angles outside 0 <= inner < 
                          "clamped")
 ORTHOGRAPHIC = WarningKind("{n} cameras are orthographic; only perspective cameras are "
                            "supported, skipped")
+VERTEX_COLOURS = WarningKind("{n} objects have vertex colours (COLOR_0), not supported; ignored")
+SKINNED = WarningKind("{n} objects are skinned; skins are not supported, shown as stored "
+                      "(the bind pose)")
+MORPHED = WarningKind("{n} objects have morph target weights, not supported; shown without "
+                      "their morph targets")
+SAMPLERS = WarningKind("{n} materials' base colour textures have a sampler glint does not "
+                       "support; sampled bilinear, repeating")
+NO_UVS = WarningKind("{n} objects have a textured material but no TEXCOORD_0; the texel at "
+                     "(0, 0) is used everywhere")
+LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
+                          "everywhere")
+_SAMPLER_MODES = {9728: "NEAREST", 33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}
 
 
 @dataclass
@@ -311,6 +326,10 @@ class _SceneBuilder:
                       bake_settings=dict(side.bake), sky=side.sky,
                       camera_paths=list(side.camera_paths))
         self._check_extensions()
+        animations = len(_list(self.tree, "animations", self.source))
+        if animations:
+            self.warn(f"{self.source}: {animations} animation(s) not played; the scene is shown "
+                      "as stored", ignored={"animations": animations})
         worlds = node_world_matrices(self.tree, self.source)
         scene.materials = self._materials()
         aliases = self._objects(scene, worlds)
@@ -469,6 +488,14 @@ class _SceneBuilder:
             self.warn(f"{where}: KHR_texture_transform is not supported, ignored",
                       TEXTURE_TRANSFORM, name)
         tex = self.item("textures", info.get("index"), f"material '{name}' baseColorTexture")
+        if "sampler" in tex:
+            sampler = self.item("samplers", tex["sampler"], f"material '{name}' texture")
+            modes = sorted({_SAMPLER_MODES[sampler[k]] for k in ("magFilter", "wrapS", "wrapT")
+                            if sampler.get(k) in _SAMPLER_MODES})
+            if modes:
+                self.warn(f"{where}: base colour texture sampler {', '.join(modes)} not "
+                          "supported; sampled bilinear, repeating", SAMPLERS, name,
+                          detail=", ".join(modes), ignored=[f"sampler {m}" for m in modes])
         source = tex.get("source")
         if source is None:
             self.warn(f"{where}: base colour texture has no PNG/JPEG source; ignored",
@@ -511,6 +538,15 @@ class _SceneBuilder:
         for node_index, node, mesh in self._nodes_with("mesh", "meshes", worlds):
             node_name = node.get("name") or mesh.get("name") or f"node{node_index}"
             mesh_name = mesh.get("name") or f"mesh{node['mesh']}"
+            if "skin" in node:
+                self.warn(f"{self.source}: object '{node_name}' is skinned; skins are not "
+                          "supported, shown as stored (the bind pose)", SKINNED, node_name,
+                          ignored=["skins"])
+            weights = node.get("weights", mesh.get("weights", []))
+            if any(w != 0 for w in weights) and any(p.get("targets") for p in mesh.get("primitives", [])):
+                self.warn(f"{self.source}: object '{node_name}' has morph target weights, not "
+                          "supported; shown without its morph targets", MORPHED, node_name,
+                          ignored=["morph targets"])
             for world in worlds[node_index]:
                 for p, prim in enumerate(mesh.get("primitives", [])):
                     obj = self._primitive(scene, prim, world, node_name,
@@ -575,6 +611,9 @@ class _SceneBuilder:
         if np.linalg.det(linear) < 0:  # mirrored: keep counter-clockwise front faces
             indices = indices[:, [0, 2, 1]]
 
+        if "COLOR_0" in attrs:
+            self.warn(f"{self.source}: object '{name}' has vertex colours (COLOR_0), not "
+                      "supported; ignored", VERTEX_COLOURS, name, ignored=["COLOR_0"])
         normals = uvs = None
         if "NORMAL" in attrs:
             normals = self.accessor(attrs["NORMAL"], f"'{node_name}' NORMAL")[:, :3]
@@ -631,6 +670,9 @@ class _SceneBuilder:
         else:
             material = self._index(material, len(_list(self.tree, "materials", self.source)),
                                    f"object '{node_name}' {what}", "material")
+            if uvs is None and scene.materials[material].kd_texture is not None:
+                self.warn(f"{self.source}: object '{name}' has a textured material but no "
+                          "TEXCOORD_0; its texel at (0, 0) is used everywhere", NO_UVS, name)
         return Object(name=name, positions=positions, normals=np.asarray(normals, np.float32),
                       indices=indices, material=material,
                       uvs=None if uvs is None else uvs.astype(np.float32))
@@ -651,6 +693,9 @@ class _SceneBuilder:
             light = lights[li]
             name = light.get("name") or nodes[node_index].get("name") or f"light{li}"
             where = f"{self.source}: light '{name}'"
+            if "range" in light:
+                self.warn(f"{where}: range not supported; inverse-square falloff everywhere",
+                          LIGHT_RANGE, name, ignored=["light range"])
             color = _numbers(light.get("color", [1, 1, 1]), 3, f"{where} color", minimum=0.0)
             intensity = _numbers([light.get("intensity", 1.0)], 1, f"{where} intensity",
                                  minimum=0.0)

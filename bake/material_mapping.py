@@ -32,8 +32,9 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   always kept. Lobes whose ks is 0 are dropped.
 - Emission (radiance, W/(m^2 sr)) = e * k.
 - Ignored, with a warning: metallicRoughness, normal and emissive textures
-  (the factors are used), alphaMode BLEND/MASK (opaque). Occlusion textures are
-  ignored silently (the bake computes occlusion itself).
+  (the factors are used), alphaMode BLEND/MASK (opaque), a KHR_materials_volume
+  thickness (a thin surface). Occlusion textures are not read (the bake computes
+  occlusion itself). Warnings repeated over materials are summarised per kind.
 
 Overrides
 ---------
@@ -60,7 +61,7 @@ CLEARCOAT_R0 = 0.04  # KHR_materials_clearcoat: fixed ior 1.5
 MATERIAL_EXTENSIONS = (
     "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior",
     "KHR_materials_specular", "KHR_materials_anisotropy", "KHR_materials_clearcoat",
-    "KHR_materials_volume",  # thickness/attenuation: meaningless for thin surfaces, ignored
+    "KHR_materials_volume",  # read only to warn: a volume (thickness > 0) is drawn as a thin surface
 )
 OVERRIDE_KEYS = ("kd", "emission", "lobes")
 # Warnings that repeat per material: one summary line each (glint.core.errors.WarningKind).
@@ -68,6 +69,8 @@ ANISOTROPY_ROTATION = WarningKind("{n} materials have an anisotropyRotation, not
                                   "the anisotropy runs along the texture u direction")
 IGNORED_TEXTURES = WarningKind("{n} materials have textures glint does not read; "
                                "the constant factors are used")
+VOLUME = WarningKind("{n} materials have a volume (KHR_materials_volume thickness), not supported; "
+                     "rendered as thin surfaces")
 ALPHA_MODE = WarningKind("{n} materials have alphaMode BLEND or MASK, not supported; rendered "
                          "opaque (use KHR_materials_transmission for glass)")
 LOBE_KEYS = ("kind", "ks", "mx", "my", "m", "r0", "alpha")
@@ -161,6 +164,11 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
     p.clearcoat = _float(e.get("clearcoatFactor", 0.0), where, "clearcoatFactor")
     p.clearcoat_roughness = _float(e.get("clearcoatRoughnessFactor", 0.0), where,
                                    "clearcoatRoughnessFactor")
+    e = ext.get("KHR_materials_volume", {})
+    if _float(e.get("thicknessFactor", 0.0), where, "thicknessFactor") > 0:  # 0: thin-walled, as here
+        add_warning(warnings, f"{where}: KHR_materials_volume thickness not supported; rendered "
+                              "as a thin surface (no refraction or absorption inside)",
+                    VOLUME, name, ignored=["KHR_materials_volume"])
 
     ignored = [key for key, table in (
         ("metallicRoughnessTexture", pmr), ("normalTexture", gm), ("emissiveTexture", gm),

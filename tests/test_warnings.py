@@ -173,3 +173,42 @@ def test_summary_line_counts_subjects_and_sums(capsys):
     assert capsys.readouterr().err == "glint: warning: only one\n"  # one subject: the message itself
     warn("outside", KIND, "t0")
     assert capsys.readouterr().err == "glint: warning: outside\n"
+
+
+def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
+    """What glint does not support, and used to ignore silently, warns and is counted in
+    Scene.ignored_features (-> the end-of-bake line): vertex colours, skins, morph targets
+    with weights, animations, sampler modes, light range, a volume's thickness, a textured
+    material on an object without TEXCOORD_0. Deliberate bug this catches (tried): the
+    COLOR_0 warning without `ignored=` (COLOR_0 missing from the counts)."""
+    from glint.bake.gltf_loader import load_scene
+
+    w, wall = room_writer()
+    texture = w.add_texture(np.full((2, 2, 3), 128, np.uint8))
+    w.samplers[0]["wrapS"] = 33071  # CLAMP_TO_EDGE
+    w.materials[wall]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": texture}
+    w.materials[wall]["extensions"] = {"KHR_materials_volume": {"thicknessFactor": 0.1}}
+    w.extensions_used.add("KHR_materials_volume")
+    node = {n["name"]: n for n in w.nodes}
+    back = w.meshes[node["Back"]["mesh"]]
+    attributes = back["primitives"][0]["attributes"]
+    attributes["COLOR_0"] = attributes["NORMAL"]  # any VEC3 float accessor will do
+    back["primitives"][0]["targets"] = [{"POSITION": attributes["NORMAL"]}]
+    back["weights"] = [0.5]
+    node["Left"]["skin"] = 0
+    w.add_node("Bulb", light=w.add_light("Bulb", "point", intensity=10.0, range=5.0), translation=(0, 1, 0))
+    path = w.write(tmp_path / "unsupported.gltf")
+    doc = json.loads(path.read_text())  # the writer has no skins or animations
+    doc["skins"] = [{"joints": [0]}]
+    doc["animations"] = [{"channels": [], "samplers": []}]
+    path.write_text(json.dumps(doc))
+
+    scene = load_scene(path)
+    assert scene.ignored_features == {
+        "animations": 1, "sampler CLAMP_TO_EDGE": 1, "KHR_materials_volume": 1, "skins": 1,
+        "morph targets": 1, "COLOR_0": 1, "light range": 1}
+    err = capsys.readouterr().err
+    for words in ("animation(s) not played", "sampler CLAMP_TO_EDGE", "KHR_materials_volume thickness",
+                  "'Left' is skinned", "'Back' has morph target weights", "'Back' has vertex colours",
+                  "light 'Bulb': range", "objects have a textured material but no TEXCOORD_0"):
+        assert words in err, words
