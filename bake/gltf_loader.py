@@ -488,10 +488,12 @@ class _SceneBuilder:
             self.warn(f"{where}: KHR_texture_transform is not supported, ignored",
                       TEXTURE_TRANSFORM, name)
         tex = self.item("textures", info.get("index"), f"material '{name}' baseColorTexture")
-        if "sampler" in tex:
-            sampler = self.item("samplers", tex["sampler"], f"material '{name}' texture")
-            modes = sorted({_SAMPLER_MODES[sampler[k]] for k in ("magFilter", "wrapS", "wrapT")
-                            if sampler.get(k) in _SAMPLER_MODES})
+        samplers = self.tree.get("samplers", [])
+        if isinstance(tex.get("sampler"), int) and 0 <= tex["sampler"] < len(samplers):
+            # Only read to warn: a broken sampler reference is not worth stopping for.
+            sampler = samplers[tex["sampler"]]
+            modes = sorted({_SAMPLER_MODES[v] for v in (sampler.get(k) for k in ("magFilter", "wrapS", "wrapT"))
+                            if isinstance(v, int) and v in _SAMPLER_MODES})
             if modes:
                 self.warn(f"{where}: base colour texture sampler {', '.join(modes)} not "
                           "supported; sampled bilinear, repeating", SAMPLERS, name,
