@@ -59,7 +59,8 @@ def test_many_objects_with_zero_area_triangles_give_one_line_and_verbose_each(tm
     """Deliberate bugs this catches (tried): `warn` printing kinded warnings at once as before
     (16 lines instead of 2); the summary counting warnings in its sum but the objects wrongly
     (`n=len(names[:3])`: "3 objects"); `main` not passing `--verbose` on to `summarised`
-    (the second bake shows the summary instead of 12 lines)."""
+    (the second bake shows the summary instead of 12 lines); an object whose triangles all
+    have zero area reported as having dropped them too ("16 objects")."""
     w, wall = room_writer()
     add_degenerate_objects(w, wall)
     scene = w.write(tmp_path / "slivers.glb")
