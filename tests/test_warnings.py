@@ -91,7 +91,8 @@ def test_ignored_features_named_at_the_end_of_a_bake(tmp_path, capsys):
     and kept in the manifest. Deliberate bugs this catches (tried): the textures' warning in
     bake/material_mapping.py without `ignored=` (no normalTexture in the line); the pipeline
     not writing `statistics.ignored_features` (no "ignored:" at all); `cmd_bake` not printing
-    the line."""
+    the line; `run_bake` not printing it; unsupported extensions of extensionsUsed not
+    counted (no KHR_texture_transform)."""
     w, wall = room_writer()
     texture = w.add_texture(np.full((2, 2, 3), 128, np.uint8))
     w.materials[wall]["normalTexture"] = {"index": texture}
