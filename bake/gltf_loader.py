@@ -21,8 +21,11 @@ Conventions:
 - Primitives without a material get "default": a grey (kd 0.8) diffuse material.
 - KHR_lights_punctual: intensity is candela (point, spot) or lux (directional);
   with `[lights] units = "photometric"` (default) it is divided by 683 lm/W to
-  W/sr and W/m^2. Lights shine along the node's -Z; `range` is ignored (the
-  inverse-square law applies everywhere).
+  W/sr and W/m^2. Lights shine along the node's -Z; `range` is ignored with a
+  warning (the inverse-square law applies everywhere).
+- What is not supported (vertex colours, skins, morph targets, animations, texture
+  samplers other than bilinear repeating, ...) is warned about, with a kind where it
+  repeats per object or material, and counted in Scene.ignored_features.
 - Cameras: every perspective camera on a node (eye = node origin, forward = -Z,
   up = +Y, in world space); orthographic cameras are skipped with a warning.
   The sidecar's [cameras] follow the glTF's.
@@ -50,7 +53,7 @@ from glint.bake.validate import (
     repair_normals,
     validate_scene,
 )
-from glint.core.errors import GlintError
+from glint.core.errors import GlintError, WarningKind, summarised
 from glint.core.geometry import face_cross
 from glint.core.scene import Camera, DirectionalLight, Material, Object, PointLight, Scene, SpotLight
 
@@ -67,6 +70,40 @@ _SINGULAR = {"accessors": "accessor", "bufferViews": "bufferView", "meshes": "me
              "cameras": "camera", "nodes": "node"}
 _MODES = {0: "points", 1: "lines", 2: "line loop", 3: "line strip", 4: "triangles",
           5: "triangle strip", 6: "triangle fan"}
+
+# Warnings that repeat per object, material, light or camera: one summary line each
+# (glint.core.errors.WarningKind), so a scene with hundreds of meshes stays readable.
+NOT_TRIANGLES = WarningKind("{n} objects are points or lines, not triangles; skipped")
+NON_FINITE_UVS = WarningKind("{n} objects have non-finite texture coordinates, set to 0")
+ZERO_AREA = WarningKind("{n} objects have zero-area triangles "
+                        "(dropped {dropped:,} of their {triangles:,} triangles)")
+NO_AREA = WarningKind("{n} objects have no triangles with area and were skipped")
+NO_NORMALS = WarningKind("{n} objects have no normals; using flat face normals")
+ZERO_NORMALS = WarningKind("{n} objects have zero-length normals ({normals:,} in all), "
+                           "replaced by the face normal")
+TEXCOORD = WarningKind("{n} materials' base colour textures use TEXCOORD_1 or higher; "
+                       "glint reads TEXCOORD_0")
+TEXTURE_TRANSFORM = WarningKind("{n} materials use KHR_texture_transform, which is not "
+                                "supported; ignored")
+NO_IMAGE = WarningKind("{n} materials' base colour textures have no PNG/JPEG source; ignored")
+UNREADABLE = WarningKind("{n} base colour images cannot be read; their materials use "
+                         "baseColorFactor only")
+SPOT_CONES = WarningKind("{n} spot lights have cone angles outside 0 <= inner < outer <= pi/2; "
+                         "clamped")
+ORTHOGRAPHIC = WarningKind("{n} cameras are orthographic; only perspective cameras are "
+                           "supported, skipped")
+VERTEX_COLOURS = WarningKind("{n} objects have vertex colours (COLOR_0), not supported; ignored")
+SKINNED = WarningKind("{n} objects are skinned; skins are not supported, shown as stored "
+                      "(the bind pose)")
+MORPHED = WarningKind("{n} objects have morph target weights, not supported; shown without "
+                      "their morph targets")
+SAMPLERS = WarningKind("{n} materials' base colour textures have a sampler glint does not "
+                       "support; sampled bilinear, repeating")
+NO_UVS = WarningKind("{n} objects have a textured material but no TEXCOORD_0; the texel at "
+                     "(0, 0) is used everywhere")
+LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
+                          "everywhere")
+_SAMPLER_MODES = {9728: "NEAREST", 33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}
 
 
 @dataclass
@@ -88,9 +125,13 @@ class GltfDocument:
 def load_scene(path: Path) -> Scene:
     """Read a .glb/.gltf and its sidecar `<stem>.glint.toml` into a checked Scene."""
     path = Path(path)
-    doc = _guarded(path, read_gltf, path)
-    side = read_sidecar(path)
-    return _guarded(path, lambda: _SceneBuilder(doc, side).build())
+    # Repeated warnings are summarised when loading ends, or fails (the error comes last).
+    with summarised() as record:
+        doc = _guarded(path, read_gltf, path)
+        side = read_sidecar(path)
+        scene = _guarded(path, lambda: _SceneBuilder(doc, side).build())
+        scene.ignored_features = record.ignored_features()
+    return scene
 
 
 def _guarded(path: Path, fn, *args):
@@ -288,6 +329,10 @@ class _SceneBuilder:
                       bake_settings=dict(side.bake), sky=side.sky,
                       camera_paths=list(side.camera_paths))
         self._check_extensions()
+        animations = len(_list(self.tree, "animations", self.source))
+        if animations:
+            self.warn(f"{self.source}: {animations} animation(s) not played; the scene is shown "
+                      "as stored", ignored={"animations": animations})
         worlds = node_world_matrices(self.tree, self.source)
         scene.materials = self._materials()
         aliases = self._objects(scene, worlds)
@@ -302,8 +347,9 @@ class _SceneBuilder:
         validate_scene(scene)
         return scene
 
-    def warn(self, message: str) -> None:
-        add_warning(self.warnings, message)
+    def warn(self, message: str, kind: WarningKind | None = None, subject: str | None = None,
+             **how) -> None:
+        add_warning(self.warnings, message, kind, subject, **how)
 
     def bad(self, message: str) -> GlintError:
         return GlintError(f"{self.source}: malformed glTF: {message}")
@@ -329,7 +375,8 @@ class _SceneBuilder:
         used = set(self.tree.get("extensionsUsed", [])) - SUPPORTED_EXTENSIONS
         if used:
             self.warn(f"{self.source}: glTF extension(s) {', '.join(sorted(used))} not "
-                      f"supported, ignored")
+                      f"supported, ignored",
+                      ignored={ext: max(_uses(self.tree, ext), 1) for ext in sorted(used)})
 
     # ---- accessors
 
@@ -440,13 +487,27 @@ class _SceneBuilder:
         where = f"{self.source}: material '{name}'"
         if info.get("texCoord", 0) != 0:
             self.warn(f"{where}: base colour texture uses TEXCOORD_{info['texCoord']}; "
-                      "glint reads TEXCOORD_0")
+                      "glint reads TEXCOORD_0", TEXCOORD, name,
+                      detail=f"TEXCOORD_{info['texCoord']}", ignored=["texCoord > 0"])
         if "KHR_texture_transform" in info.get("extensions", {}):
-            self.warn(f"{where}: KHR_texture_transform is not supported, ignored")
+            # Counted in ignored features as an extension of extensionsUsed (_check_extensions).
+            self.warn(f"{where}: KHR_texture_transform is not supported, ignored",
+                      TEXTURE_TRANSFORM, name)
         tex = self.item("textures", info.get("index"), f"material '{name}' baseColorTexture")
+        samplers = self.tree.get("samplers", [])
+        if isinstance(tex.get("sampler"), int) and 0 <= tex["sampler"] < len(samplers):
+            # Only read to warn: a broken sampler reference is not worth stopping for.
+            sampler = samplers[tex["sampler"]]
+            modes = sorted({_SAMPLER_MODES[v] for v in (sampler.get(k) for k in ("magFilter", "wrapS", "wrapT"))
+                            if isinstance(v, int) and v in _SAMPLER_MODES})
+            if modes:
+                self.warn(f"{where}: base colour texture sampler {', '.join(modes)} not "
+                          "supported; sampled bilinear, repeating", SAMPLERS, name,
+                          detail=", ".join(modes), ignored=[f"sampler {m}" for m in modes])
         source = tex.get("source")
         if source is None:
-            self.warn(f"{where}: base colour texture has no PNG/JPEG source; ignored")
+            self.warn(f"{where}: base colour texture has no PNG/JPEG source; ignored",
+                      NO_IMAGE, name, ignored=["textures without a PNG/JPEG source"])
             return None
         if source not in self._images:
             self._images[source] = self._decode_image(source, where)
@@ -471,7 +532,9 @@ class _SceneBuilder:
                 rgba = np.asarray(img.convert("RGBA"), np.float32) / 255.0
         except Exception as err:  # any unreadable image: warn and fall back to the factor
             self.warn(f"{where}: cannot read base colour texture (image {index}: "
-                      f"{type(err).__name__}: {err}); using baseColorFactor only")
+                      f"{type(err).__name__}: {err}); using baseColorFactor only",
+                      UNREADABLE, _image_name(image, index),
+                      ignored=["unreadable base colour images"])
             return None
         # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
         return np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
@@ -484,6 +547,15 @@ class _SceneBuilder:
         for node_index, node, mesh in self._nodes_with("mesh", "meshes", worlds):
             node_name = node.get("name") or mesh.get("name") or f"node{node_index}"
             mesh_name = mesh.get("name") or f"mesh{node['mesh']}"
+            if "skin" in node:
+                self.warn(f"{self.source}: object '{node_name}' is skinned; skins are not "
+                          "supported, shown as stored (the bind pose)", SKINNED, node_name,
+                          ignored=["skins"])
+            weights = node.get("weights", mesh.get("weights", []))
+            if any(w != 0 for w in weights) and any(p.get("targets") for p in mesh.get("primitives", [])):
+                self.warn(f"{self.source}: object '{node_name}' has morph target weights, not "
+                          "supported; shown without its morph targets", MORPHED, node_name,
+                          ignored=["morph targets"])
             for world in worlds[node_index]:
                 for p, prim in enumerate(mesh.get("primitives", [])):
                     obj = self._primitive(scene, prim, world, node_name,
@@ -516,7 +588,8 @@ class _SceneBuilder:
         attrs = prim.get("attributes", {})
         if mode not in (4, 5, 6):
             self.warn(f"{self.source}: object '{node_name}' {what} is {_MODES.get(mode, mode)}, "
-                      "not triangles; skipped")
+                      "not triangles; skipped", NOT_TRIANGLES, node_name,
+                      detail=_MODES.get(mode, str(mode)), ignored=["points and lines"])
             return None
         if "POSITION" not in attrs:
             raise self.bad(f"object '{node_name}' {what} has no POSITION attribute")
@@ -547,6 +620,9 @@ class _SceneBuilder:
         if np.linalg.det(linear) < 0:  # mirrored: keep counter-clockwise front faces
             indices = indices[:, [0, 2, 1]]
 
+        if "COLOR_0" in attrs:
+            self.warn(f"{self.source}: object '{name}' has vertex colours (COLOR_0), not "
+                      "supported; ignored", VERTEX_COLOURS, name, ignored=["COLOR_0"])
         normals = uvs = None
         if "NORMAL" in attrs:
             normals = self.accessor(attrs["NORMAL"], f"'{node_name}' NORMAL")[:, :3]
@@ -561,21 +637,26 @@ class _SceneBuilder:
             uvs = uvs.astype(np.float64)
             if not np.all(np.isfinite(uvs)):
                 self.warn(f"{self.source}: object '{name}': non-finite texture coordinates "
-                          "set to 0")
+                          "set to 0", NON_FINITE_UVS, name)
                 uvs = np.nan_to_num(uvs, nan=0.0, posinf=0.0, neginf=0.0)
 
         bad = degenerate_triangles(positions, indices)
         if bad.any():
-            self.warn(f"{self.source}: object '{name}': dropped {int(bad.sum())} zero-area "
-                      f"triangle(s) of {len(indices)}")
+            if not bad.all():  # one left with none is reported once, as skipped, just below
+                self.warn(f"{self.source}: object '{name}': dropped {int(bad.sum())} zero-area "
+                          f"triangle(s) of {len(indices)}", ZERO_AREA, name,
+                          detail=str(int(bad.sum())),
+                          counts={"dropped": int(bad.sum()), "triangles": len(indices)})
             indices = indices[~bad]
         if len(indices) == 0:
-            self.warn(f"{self.source}: object '{name}' has no triangles with area; skipped")
+            self.warn(f"{self.source}: object '{name}' has no triangles with area; skipped",
+                      NO_AREA, name)
             return None
 
         if normals is None:
             # glTF: without normals, clients compute flat normals (split every vertex).
-            self.warn(f"{self.source}: object '{name}' has no normals; using flat face normals")
+            self.warn(f"{self.source}: object '{name}' has no normals; using flat face normals",
+                      NO_NORMALS, name)
             positions, uvs = positions[indices].reshape(-1, 3), (
                 None if uvs is None else uvs[indices].reshape(-1, 2))
             cross = face_cross(positions, np.arange(len(positions)).reshape(-1, 3))
@@ -590,13 +671,17 @@ class _SceneBuilder:
             normals, replaced = repair_normals(normals, positions, indices)
             if replaced:
                 self.warn(f"{self.source}: object '{name}': {replaced} zero-length normal(s) "
-                          "replaced by the face normal")
+                          "replaced by the face normal", ZERO_NORMALS, name, detail=str(replaced),
+                          counts={"normals": replaced})
         material = prim.get("material")
         if material is None:
             material = self._default(scene)
         else:
             material = self._index(material, len(_list(self.tree, "materials", self.source)),
                                    f"object '{node_name}' {what}", "material")
+            if uvs is None and scene.materials[material].kd_texture is not None:
+                self.warn(f"{self.source}: object '{name}' has a textured material but no "
+                          "TEXCOORD_0; its texel at (0, 0) is used everywhere", NO_UVS, name)
         return Object(name=name, positions=positions, normals=np.asarray(normals, np.float32),
                       indices=indices, material=material,
                       uvs=None if uvs is None else uvs.astype(np.float32))
@@ -617,6 +702,9 @@ class _SceneBuilder:
             light = lights[li]
             name = light.get("name") or nodes[node_index].get("name") or f"light{li}"
             where = f"{self.source}: light '{name}'"
+            if "range" in light:
+                self.warn(f"{where}: range not supported; inverse-square falloff everywhere",
+                          LIGHT_RANGE, name, ignored=["light range"])
             color = _numbers(light.get("color", [1, 1, 1]), 3, f"{where} color", minimum=0.0)
             intensity = _numbers([light.get("intensity", 1.0)], 1, f"{where} intensity",
                                  minimum=0.0)
@@ -636,7 +724,8 @@ class _SceneBuilder:
                                             f"{where} cone angles")
                     if not 0 <= inner < outer <= np.pi / 2:
                         self.warn(f"{self.source}: spot light '{name}': cone angles "
-                                  f"{inner}, {outer} need 0 <= inner < outer <= pi/2; clamped")
+                                  f"{inner}, {outer} need 0 <= inner < outer <= pi/2; clamped",
+                                  SPOT_CONES, name)
                         outer = float(np.clip(outer, 1e-4, np.pi / 2))
                         inner = float(np.clip(inner, 0.0, outer * (1 - 1e-6)))
                     scene.spot_lights.append(SpotLight(position, direction, power, inner,
@@ -651,7 +740,8 @@ class _SceneBuilder:
             name = node.get("name") or cam.get("name") or f"camera{node['camera']}"
             if cam.get("type") != "perspective":
                 self.warn(f"{self.source}: camera '{name}' is {cam.get('type')}; only "
-                          "perspective cameras are supported, skipped")
+                          "perspective cameras are supported, skipped", ORTHOGRAPHIC, name,
+                          ignored=[f"{cam.get('type')} cameras"])
                 continue
             p = cam.get("perspective", {})
             where = f"{self.source}: camera '{name}'"
@@ -746,6 +836,22 @@ def _numbers(values, n: int, where: str, minimum: float | None = None) -> np.nda
         bound = "" if minimum is None else f" >= {minimum:g}"
         raise GlintError(f"{where} must be {n} finite number(s){bound}, not {values!r}")
     return np.asarray(values, np.float64)
+
+
+def _image_name(image: dict, index: int) -> str:
+    """How a summary names an image: its name, else its file (not a data: URI), else its index."""
+    uri = image.get("uri", "")
+    return image.get("name") or (uri if uri and not uri.startswith("data:") else f"image {index}")
+
+
+def _uses(tree, extension: str) -> int:
+    """How many `extensions` tables of the glTF JSON name `extension` (materials, nodes, ...)."""
+    if isinstance(tree, list):
+        return sum(_uses(v, extension) for v in tree)
+    if not isinstance(tree, dict):
+        return 0
+    here = isinstance(tree.get("extensions"), dict) and extension in tree["extensions"]
+    return int(here) + sum(_uses(v, extension) for v in tree.values())
 
 
 def _cofactor(m: np.ndarray) -> np.ndarray:

@@ -37,8 +37,9 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   spec: "the rendered output is fully opaque and any alpha value is ignored"). An
   unknown mode warns and is opaque.
 - Ignored, with a warning: metallicRoughness, normal and emissive textures
-  (the factors are used). Occlusion textures are ignored silently (the bake computes
-  occlusion itself).
+  (the factors are used), a KHR_materials_volume thickness (a thin surface). Occlusion
+  textures are not read (the bake computes occlusion itself). Warnings repeated over materials
+  are summarised per kind.
 
 Overrides
 ---------
@@ -55,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from glint.bake.validate import add_warning, check_number, check_rgb, warn_unknown_keys
-from glint.core.errors import GlintError
+from glint.core.errors import GlintError, WarningKind
 from glint.core.scene import Lobe, Material
 
 DIFFUSE_ROUGHNESS = 0.5
@@ -65,9 +66,16 @@ CLEARCOAT_R0 = 0.04  # KHR_materials_clearcoat: fixed ior 1.5
 MATERIAL_EXTENSIONS = (
     "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior",
     "KHR_materials_specular", "KHR_materials_anisotropy", "KHR_materials_clearcoat",
-    "KHR_materials_volume",  # thickness/attenuation: meaningless for thin surfaces, ignored
+    "KHR_materials_volume",  # read only to warn: a volume (thickness > 0) is drawn as a thin surface
 )
 OVERRIDE_KEYS = ("kd", "emission", "lobes")
+# Warnings that repeat per material: one summary line each (glint.core.errors.WarningKind).
+ANISOTROPY_ROTATION = WarningKind("{n} materials have an anisotropyRotation, not supported yet; "
+                                  "the anisotropy runs along the texture u direction")
+IGNORED_TEXTURES = WarningKind("{n} materials have textures glint does not read; "
+                               "the constant factors are used")
+VOLUME = WarningKind("{n} materials have a volume (KHR_materials_volume thickness), not supported; "
+                     "rendered as thin surfaces")
 LOBE_KEYS = ("kind", "ks", "mx", "my", "m", "r0", "alpha")
 
 
@@ -127,8 +135,9 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS):
     return kd.astype(np.float32), lobes, np.clip(emission, 0.0, None).astype(np.float32)
 
 
-def pbr_from_gltf(gm: dict, where: str, warnings: list[str]) -> GltfPbr:
-    """Read a glTF material JSON object into GltfPbr; warn about what the rule ignores."""
+def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = None) -> GltfPbr:
+    """Read a glTF material JSON object into GltfPbr; warn about what the rule ignores
+    (`name`: the material's, for the summary of a warning repeated over many materials)."""
     pmr = gm.get("pbrMetallicRoughness", {})
     ext = gm.get("extensions", {})
     p = GltfPbr(
@@ -152,11 +161,17 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str]) -> GltfPbr:
     p.anisotropy = _float(e.get("anisotropyStrength", 0.0), where, "anisotropyStrength")
     if _float(e.get("anisotropyRotation", 0.0), where, "anisotropyRotation") != 0.0:
         add_warning(warnings, f"{where}: anisotropyRotation is not supported yet; "
-                              "the anisotropy runs along the texture u direction")
+                              "the anisotropy runs along the texture u direction",
+                    ANISOTROPY_ROTATION, name, ignored=["anisotropyRotation"])
     e = ext.get("KHR_materials_clearcoat", {})
     p.clearcoat = _float(e.get("clearcoatFactor", 0.0), where, "clearcoatFactor")
     p.clearcoat_roughness = _float(e.get("clearcoatRoughnessFactor", 0.0), where,
                                    "clearcoatRoughnessFactor")
+    e = ext.get("KHR_materials_volume", {})
+    if _float(e.get("thicknessFactor", 0.0), where, "thicknessFactor") > 0:  # 0: thin-walled, as here
+        add_warning(warnings, f"{where}: KHR_materials_volume thickness not supported; rendered "
+                              "as a thin surface (no refraction or absorption inside)",
+                    VOLUME, name, ignored=["KHR_materials_volume"])
 
     ignored = [key for key, table in (
         ("metallicRoughnessTexture", pmr), ("normalTexture", gm), ("emissiveTexture", gm),
@@ -169,7 +184,8 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str]) -> GltfPbr:
         ("clearcoatNormalTexture", ext.get("KHR_materials_clearcoat", {}))) if key in table]
     if ignored:
         add_warning(warnings, f"{where}: {', '.join(ignored)} not supported, "
-                              "the constant factors are used")
+                              "the constant factors are used",
+                    IGNORED_TEXTURES, name, detail=", ".join(ignored), ignored=ignored)
     return p
 
 
@@ -204,7 +220,7 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     """One glTF material -> Material: the rule, then `extras.glint`, then the sidecar override."""
     warnings = [] if warnings is None else warnings
     where = f"{source}: material '{name}'" if source else f"material '{name}'"
-    kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings), diffuse_roughness)
+    kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings, name), diffuse_roughness)
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
                    double_sided=bool(gm.get("doubleSided", False)),
                    **coverage_from_gltf(gm, alpha_texture, where, warnings))

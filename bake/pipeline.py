@@ -171,6 +171,8 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         if manifest["statistics"]["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status
             redone.append("cube maps")
+        # What the viewer will show wrong because the loader ignored it (glint.services.fidelity_line).
+        manifest["statistics"]["ignored_features"] = dict(scene.ignored_features)
         # What this bake redid and reused, for later commands that find it up to date (core/skipped.py).
         manifest["statistics"]["last_bake"] = bake_record(status, old, manifest, manifest["statistics"]["cubemaps"],
                                                           forced=force)

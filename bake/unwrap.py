@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 import xatlas
 
-from glint.core.errors import GlintError, warn
+from glint.core.errors import GlintError, WarningKind, warn
 
 # More pages than this means the density is far too high for the scene: refuse
 # rather than spend minutes packing and gigabytes baking.
@@ -40,6 +40,9 @@ MIN_OBJECT_TEXELS = 64.0
 # Fraction of a page xatlas fills in practice (measured ~0.75-0.95); used only
 # to refuse hopeless densities before running xatlas.
 EXPECTED_UTILISATION = 0.7
+# Per object, so summarised in one line (glint.core.errors.WarningKind).
+LOW_DENSITY = WarningKind("{n} objects got fewer texels/m than asked for: one of their charts is larger "
+                          "than a light-map page; raise max_page_size or lower texels_per_metre")
 
 
 @dataclass
@@ -230,7 +233,8 @@ def _check_density(obj, charts: ObjectCharts, width: int, height: int, wanted: f
     got = achieved_density(obj, charts, width, height)
     if obj.area > 0 and got < 0.75 * wanted:
         warn(f"object '{obj.name}' got only {got:.1f} texels/m of the {wanted:g} asked for: "
-             f"one of its charts is larger than a light-map page; raise max_page_size or lower texels_per_metre")
+             f"one of its charts is larger than a light-map page; raise max_page_size or lower texels_per_metre",
+             LOW_DENSITY, obj.name, detail=f"{got:.1f} texels/m")
 
 
 def _cross2(u, v):

@@ -4,7 +4,9 @@ Two kinds of problem:
 - fatal (`GlintError`, one line naming the file/object and the fix): non-finite
   vertex positions, no triangle meshes, no light at all;
 - recoverable (a warning, printed once and kept in `Scene.warnings`): degenerate
-  triangles are dropped, missing or zero-length normals are computed.
+  triangles are dropped, missing or zero-length normals are computed. Those that
+  repeat per object or material have a kind and are summarised in one line per kind
+  (glint.core.errors.summarised; `--verbose` lists each).
 """
 from __future__ import annotations
 
@@ -12,7 +14,7 @@ import math
 
 import numpy as np
 
-from glint.core.errors import GlintError, warn
+from glint.core.errors import GlintError, WarningKind, warn
 from glint.core.geometry import face_cross
 
 # A triangle is degenerate when its area is below this fraction of the square of
@@ -21,9 +23,11 @@ from glint.core.geometry import face_cross
 DEGENERATE_AREA = 1e-12
 
 
-def add_warning(warnings: list[str], message: str) -> None:
-    """Print a recoverable problem once and keep it (for `Scene.warnings`)."""
-    warn(message)
+def add_warning(warnings: list[str], message: str, kind: WarningKind | None = None,
+                subject: str | None = None, **how) -> None:
+    """Print a recoverable problem once (summarised with others of its `kind`) and keep it
+    (for `Scene.warnings`); `kind`, `subject` and `how` as for glint.core.errors.warn."""
+    warn(message, kind, subject, **how)
     warnings.append(message)
 
 

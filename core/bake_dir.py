@@ -4,7 +4,9 @@
                            input hashes, settings, statistics, materials, lights, cameras, objects;
                            optional `statistics.last_bake`: what the bake that wrote it redid and
                            reused and why (core/skipped.py; absent in older bake dirs, which stay
-                           readable: no version change)
+                           readable: no version change); optional `statistics.ignored_features`:
+                           {glTF feature: count} the loader ignored (Scene.ignored_features),
+                           and `statistics.lightmaps.invalid_texels` of `texels` inside geometry
     meshes.npz             per object o<i>_*: positions, normals, uvs (texture), lm_uv, lm_page,
                            indices -- vertices already split along light-map chart seams
     lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;

@@ -180,6 +180,9 @@ class Scene:
     bake_settings: dict = field(default_factory=dict)  # [bake] table of the sidecar
     sidecar: Path | None = None
     warnings: list[str] = field(default_factory=list)
+    # glTF features the loader ignored, with how many materials, objects, cameras or uses
+    # had each ("normalTexture": 12): what the viewer will show wrong (manifest statistics).
+    ignored_features: dict[str, int] = field(default_factory=dict)
 
     def material_of(self, obj: Object) -> Material:
         return self.materials[obj.material]

@@ -12,15 +12,17 @@ import traceback
 from glint import __version__
 from glint.bench.command import add_bench_parser
 from glint.capture import add_capture_parser
-from glint.core.errors import GlintError
+from glint.core.errors import GlintError, summarised
 from glint.core.skipped import summary_line
 from glint.scenes import BUILTIN
-from glint.services import SCENE_HELP, add_bake_options, run_bake
+from glint.services import SCENE_HELP, add_bake_options, fidelity_line, run_bake
 from glint.view import add_view_parser
 
 EXIT_ERROR = 2
 EXIT_INTERNAL = 1
 EXIT_INTERRUPTED = 130
+VERBOSE_HELP = ("list every warning on its own line (by default warnings that repeat per object or "
+                "material are summarised in one line each, with a count and the first names)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -31,9 +33,11 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run `glint COMMAND --help` for the options of a command.")
     parser.add_argument("--version", action="version", version=f"glint {__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks for errors")
+    parser.add_argument("--verbose", action="store_true", help=VERBOSE_HELP)
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
                         help="show tracebacks for errors")
+    common.add_argument("--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
 
     p = sub.add_parser("scenes", parents=[common], help="list the built-in scenes",
@@ -62,11 +66,16 @@ def cmd_scenes(args) -> int:
 
 
 def cmd_bake(args) -> int:
-    report = run_bake(args, progress=sys.stderr.isatty(), reuse=False)
+    report = run_bake(args, progress=sys.stderr.isatty(), reuse=False, explain=False)
     print(report.summary)
     skipped = summary_line(report.manifest, report.status)
     if skipped:
         print(skipped)
+    # Last, so it is what a person reads first: what the bake could not do right.
+    line = fidelity_line(report.manifest)
+    if line:
+        sys.stdout.flush()
+        print(f"glint: {line}", file=sys.stderr)
     return 0
 
 
@@ -77,7 +86,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_ERROR
     try:
-        return args.run(args)
+        # Warnings collected and not yet summarised are printed however the command ends,
+        # before the error line.
+        with summarised(verbose=args.verbose):
+            return args.run(args)
     except GlintError as e:
         if args.debug:
             traceback.print_exc()

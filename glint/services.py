@@ -20,7 +20,7 @@ from glint.bake.gltf_loader import load_scene
 from glint.bake.pipeline import BakeReport
 from glint.bake.settings import PRESETS, BakeSettings, resolve_settings
 from glint.core.bake_dir import default_bake_dir, read_manifest
-from glint.core.errors import GlintError
+from glint.core.errors import GlintError, summarised
 from glint.core.scene import Scene
 from glint.cubemap_stage import render_cubemaps
 from glint.scenes import BUILTIN, resolve
@@ -79,9 +79,31 @@ def open_scene(scene_arg: str) -> tuple[Scene, str | None]:
 
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
                progress: bool = True, announce=None) -> BakeReport:
-    """The whole bake of glint.bake.pipeline, with the cube-map stage that renders on the GPU."""
-    return pipeline.bake_scene(scene, settings, bake_dir, force=force, progress=progress,
-                               render_cubemaps=render_cubemaps, announce=announce)
+    """The whole bake of glint.bake.pipeline, with the cube-map stage that renders on the GPU.
+    Repeated warnings of the stages (e.g. objects short of texels) are summarised when it ends."""
+    with summarised():
+        return pipeline.bake_scene(scene, settings, bake_dir, force=force, progress=progress,
+                                   render_cubemaps=render_cubemaps, announce=announce)
+
+
+def fidelity_line(manifest: dict) -> str | None:
+    """One line of what the scene will look like wrong, from a bake's statistics: the share of
+    light-map texels inside geometry (invalid: lit by dilation from their neighbours, not path
+    traced) and the glTF features the loader ignored, e.g. "the scene will look wrong where:
+    3.1 % of light-map texels are unlit (inside geometry); ignored: normalTexture (12),
+    KHR_texture_transform (3)". None when there is nothing to say (or nothing recorded)."""
+    stats = manifest.get("statistics", {})
+    parts = []
+    lightmaps = stats.get("lightmaps", {})
+    texels, invalid = lightmaps.get("texels"), lightmaps.get("invalid_texels")
+    if texels and invalid:
+        share = 100.0 * invalid / texels
+        parts.append(f"{share:.1f} %" if share >= 0.1 else f"{share:.2g} %")
+        parts[-1] += " of light-map texels are unlit (inside geometry)"
+    ignored = stats.get("ignored_features") or {}
+    if ignored:
+        parts.append("ignored: " + ", ".join(f"{name} ({count})" for name, count in ignored.items()))
+    return "the scene will look wrong where: " + "; ".join(parts) if parts else None
 
 
 def _command_line_settings(args) -> dict:
@@ -110,12 +132,14 @@ def settings_for(scene: Scene, args, existing: dict | None) -> BakeSettings:
     return resolve_settings({**made_with, **sidecar}, **cli)
 
 
-def run_bake(args, *, progress: bool = True, reuse: bool = True) -> BakeReport:
+def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool = True) -> BakeReport:
     """Bake, or find up to date, the scene of a command's arguments (add_bake_options).
 
     `reuse`: an existing bake keeps its settings (settings_for); `glint bake` passes False, so
     its presets and sidecar apply as given. When an existing bake must be redone, one line on
-    stderr says why before the work starts."""
+    stderr says why before the work starts. `explain`: after a bake that did work, one line on
+    stderr says what the scene will look like wrong (fidelity_line); `glint bake` passes False
+    and prints it last itself."""
     scene, builtin = open_scene(args.scene)
     bake_dir = args.out or default_bake_dir(scene.source, builtin)
     existing = read_manifest(bake_dir) if reuse and not args.force else None
@@ -124,7 +148,11 @@ def run_bake(args, *, progress: bool = True, reuse: bool = True) -> BakeReport:
     def announce(why: str) -> None:
         print(f"glint: {bake_dir} is stale ({why}): re-baking what changed", file=sys.stderr)
 
-    return bake_scene(scene, settings, bake_dir, force=args.force, progress=progress, announce=announce)
+    report = bake_scene(scene, settings, bake_dir, force=args.force, progress=progress, announce=announce)
+    line = fidelity_line(report.manifest) if explain and report.status != "up-to-date" else None
+    if line:
+        print(f"glint: {line}", file=sys.stderr)
+    return report
 
 
 # -- argument checks shared by capture, view and bench --------------------------------------------

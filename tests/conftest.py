@@ -49,10 +49,15 @@ def ctx():
     context.release()
 
 
+# Lines on stderr that a failing command may print before its one error line: warnings, and
+# what a bake it started will look like wrong (glint.services.fidelity_line).
+NOT_ERRORS = ("glint: warning:", "glint: the scene will look wrong where:")
+
+
 def error_of(capsys, code):
     """The one line `glint: ...` a failed command printed (exit 2, no traceback)."""
     err = capsys.readouterr().err.strip().splitlines()
-    lines = [line for line in err if not line.startswith("glint: warning:")]
+    lines = [line for line in err if not line.startswith(NOT_ERRORS)]
     assert code == 2 and len(lines) == 1 and lines[0].startswith("glint: "), err
     assert "Traceback" not in "\n".join(err)
     return lines[0]

@@ -7,7 +7,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import quad, write_room
+from conftest import NOT_ERRORS, quad, write_room
 
 from glint.core.image_io import read_image
 from glint.scenes.gltf_writer import GltfWriter
@@ -20,7 +20,7 @@ def glint(*args, cwd=None):
 
 def assert_one_line_error(result, *words):
     assert result.returncode == 2, result.stderr
-    lines = [l for l in result.stderr.strip().splitlines() if not l.startswith("glint: warning:")]
+    lines = [l for l in result.stderr.strip().splitlines() if not l.startswith(NOT_ERRORS)]
     assert len(lines) == 1, result.stderr
     assert lines[0].startswith("glint: ") and "Traceback" not in result.stderr
     for word in words:

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import FAST, write_room
+from conftest import FAST, NOT_ERRORS, write_room
 
 from glint.viewer.camera import ViewCamera
 from glint.viewer.controls import LOOK_SENSITIVITY, MAX_DT, MAX_PITCH, RUN_FACTOR, SPEED_STEP, WalkControls
@@ -224,7 +224,7 @@ def glint(*args, env=None, cwd=None):
 
 
 def one_line(result) -> str:
-    lines = [l for l in result.stderr.strip().splitlines() if not l.startswith("glint: warning:")]
+    lines = [l for l in result.stderr.strip().splitlines() if not l.startswith(NOT_ERRORS)]
     assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr
     return lines[0]
 
