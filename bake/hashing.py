@@ -21,7 +21,7 @@ from glint.core.scene import Scene
 
 # Bump when the integrator or the unwrap changes what they produce.
 GEOMETRY_VERSION = 1
-TRANSPORT_VERSION = 1
+TRANSPORT_VERSION = 2  # 2: back sides of two-sided objects baked; back-face rule spares them
 CUBEMAP_VERSION = 1  # bump when the renderer changes what a cube map's pixels are
 
 

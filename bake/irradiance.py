@@ -22,7 +22,9 @@ light at run time, so a specular edit needs no re-bake):
   statistic pass through their missing parts (bake/alpha.py).
 - A path that hits the back face of a single-sided, non-transmissive material ends (black), like
   Mitsuba's one-sided diffuse. The fraction of the texel's own hemisphere rays whose first hit is
-  a back face (of any material) is returned as `backface` (texels inside walls).
+  such a back face is returned as `backface` (texels inside walls, under boxes). The back of a
+  double-sided or transmissive surface does not count: it is a surface like its front (a room
+  whose double-sided walls face outwards is seen from behind, not from inside a wall).
 - Russian roulette from depth 3 on the throughput (survival max(beta) / pi, at most 0.95),
   `max_depth` as a safety cap.
 
@@ -67,7 +69,7 @@ _R2_A = np.array([1.0 / _R2, 1.0 / _R2 ** 2])
 @dataclass
 class IrradianceResult:
     irradiance: np.ndarray  # (K, 3) float32 E = integral of L_i cos over the hemisphere around n (W/m^2), RGB
-    backface: np.ndarray  # (K,) float32 fraction of first-bounce hemisphere rays that hit a back face
+    backface: np.ndarray  # (K,) float32 fraction of first-bounce hemisphere rays that hit a single-sided back face
     rays: int  # rays traced (for statistics)
 
 
@@ -412,8 +414,8 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
 
         rows, h = tp.coverage.intersect_hits(  # a uniform per (path, depth, cut-out layer) for BLEND
             o, d, uniform=lambda r, k: _uniform2(np.take(key, r), (1 << 20) + 64 * depth + k)[0])
-        if depth == 0:
-            backface[idx[rows]] = ~h.front
+        if depth == 0:  # "inside geometry": the back of a surface that is dark on that side
+            backface[idx[rows]] = ~h.front & ~tp.two_sided[h.material]
         if len(rows) < len(idx):
             if sky is not None:  # escaped: sky radiance, MIS against the previous vertex's sky sample
                 m = np.ones(len(idx), bool)

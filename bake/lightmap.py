@@ -2,6 +2,22 @@
 
 Stores irradiance E, not radiance, so kd can still change at run time:
 diffuse radiance = kd / pi * E (Eq. 4.1).
+
+Two sides. A texel of an object whose material is two-sided (glTF doubleSided, or thin
+transmissive: `Material.two_sided`) is baked twice, once around its normal n for the front
+page and once around -n for a back page at the same light-map coordinates; the viewer reads
+the back page where it sees the back face. A double-sided surface is then lit on the side
+that is seen, whichever way its normals point. Single-sided objects have no back side (their
+back face is black, as in Mitsuba), and their texels on the back pages stay empty.
+
+Texel order, which fixes each texel's random numbers (bake/irradiance.py): every front texel
+first, page by page, row-major, then the back texels in the same order, so adding back sides
+leaves the front pages' samples as they were.
+
+Invalid texels: those whose own hemisphere rays hit the back of single-sided surfaces more
+often than `backface_threshold` (inside walls, under boxes); dilation fills them from their
+valid neighbours. Unlit texels: surface points that no light reached on any side they were
+baked for (E = 0 exactly). Both are counted per object for the bake's statistics and warning.
 """
 from __future__ import annotations
 
@@ -16,18 +32,35 @@ from glint.bake.executor import LocalExecutor
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
 from glint.bake.texels import TexelPage
+from glint.core.errors import warn
 from glint.core.scene import Scene
 
 TILE = 2048  # texels per job: small enough for a smooth progress bar, big enough to amortise numpy
+# The bake warns when more than these shares of its texels are invalid, or of its surface unlit.
+# Well-made scenes have 10-23 % invalid texels (contacts, furniture against walls, and chart borders,
+# whose conservatively rasterised samples lie on edges; docs/BAKE.md has the figures) and a few per
+# cent unlit; more means a scene problem (surfaces seen from behind or inside others, no light
+# reaching a part of the scene).
+INVALID_WARN_SHARE = 0.30
+UNLIT_WARN_SHARE = 0.10
+WARN_OBJECTS = 3  # objects the warning names
 
 
 @dataclass
 class LightmapPages:
     irradiance: list[np.ndarray]  # (H, W, 3) float32 per page, dilated (and denoised)
     baked: list[np.ndarray]  # (H, W) bool: texels whose value was path traced (not dilated in)
-    texels: int  # texels path traced
-    invalid: int  # of them, invalidated for seeing back faces
+    texels: int  # texels path traced (front and back sides)
+    invalid: int  # of them, invalidated for seeing the back of single-sided surfaces
     rays: int
+    # back sides of two-sided objects, page by page like `irradiance` and `baked` (empty lists: no
+    # two-sided object in the scene)
+    back_irradiance: list[np.ndarray]
+    back_baked: list[np.ndarray]
+    back_texels: int = 0  # of `texels`, back sides
+    unlit: int = 0  # surface texels (front texels) that no light reached on any side
+    invalid_by_object: np.ndarray | None = None  # (objects,) int64 invalid texels (both sides)
+    unlit_by_object: np.ndarray | None = None  # (objects,) int64 unlit surface texels
 
 
 def _setup(scene: Scene) -> tuple[Scene, RayTracer]:
@@ -42,11 +75,23 @@ def _job(state, task):
     return result.irradiance, result.backface, result.rays
 
 
+def two_sided_objects(scene: Scene) -> np.ndarray:
+    """(objects,) bool: which objects get a back side in the light maps."""
+    return np.array([scene.material_of(o).two_sided for o in scene.objects], bool)
+
+
 def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None) -> LightmapPages:
+    two = two_sided_objects(scene)
     # Texels in the cut-out parts of MASK materials are never seen: not traced, left to dilation.
     covered = [(p.object >= 0) & ~_cut_out(scene, p) for p in pages]
+    objects = np.concatenate([p.object[c] for p, c in zip(pages, covered)]).astype(np.int64)
     points = np.concatenate([p.position[c] for p, c in zip(pages, covered)])
     normals = np.concatenate([p.normal[c] for p, c in zip(pages, covered)])
+    front = len(points)
+    back = np.flatnonzero(two[objects]) if len(objects) else np.zeros(0, np.int64)
+    # the back sides: the same points, around -n
+    points = np.concatenate([points, points[back]])
+    normals = np.concatenate([normals, -normals[back]])
     n = len(points)
     tasks = [(points[i:i + TILE], normals[i:i + TILE], i, settings.samples, settings.seed, settings.max_depth)
              for i in range(0, n, TILE)]
@@ -62,19 +107,68 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
             progress(len(e))
     valid = backface <= settings.backface_threshold
 
+    irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
+    back_irradiance, back_baked = [], []
+    if len(back):
+        back_cover = [c & two[np.maximum(p.object, 0)] for p, c in zip(pages, covered)]
+        back_irradiance, back_baked = _pages(pages, back_cover, E[front:], valid[front:], settings)
+
+    # per object: invalid samples (either side); unlit surface texels (no side with light)
+    count = len(scene.objects)
+    sample_object = np.concatenate([objects, objects[back]])
+    invalid_by_object = np.bincount(sample_object[~valid], minlength=count)
+    lit = E[:front].max(axis=1) > 0
+    lit[back] |= E[front:].max(axis=1) > 0
+    some_valid = valid[:front].copy()
+    some_valid[back] |= valid[front:]
+    unlit = ~lit & some_valid  # a texel invalid on every side is counted as invalid only
+    unlit_by_object = np.bincount(objects[unlit], minlength=count)
+    return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
+                         back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
+                         unlit_by_object=unlit_by_object)
+
+
+def _pages(pages: list[TexelPage], covers: list[np.ndarray], E: np.ndarray, valid: np.ndarray, settings):
+    """Per page: the texels `covers` selects, in row-major order, take the next rows of E and valid;
+    then invalid and empty texels are filled (dilation) and the page denoised."""
     irradiance, baked = [], []
     offset = 0
-    for page, cover in zip(pages, covered):
+    for page, cover in zip(pages, covers):
         count = int(cover.sum())
         image = np.zeros(page.object.shape + (3,), np.float32)
         mask = np.zeros(page.object.shape, bool)
         image[cover] = E[offset:offset + count]
         mask[cover] = valid[offset:offset + count]
         offset += count
-        image = _fill(image, mask, settings)
-        irradiance.append(image)
+        irradiance.append(_fill(image, mask, settings))
         baked.append(mask)
-    return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays)
+    return irradiance, baked
+
+
+def texel_warnings(result: LightmapPages, scene: Scene) -> list[str]:
+    """The bake's warnings about its texels: a large share inside geometry, or unlit."""
+    names = [o.name for o in scene.objects]
+    out = []
+    surface = result.texels - result.back_texels
+    for count, of, by_object, limit, what in (
+            (result.invalid, result.texels, result.invalid_by_object, INVALID_WARN_SHARE,
+             "are inside geometry (invalid: their rays hit the back of single-sided surfaces)"),
+            (result.unlit, surface, result.unlit_by_object, UNLIT_WARN_SHARE,
+             "are unlit (no light reaches them on any side)")):
+        if not of or count <= limit * of or by_object is None:
+            continue
+        worst = [k for k in np.argsort(-by_object, kind="stable")[:WARN_OBJECTS] if by_object[k]]
+        parts = [f"'{names[k]}' ({100 * by_object[k] / count:.0f} %{' of them' if i == 0 else ''})"
+                 for i, k in enumerate(worst)]
+        more = ", ..." if np.count_nonzero(by_object) > len(parts) else ""
+        out.append(f"{100 * count / of:.0f} % of light-map texels ({count} of {of}) {what} — "
+                   f"most in {', '.join(parts)}{more}")
+    return out
+
+
+def warn_texels(result: LightmapPages, scene: Scene) -> None:
+    for message in texel_warnings(result, scene):
+        warn(message)
 
 
 def _cut_out(scene: Scene, page: TexelPage) -> np.ndarray:

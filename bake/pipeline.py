@@ -19,7 +19,7 @@ from tqdm import tqdm
 
 from glint.bake import hashing
 from glint.bake.cubemap import CubeMapPlan, plan_cubemaps
-from glint.bake.lightmap import bake_lightmaps
+from glint.bake.lightmap import bake_lightmaps, two_sided_objects, warn_texels
 from glint.bake.settings import BakeSettings
 from glint.bake.texels import rasterize_texels
 from glint.bake.unwrap import Atlas, ObjectCharts, unwrap
@@ -72,9 +72,11 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
 
     objects = []
     cubes = {plan.index: plan.manifest_entry() for plan in cubemaps}
+    two = two_sided_objects(scene)
     for i, obj in enumerate(scene.objects):
         entry = {"name": obj.name, "material": obj.material, "role": obj.role,
-                 "bounds": [vec(b) for b in obj.bounds], "triangles": int(len(obj.indices))}
+                 "bounds": [vec(b) for b in obj.bounds], "triangles": int(len(obj.indices)),
+                 "lightmap_back": bool(two[i])}
         if obj.role == "planar":
             point, normal = plane_of(obj)
             entry["plane"] = {"point": vec(point), "normal": vec(normal)}
@@ -148,6 +150,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     if reuse_lightmaps:
         manifest["atlas"] = old["atlas"]
         manifest["lightmaps"] = old["lightmaps"]
+        manifest["lightmaps_back"] = old.get("lightmaps_back", [])
         manifest["statistics"] = dict(old["statistics"])
         if {k: v for k, v in old.items() if k != "statistics"} == \
                 {k: v for k, v in manifest.items() if k != "statistics"}:
@@ -159,7 +162,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         _write_textures(scene, out.path)
         if reuse_lightmaps:
             out.reuse(bake_dir, "meshes.npz")
-            for name in old["lightmaps"]:
+            for name in old["lightmaps"] + old.get("lightmaps_back", []):
                 out.reuse(bake_dir, name)
             status, redone = "manifest", []
         else:
@@ -232,21 +235,33 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
     with tqdm(total=texels, desc="light maps", unit="texel", disable=not progress, leave=False,
               smoothing=0.05) as bar:
         result = bake_lightmaps(scene, pages, settings, progress=bar.update)
-    names = []
-    for k, (image, baked) in enumerate(zip(result.irradiance, result.baked)):
-        name = f"lightmaps/page_{k}.exr"
-        rgba = np.concatenate([image, baked[..., None].astype(np.float32)], axis=-1)
-        write_image(path / name, rgba, channels=("R", "G", "B", "A"))
-        names.append(name)
+    warn_texels(result, scene)
+    names, back_names = [], []
+    for images, masks, stem, files in ((result.irradiance, result.baked, "page", names),
+                                       (result.back_irradiance, result.back_baked, "back", back_names)):
+        for k, (image, baked) in enumerate(zip(images, masks)):
+            name = f"lightmaps/{stem}_{k}.exr"
+            rgba = np.concatenate([image, baked[..., None].astype(np.float32)], axis=-1)
+            write_image(path / name, rgba, channels=("R", "G", "B", "A"))
+            files.append(name)
     t2 = time.perf_counter()
+    names_of = [o.name for o in scene.objects]
+
+    def worst(counts) -> list:
+        order = [k for k in np.argsort(-counts, kind="stable")[:5] if counts[k]]
+        return [[names_of[k], int(counts[k])] for k in order]
     return {
         "atlas": {"width": atlas.width, "height": atlas.height, "pages": atlas.pages,
                   "texels_per_metre": atlas.texels_per_metre, "padding": atlas.padding},
         "lightmaps": names,
+        "lightmaps_back": back_names,
         "statistics": {
             "unwrap": {"seconds": round(t1 - t0, 3), "reused": old_dir is not None,
                        "triangles": int(sum(len(o.indices) for o in scene.objects))},
-            "lightmaps": {"seconds": round(t2 - t1, 3), "texels": result.texels, "invalid_texels": result.invalid,
+            "lightmaps": {"seconds": round(t2 - t1, 3), "texels": result.texels, "back_texels": result.back_texels,
+                          "invalid_texels": result.invalid, "unlit_texels": result.unlit,
+                          "invalid_objects": worst(result.invalid_by_object),
+                          "unlit_objects": worst(result.unlit_by_object),
                           "samples": settings.samples, "rays": int(result.rays),
                           "rays_per_second": float(result.rays / max(t2 - t1, 1e-9))},
         },

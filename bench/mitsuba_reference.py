@@ -30,6 +30,27 @@ def cornell_box_irradiance(points: np.ndarray, normals: np.ndarray, spp: int = 1
     scene_dict = mi.cornell_box()
     scene_dict["integrator"] = {"type": "path", "max_depth": -1, "rr_depth": 8}
     del scene_dict["sensor"]
+    return irradiance_at(scene_dict, points, normals, spp, seed)
+
+
+def scene_irradiance(scene, points: np.ndarray, normals: np.ndarray, spp: int = 1024,
+                     seed: int = 0) -> np.ndarray:
+    """(K, 3) irradiance at `points` facing `normals` in a glint Scene, converted for Mitsuba by
+    bench/mitsuba_scene.py (two-sided materials as its `two_sided` BSDF), infinite depth."""
+    _mitsuba()
+    from glint.bench.mitsuba_scene import convert
+
+    scene_dict, _ = convert(scene)
+    scene_dict["integrator"] = {"type": "path", "max_depth": -1, "rr_depth": 8}
+    return irradiance_at(scene_dict, points, normals, spp, seed)
+
+
+def irradiance_at(scene_dict: dict, points: np.ndarray, normals: np.ndarray, spp: int = 1024,
+                  seed: int = 0) -> np.ndarray:
+    """(K, 3) irradiance at `points` facing `normals` in a Mitsuba scene dict without sensors: a
+    white Lambertian patch and a radiancemeter per point (the module docstring), E = pi L."""
+    mi = _mitsuba()
+    scene_dict = dict(scene_dict)
     scene_dict["patch_bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}
     for i, (p, n) in enumerate(zip(np.asarray(points, float), np.asarray(normals, float))):
         n = n / np.linalg.norm(n)

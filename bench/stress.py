@@ -89,7 +89,7 @@ def bake_nonfinite(bake_dir: Path, manifest: dict) -> dict:
     """NaN and Inf in the bake's light maps and cube maps, read back from their files, and their
     stored precision (half float only where every value fits, bake/lightmap.py)."""
     out = {"nan": 0, "inf": 0, "files": 0, "float32_files": [], "max_value": 0.0}
-    files = list(manifest.get("lightmaps", [])) + [o["cubemap"]["file"] for o in manifest["objects"] if o.get("cubemap")]
+    files = list(manifest.get("lightmaps", [])) + list(manifest.get("lightmaps_back") or []) + [o["cubemap"]["file"] for o in manifest["objects"] if o.get("cubemap")]
     for name in files:
         image = oiio.ImageInput.open(str(Path(bake_dir) / name))
         if image is None:

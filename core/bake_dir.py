@@ -11,6 +11,11 @@
                            indices -- vertices already split along light-map chart seams
     lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;
                            half float unless a value does not fit
+    lightmaps/back_<k>.exr the back sides of two-sided objects (the manifest's object entries say
+                           `lightmap_back: true`), page by page at the same light-map coordinates:
+                           E around -n, where the viewer sees a back face. Listed in the manifest's
+                           optional `lightmaps_back` (absent or empty: no object has a back side;
+                           older bake dirs lack it and stay readable: the front serves both sides)
     textures/material_<i>.exr   base-colour textures (linear); RGBA, A the base colour alpha
                            (linear), for materials whose manifest entry has `alpha_mode` MASK or
                            BLEND (with `alpha_cutoff` and `alpha` = baseColorFactor[3]; entries
@@ -151,19 +156,33 @@ class Bake:
             raise GlintError(f"{self.path}: not a glint bake directory (or made by another version); run `glint bake`")
         self.manifest = manifest
         self.meshes = load_meshes(self.path / "meshes.npz", len(manifest["objects"]))
-        self._pages: dict[int, np.ndarray] = {}
+        self._pages: dict[tuple[int, bool], np.ndarray] = {}
 
-    def lightmap(self, page: int) -> np.ndarray:
-        """(H, W, 4) float32: irradiance RGB and A = 1 where path traced."""
-        if page not in self._pages:
+    @property
+    def back_pages(self) -> list[str]:
+        """The back-side pages' files (empty: no object has a back side)."""
+        return list(self.manifest.get("lightmaps_back") or [])
 
-            self._pages[page] = read_image(self.path / self.manifest["lightmaps"][page])
-        return self._pages[page]
+    def has_back(self, obj: int) -> bool:
+        """Whether object `obj` has its own back-side light map (else its back face reads the front's)."""
+        return bool(self.back_pages) and bool(self.manifest["objects"][obj].get("lightmap_back"))
 
-    def irradiance(self, obj: int, triangles: np.ndarray, barycentric: np.ndarray) -> np.ndarray:
+    def lightmap(self, page: int, back: bool = False) -> np.ndarray:
+        """(H, W, 4) float32: irradiance RGB and A = 1 where path traced; `back`: the back sides' page."""
+        key = (page, bool(back))
+        if key not in self._pages:
+            files = self.back_pages if back else self.manifest["lightmaps"]
+            self._pages[key] = read_image(self.path / files[page])
+        return self._pages[key]
+
+    def irradiance(self, obj: int, triangles: np.ndarray, barycentric: np.ndarray,
+                   back: bool = False) -> np.ndarray:
         """Bilinear light-map look-up at points given by triangle index and barycentrics (K, 3)
-        of object `obj` -- what the viewer's texture unit does (GL_LINEAR, clamp to edge)."""
+        of object `obj` -- what the viewer's texture unit does (GL_LINEAR, clamp to edge). `back`:
+        the irradiance on the back side, as the viewer reads it for a back face (the front's where
+        the object has no back side)."""
 
+        back = back and self.has_back(obj)
         mesh = self.meshes[obj]
         corners = mesh["indices"][np.asarray(triangles)].astype(np.int64)  # (K, 3)
         uv = np.einsum("kj,kjc->kc", barycentric, mesh["lm_uv"][corners])
@@ -171,5 +190,5 @@ class Bake:
         out = np.zeros((len(uv), 3), np.float32)
         for page in np.unique(pages):
             sel = pages == page
-            out[sel] = sample_bilinear(self.lightmap(int(page))[..., :3], uv[sel])
+            out[sel] = sample_bilinear(self.lightmap(int(page), back)[..., :3], uv[sel])
         return out

@@ -75,6 +75,12 @@ class Material:
     def transmit_lobes(self) -> list[Lobe]:
         return [lobe for lobe in self.lobes if lobe.kind == "transmit"]
 
+    @property
+    def two_sided(self) -> bool:
+        """Scatters light on both sides: glTF doubleSided, or thin transmissive (light passes it
+        either way). The bake gives such objects a light map per side; the viewer's MAT_TWO_SIDED."""
+        return bool(self.double_sided or self.transmit_lobes)
+
 
 @dataclass
 class Object:

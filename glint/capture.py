@@ -277,8 +277,18 @@ def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
         "objects": s["objects"],
         "triangles_in_scene": s["triangles_in_scene"],
         "lightmap_format": s["lightmap_format"],
+        "lightmap_texels": lightmap_texels(renderer.bake.manifest),
         # of the last frame (per_frame has each frame's specular and mirror parts) and of the bake
         "skipping": skipping_section(s, renderer.bake.manifest, report.status),
         "per_frame": frames,
     }
     atomic_write_text(path, json.dumps(data, indent=1) + "\n")
+
+
+def lightmap_texels(manifest: dict) -> dict:
+    """The bake's light-map texel counts (manifest statistics.lightmaps; bake/lightmap.py): path traced
+    (both sides), back sides, invalid (inside geometry) and unlit, with the objects that have most.
+    Counts a bake dir made before they were recorded lacks are null."""
+    lm = manifest.get("statistics", {}).get("lightmaps", {})
+    return {key: lm.get(key) for key in ("texels", "back_texels", "invalid_texels", "unlit_texels",
+                                         "invalid_objects", "unlit_objects")}

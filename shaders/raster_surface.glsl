@@ -9,6 +9,9 @@ uniform int material_index;
 layout(binding = KD_TEXTURE_UNIT) uniform sampler2D kd_texture;   // the material's base colour (1x1 white: none)
 layout(binding = LIGHTMAP_UNIT) uniform sampler2DArray lightmaps;  // irradiance E (rgb), one layer per page
 uniform vec3 eye;                   // the eye the pass looks from (a mirror pass: the mirrored eye)
+// Layers a back face adds to its light-map page: the object's back-side pages (E around -n, baked
+// for two-sided materials) follow the front pages in the array; 0 = no back side, the front serves.
+uniform int lightmap_back_layer;
 
 in vec3 v_position;
 in vec3 v_normal;
@@ -72,7 +75,9 @@ RasterSurface raster_surface() {
     vec3 kd = m.kd.rgb;
     if (has_flag(m, MAT_KD_TEXTURE))
         kd *= texture(kd_texture, v_uv).rgb;
-    vec3 E = clean_radiance(texture(lightmaps, vec3(v_lm_uv, float(v_lm_page))).rgb);
+    // E of the side seen: a two-sided surface is lit on each side by its own light map.
+    int layer = v_lm_page + (back ? lightmap_back_layer : 0);
+    vec3 E = clean_radiance(texture(lightmaps, vec3(v_lm_uv, float(layer))).rgb);
     s.diffuse = s.dark ? vec3(0.0) : clean_radiance(max(kd, 0.0) * INV_PI * E);
 
     // Tangent frame for anisotropic lobes: Gram-Schmidt against n; zero if none.

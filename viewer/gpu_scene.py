@@ -23,7 +23,10 @@ Everything here is read-only after upload; passes bind what they need.
 - Light maps: one texture array, a layer per page, RGBA16F, or RGBA32F when a
   value does not fit in half float (very bright emitters must not become Inf);
   GL_LINEAR and clamp to edge, which is `glint.core.image_io.sample_bilinear`. Row 0 of a
-  page (v = 0) is the first row uploaded, i.e. GL's t = 0: no flip anywhere.
+  page (v = 0) is the first row uploaded, i.e. GL's t = 0: no flip anywhere. The back-side
+  pages of two-sided objects (core/bake_dir.py `lightmaps_back`) follow the front pages in the
+  same array: an object with a back side has `back_layer` = the number of front pages, which a
+  back face adds to its page (shaders/raster_surface.glsl); 0 for the others.
 - Materials and lobes: two shader storage buffers (`MATERIAL_DTYPE`,
   `LOBE_DTYPE`, std430; GLSL side in shaders/materials.glsl).
 - Base-colour textures: one 2-D texture per textured material (sizes differ, so
@@ -93,6 +96,7 @@ class GpuObject:
     role: str
     triangles: int
     bounds: np.ndarray  # (2, 3) world-space box
+    back_layer: int  # light-map layers a back face adds to its page: 0 = no back-side light map
     vbo: moderngl.Buffer | None
     ibo: moderngl.Buffer | None
     _vaos: dict = field(default_factory=dict)
@@ -131,7 +135,8 @@ class GpuScene:
             if not 0 <= int(entry["material"]) < count:  # the shaders index the material buffer with it
                 raise GlintError(f"{bake.path}: object '{entry['name']}' has material {entry['material']} "
                                  f"of {count}; run `glint bake --force`")
-        self.objects = [self._object(i, entry, mesh)
+        front_pages = len(manifest.get("lightmaps") or [])
+        self.objects = [self._object(i, entry, mesh, front_pages if bake.has_back(i) else 0)
                         for i, (entry, mesh) in enumerate(zip(manifest["objects"], bake.meshes))]
         self.triangles = sum(o.triangles for o in self.objects)
         drawn = [o.bounds for o in self.objects if o.triangles]
@@ -144,7 +149,7 @@ class GpuScene:
         self.cubemaps = CubeMaps(ctx, bake)
 
     # -- meshes ----------------------------------------------------------------------------------
-    def _object(self, index: int, entry: dict, mesh: dict) -> GpuObject:
+    def _object(self, index: int, entry: dict, mesh: dict, back_layer: int) -> GpuObject:
         indices = np.asarray(mesh.get("indices", np.zeros((0, 3))), np.uint32).reshape(-1, 3)
         positions = np.asarray(mesh["positions"], np.float64).reshape(-1, 3)
         n = len(positions)
@@ -168,9 +173,9 @@ class GpuScene:
                   if len(indices) else np.zeros((2, 3)))
         if not len(indices):
             return GpuObject(entry["name"], int(entry["material"]), entry.get("role", "diffuse"), 0, bounds,
-                             None, None)
+                             back_layer, None, None)
         return GpuObject(entry["name"], int(entry["material"]), entry.get("role", "diffuse"), len(indices),
-                         bounds, self.ctx.buffer(v.tobytes()), self.ctx.buffer(indices.tobytes()))
+                         bounds, back_layer, self.ctx.buffer(v.tobytes()), self.ctx.buffer(indices.tobytes()))
 
     # -- materials -------------------------------------------------------------------------------
     def _materials(self, bake) -> None:
@@ -288,6 +293,8 @@ class GpuScene:
     def _lightmaps(self, bake) -> None:
         names = bake.manifest.get("lightmaps") or []
         pages = [_clean(bake.lightmap(k)) for k in range(len(names))]
+        if names:  # the back sides' pages, layers len(names) on (GpuObject.back_layer)
+            pages += [_clean(bake.lightmap(k, back=True)) for k in range(len(bake.back_pages))]
         if not pages:
             pages = [np.zeros((1, 1, 4))]
         shapes = {p.shape[:2] for p in pages}

@@ -25,9 +25,10 @@ COLOUR_TARGETS = {GB_DIFFUSE_LOCATION: "diffuse", GB_NORMAL_LOCATION: "normal", 
 
 
 def draw_object(program, scene, obj) -> None:
-    """One object with its material index and base-colour texture: the G-buffer's and the mirror
-    passes' surface shaders (raster_surface.glsl) read both."""
+    """One object with its material index, base-colour texture and back-side light-map layer: the
+    G-buffer's and the mirror passes' surface shaders (raster_surface.glsl) read them."""
     program["material_index"] = obj.material
+    program["lightmap_back_layer"] = obj.back_layer
     scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
     obj.vertex_array(program).render(moderngl.TRIANGLES)
 
