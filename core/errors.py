@@ -58,7 +58,7 @@ class Warned:
     ignored: Mapping[str, int] = field(default_factory=dict)
 
 
-@dataclass
+@dataclass(eq=False)  # identity: nested blocks' records must never compare equal (_open.remove)
 class WarningRecord:
     """Every warning given inside one `summarised()` block, in order."""
 

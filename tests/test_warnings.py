@@ -214,3 +214,17 @@ def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
                   "'Left' is skinned", "'Back' has morph target weights", "'Back' has vertex colours",
                   "light 'Bulb': range", "objects have a textured material but no TEXCOORD_0"):
         assert words in err, words
+
+
+def test_nested_blocks_close_in_any_state():
+    """An inner block that ends with the same (empty) record as the outer one, then a warning in
+    the outer block: the outer block must still close. Catches records compared by value
+    (dataclass equality), which removed the outer record at the inner block's end and failed
+    `glint bake` of an external scene at its very end ("list.remove(x): x not in list")."""
+    kind = WarningKind("{n} things are odd")
+    with summarised() as outer:
+        with summarised() as inner:
+            pass
+        warn("thing a is odd", kind, "a")
+        warn("thing b is odd", kind, "b")
+    assert len(outer.warnings) == 2 and not inner.warnings
