@@ -90,16 +90,19 @@ def fidelity_line(manifest: dict) -> str | None:
     """One line of what the scene will look like wrong, from a bake's statistics: the share of
     light-map texels inside geometry (invalid: lit by dilation from their neighbours, not path
     traced) and the glTF features the loader ignored, e.g. "the scene will look wrong where:
-    3.1 % of light-map texels are unlit (inside geometry); ignored: normalTexture (12),
+    3.1 % of light-map texels lie inside geometry (filled from their neighbours); 0.5 % of
+    light-map texels get no light (black where seen); ignored: normalTexture (12),
     KHR_texture_transform (3)". None when there is nothing to say (or nothing recorded)."""
     stats = manifest.get("statistics", {})
     parts = []
     lightmaps = stats.get("lightmaps", {})
-    texels, invalid = lightmaps.get("texels"), lightmaps.get("invalid_texels")
-    if texels and invalid:
-        share = 100.0 * invalid / texels
-        parts.append(f"{share:.1f} %" if share >= 0.1 else f"{share:.2g} %")
-        parts[-1] += " of light-map texels are unlit (inside geometry)"
+    texels = lightmaps.get("texels")
+    for key, what in (("invalid_texels", "lie inside geometry (filled from their neighbours)"),
+                      ("unlit_texels", "get no light (black where seen)")):
+        count = lightmaps.get(key)
+        if texels and count:
+            share = 100.0 * count / texels
+            parts.append((f"{share:.1f} %" if share >= 0.1 else f"{share:.2g} %") + f" of light-map texels {what}")
     ignored = stats.get("ignored_features") or {}
     if ignored:
         parts.append("ignored: " + ", ".join(f"{name} ({count})" for name, count in ignored.items()))
