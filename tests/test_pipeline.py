@@ -12,6 +12,7 @@ from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import resolve_settings
 from glint.core.bake_dir import Bake
 from glint.core.image_io import read_image
+from glint.scenes.gltf_writer import GltfWriter, quad, room_faces
 from glint.services import bake_scene
 
 
@@ -144,3 +145,29 @@ def test_result_does_not_depend_on_worker_count(room, tmp_path, monkeypatch):
     bake(room, tmp_path / "a.bake", jobs=1)
     bake(room, tmp_path / "b.bake", jobs=2)
     assert lightmap_bytes(tmp_path / "a.bake") == lightmap_bytes(tmp_path / "b.bake")
+
+
+def test_instances_of_one_mesh_get_their_own_light_map_space(tmp_path):
+    """One glTF mesh placed by two nodes (instancing, as exporters write repeated furniture) is two
+    objects with disjoint light-map rectangles: each instance gets its own light. Catches instances
+    sharing one chart (both would show the light of whichever was baked last)."""
+    w = GltfWriter()
+    wall = w.add_material("Wall", base_color=(0.7, 0.7, 0.7), roughness=1.0)
+    lamp = w.add_material("Lamp", base_color=(0.8, 0.8, 0.8), emissive=(1, 1, 1), emissive_strength=8.0)
+    w.add_quads({**room_faces(1.0, 2.0, wall, wall), "Lamp": ((0, 1.99, 0), (0.25, 0, 0), (0, 0, 0.25), lamp)})
+    p, i = quad((0, 0.3, 0), (0.2, 0, 0), (0, 0.2, 0))
+    panel = w.add_mesh("Panel", p, i, wall)
+    w.add_node("PanelA", mesh=panel, translation=(-0.5, 0, 0))
+    w.add_node("PanelB", mesh=panel, translation=(0.5, 0, 0))
+    report = bake(w.write(tmp_path / "instances.glb"), tmp_path / "i.bake")
+    names = [o["name"] for o in report.manifest["objects"]]
+    assert names.count("PanelA") == 1 and names.count("PanelB") == 1
+    with np.load(tmp_path / "i.bake" / "meshes.npz") as meshes:
+        rects = []
+        for name in ("PanelA", "PanelB"):
+            k = names.index(name)
+            uv, page = meshes[f"o{k}_lm_uv"], meshes[f"o{k}_lm_page"]
+            rects.append((int(page[0]), uv.min(axis=0), uv.max(axis=0)))
+    (pa, lo_a, hi_a), (pb, lo_b, hi_b) = rects
+    overlap = np.all(np.minimum(hi_a, hi_b) > np.maximum(lo_a, lo_b))
+    assert pa != pb or not overlap, rects
