@@ -3,17 +3,22 @@
 The compressed files are made here from the uncompressed ones (scenes/gltf_writer.py and
 conftest.write_room): `draco()` encodes each primitive with DracoPy as KHR_draco_mesh_compression
 describes (the accessors lose their bufferView; the extension maps semantics to Draco attribute
-unique ids), `meshopt()` re-encodes every bufferView with the meshopt package as
+unique ids), `meshopt_file()` re-encodes every bufferView with the meshopt package as
 EXT_meshopt_compression describes (the original data moves to a fallback buffer with no data).
 
-Deliberate bugs these catch (each tried, each failed the test named):
-- Draco attribute ids looked up swapped (NORMAL's id for POSITION): test_draco_matches_uncompressed.
-- the Draco bufferView's byteOffset ignored (decoding from the buffer's start):
-  test_draco_matches_uncompressed (one line "cannot be decoded") and the room bake.
-- meshopt's `filter` not passed to the decoder: test_meshopt_matches_uncompressed[oct-normals].
-- meshopt's byteStride taken from the bufferView instead of the extension: test_meshopt_matches
-  (the decoded size differs, the accessor reads past its view).
-- a corrupt Draco buffer decoded without a check: test_corrupt_draco_is_one_line.
+Deliberate bugs these catch (each tried in bake/gltf_loader.py, each failed the tests named):
+- Draco POSITION and NORMAL ids swapped in the lookup: the matches, reordered, swapped-ids and
+  room-bake tests.
+- the Draco bufferView's byteOffset ignored (decoding from the buffer's start): the same four
+  (one line "the Draco data cannot be decoded").
+- Draco faces taken in reverse order: test_draco_matches_uncompressed (the indices differ).
+- DracoPy's exception not caught: test_corrupt_draco_is_one_line (a bare FileTypeException).
+- meshopt's `filter` not passed to the decoder: test_meshopt_matches_uncompressed[filters].
+- meshopt's row size taken from the bufferView's byteStride (+4) instead of the extension's,
+  meshopt's `mode` ignored (all read as ATTRIBUTES), the extension's byteOffset ignored: every
+  test_meshopt_matches_uncompressed case.
+- a `fallback` buffer without data refused: every meshopt test.
+Not caught: the primitive's mode kept instead of set to TRIANGLES (the files here say mode 4).
 """
 from __future__ import annotations
 
@@ -32,8 +37,9 @@ from glint.scenes.gltf_writer import GltfWriter
 from glint.services import bake_scene
 
 DracoPy = pytest.importorskip("DracoPy")
+meshopt = pytest.importorskip("meshopt")
 
-# Quantisation bits used below (Draco's own defaults are 11 / 10 / 8 for Blender's exporter).
+# Quantisation bits used below: Blender's Draco export defaults (position 14, normal 10, texcoord 12).
 POS_BITS, NRM_BITS, UV_BITS = 14, 10, 12
 _COMPONENTS = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
@@ -211,3 +217,95 @@ def test_corrupt_draco_is_one_line(tmp_path):
         load_scene(path)
     message = str(info.value)
     assert "\n" not in message and "'Ball'" in message and "Draco" in message, message
+
+
+# --------------------------------------------------------------------------- meshopt
+
+OCT_BITS, EXP_BITS = 8, 16
+
+
+def meshopt_file(src, dst, *, filters=False, name="EXT_meshopt_compression"):
+    """`src` with every bufferView meshopt-compressed, as .gltf: the compressed bytes in buffer 1,
+    buffer 0 a `fallback` buffer with no data (what gltfpack -c writes). With `filters`, normals
+    are stored OCTAHEDRAL (4 signed bytes, KHR_mesh_quantization), positions EXPONENTIAL, and
+    indices in INDICES mode instead of TRIANGLES."""
+    doc = read_gltf(src)
+    tree = doc.json
+    version = 1 if name == "KHR_meshopt_compression" else 0
+    packed, fallback = bytearray(), len(doc.buffers[0])
+    used = {}  # bufferView -> (accessor index, semantic)
+    for mesh in tree["meshes"]:
+        for prim in mesh["primitives"]:
+            used.update({tree["accessors"][i]["bufferView"]: (i, k) for k, i in prim["attributes"].items()})
+            used[tree["accessors"][prim["indices"]]["bufferView"]] = (prim["indices"], "indices")
+    for view_index, (index, semantic) in sorted(used.items()):
+        a, view = tree["accessors"][index], tree["bufferViews"][view_index]
+        rows = _accessor(doc, index)
+        filt = "NONE"
+        if semantic == "indices":
+            mode = "INDICES" if filters else "TRIANGLES"
+            data = rows.astype(np.uint32).reshape(-1)
+            stride = 4
+        else:
+            mode, data = "ATTRIBUTES", np.ascontiguousarray(rows, np.float32)
+            if filters and semantic == "NORMAL":
+                filt = "OCTAHEDRAL"
+                data = meshopt.encode_filter_oct(np.hstack([rows, np.ones((len(rows), 1))]), 4, OCT_BITS)
+                a.update(componentType=5120, normalized=True)
+                a.pop("min", None), a.pop("max", None)
+                view["byteStride"] = 4
+                view["byteOffset"], view["byteLength"] = fallback, 4 * len(rows)  # new room
+                fallback += 4 * len(rows)
+            elif filters and semantic == "POSITION":
+                filt = "EXPONENTIAL"
+                data = meshopt.encode_filter_exp(rows, EXP_BITS)
+            stride = data.reshape(len(rows), -1).view(np.uint8).shape[1]
+        blob = meshopt.encode_gltf_buffer(data.reshape(len(rows), -1) if mode == "ATTRIBUTES" else data,
+                                          mode, version)
+        packed.extend(b"\0" * (-len(packed) % 4))
+        ext = {"buffer": 1, "byteOffset": len(packed), "byteLength": len(blob), "byteStride": stride,
+               "count": int(data.size if mode != "ATTRIBUTES" else len(rows)), "mode": mode}
+        if filt != "NONE":
+            ext["filter"] = filt
+        view.setdefault("extensions", {})[name] = ext
+        packed.extend(blob)
+    tree["extensionsUsed"] = sorted({*tree.get("extensionsUsed", []), name, "KHR_mesh_quantization"})
+    tree["extensionsRequired"] = [name, "KHR_mesh_quantization"]
+    buffers = [{"byteLength": fallback, "extensions": {name: {"fallback": True}}},
+               {"byteLength": len(packed), "uri": dst.with_suffix(".bin").name}]
+    return _write_gltf(dst, tree, bytes(packed), buffers)
+
+
+@pytest.mark.parametrize("filters, name", [(False, "EXT_meshopt_compression"), (True, "EXT_meshopt_compression"),
+                                           (False, "KHR_meshopt_compression")],
+                         ids=["plain", "filters", "khr"])
+def test_meshopt_matches_uncompressed(tmp_path, filters, name):
+    """Unfiltered meshopt is lossless (same arrays, and triangles, which TRIANGLES mode may
+    rotate); with filters, positions within EXPONENTIAL's 16-bit mantissa (2^-15 of the
+    largest component of each vertex) and normals within OCTAHEDRAL's 8 bits (steps of 1/127 in
+    two coordinates, normalised: 2 steps allowed, like Draco's above)."""
+    plain = load_scene(sphere_scene(tmp_path / "ball.glb"))
+    packed = load_scene(meshopt_file(tmp_path / "ball.glb", tmp_path / "ball_mo.gltf", filters=filters, name=name))
+    assert [o.name for o in packed.objects] == [o.name for o in plain.objects]
+    for p, q in zip(plain.objects, packed.objects):
+        assert same_triangles(q, p, 1e-6 if not filters else 1e-3), p.name
+        np.testing.assert_array_equal(q.uvs, p.uvs)
+        if not filters:
+            np.testing.assert_array_equal(q.positions, p.positions)
+            np.testing.assert_array_equal(q.normals, p.normals)
+            continue
+        exp_tol = np.abs(p.positions).max(axis=1, keepdims=True) * 2.0 ** (1 - EXP_BITS)
+        assert np.all(np.abs(q.positions - p.positions) <= exp_tol + 1e-7), p.name
+        assert np.abs(q.normals - p.normals).max() <= 2 * 1 / (2 ** (OCT_BITS - 1) - 1), p.name
+
+
+def test_corrupt_meshopt_is_one_line(tmp_path):
+    """Compressed bytes cut short: one GlintError line naming the bufferView and the extension."""
+    path = meshopt_file(sphere_scene(tmp_path / "ball.glb"), tmp_path / "ball_mo.gltf")
+    tree = json.loads(path.read_text())
+    tree["bufferViews"][0]["extensions"]["EXT_meshopt_compression"]["byteLength"] = 20
+    path.write_text(json.dumps(tree))
+    with pytest.raises(GlintError) as info:
+        load_scene(path)
+    message = str(info.value)
+    assert "\n" not in message and "bufferView 0" in message and "EXT_meshopt_compression" in message, message
