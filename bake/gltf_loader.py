@@ -58,8 +58,11 @@ from glint.core.geometry import face_cross
 from glint.core.scene import Camera, DirectionalLight, Material, Object, PointLight, Scene, SpotLight
 
 LUMENS_PER_WATT = 683.0  # luminous efficacy that defines the candela
-SUPPORTED_EXTENSIONS = frozenset(("KHR_lights_punctual", "KHR_mesh_quantization")
-                                 + MATERIAL_EXTENSIONS)
+# Compressed geometry is decoded where it is read: KHR_draco_mesh_compression per primitive
+# (_SceneBuilder._draco, DracoPy), EXT/KHR_meshopt_compression per bufferView (_view_bytes, meshopt).
+MESHOPT = ("EXT_meshopt_compression", "KHR_meshopt_compression")
+SUPPORTED_EXTENSIONS = frozenset(("KHR_lights_punctual", "KHR_mesh_quantization",
+                                  "KHR_draco_mesh_compression") + MESHOPT + MATERIAL_EXTENSIONS)
 
 _CHUNK_JSON, _CHUNK_BIN = 0x4E4F534A, 0x004E4942
 _COMPONENTS = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
@@ -283,6 +286,11 @@ def _buffer_bytes(buf: dict, i: int, path: Path, binary: bytes | None) -> bytes:
     if not isinstance(length, int) or length < 0:
         raise GlintError(f"{name}: malformed glTF: buffer {i} has no valid byteLength")
     uri = buf.get("uri")
+    fallback = any((buf.get("extensions") or {}).get(e, {}).get("fallback") for e in MESHOPT)
+    if uri is None and fallback and (binary is None or i != 0):
+        # EXT_meshopt_compression: a fallback buffer may have no data; only the compressed
+        # bufferViews (whose extension names another buffer) refer to it, and are decoded.
+        return b""
     if uri is None:
         if binary is None or i != 0:
             raise GlintError(f"{name}: malformed glTF: buffer {i} has no uri and there is "
@@ -320,6 +328,7 @@ class _SceneBuilder:
         self.source = doc.source
         self.warnings: list[str] = []
         self._accessors: dict[int, np.ndarray] = {}
+        self._decoded: dict[int, bytes] = {}  # meshopt-compressed bufferViews, decoded
         self._images: dict[int, np.ndarray | None] = {}
         self._names: set[str] = set()
 
@@ -366,12 +375,9 @@ class _SceneBuilder:
     def _check_extensions(self):
         required = set(self.tree.get("extensionsRequired", [])) - SUPPORTED_EXTENSIONS
         if required:
-            hint = ""
-            if required & {"KHR_draco_mesh_compression", "EXT_meshopt_compression"}:
-                hint = " (export without mesh compression)"
             raise GlintError(f"{self.source}: requires glTF extension(s) "
                              f"{', '.join(sorted(required))} that glint does not support; "
-                             f"export again without them{hint}")
+                             "export again without them")
         used = set(self.tree.get("extensionsUsed", [])) - SUPPORTED_EXTENSIONS
         if used:
             self.warn(f"{self.source}: glTF extension(s) {', '.join(sorted(used))} not "
@@ -424,13 +430,7 @@ class _SceneBuilder:
         if ctype not in _COMPONENTS:
             raise self.bad(f"{where} has componentType {ctype!r}")
         view = self.item("bufferViews", view_index, where)
-        buffer = self.doc.buffers[self._index(view.get("buffer"), len(self.doc.buffers),
-                                              f"bufferView {view_index}", "buffer")]
-        v0, vlen = view.get("byteOffset", 0), view.get("byteLength", -1)
-        if not (isinstance(v0, int) and isinstance(vlen, int) and 0 <= v0 and 0 <= vlen
-                and v0 + vlen <= len(buffer)):
-            raise self.bad(f"bufferView {view_index} (bytes {v0}+{vlen}) lies outside its "
-                           f"buffer of {len(buffer)} bytes")
+        buffer, v0, vlen = self._view_bytes(view_index, view)
         dtype = np.dtype(_COMPONENTS[ctype])
         elem = dtype.itemsize * ncomp
         stride = view.get("byteStride") or elem
@@ -443,6 +443,106 @@ class _SceneBuilder:
         raw = np.frombuffer(buffer, np.uint8, count=vlen, offset=v0)
         rows = np.lib.stride_tricks.as_strided(raw[start:], (count, elem), (stride, 1))
         return np.ascontiguousarray(rows).view(dtype).reshape(count, ncomp)
+
+    def _view_bytes(self, view_index: int, view: dict) -> tuple[bytes, int, int]:
+        """(buffer, byteOffset, byteLength) of a bufferView, decoded first where compressed."""
+        ext = next(((e, view["extensions"][e]) for e in MESHOPT
+                    if e in (view.get("extensions") or {})), None)
+        if ext is None:
+            return self._slice(view, f"bufferView {view_index}")
+        if view_index not in self._decoded:
+            self._decoded[view_index] = self._meshopt(view_index, view, *ext)
+        data = self._decoded[view_index]
+        return data, 0, len(data)
+
+    def _slice(self, view: dict, what: str) -> tuple[bytes, int, int]:
+        buffer = self.doc.buffers[self._index(view.get("buffer"), len(self.doc.buffers),
+                                              what, "buffer")]
+        v0, vlen = view.get("byteOffset", 0), view.get("byteLength", -1)
+        if not (isinstance(v0, int) and isinstance(vlen, int) and 0 <= v0 and 0 <= vlen
+                and v0 + vlen <= len(buffer)):
+            raise self.bad(f"{what} (bytes {v0}+{vlen}) lies outside its "
+                           f"buffer of {len(buffer)} bytes")
+        return buffer, v0, vlen
+
+    def _meshopt(self, view_index: int, view: dict, name: str, ext: dict) -> bytes:
+        """EXT_meshopt_compression / KHR_meshopt_compression: the bufferView's bytes, decoded.
+
+        The extension names the compressed bytes (buffer, byteOffset, byteLength) and what they
+        decode to: `count` elements of `byteStride` bytes, with a `mode` (ATTRIBUTES, TRIANGLES,
+        INDICES) and an optional `filter` (NONE, OCTAHEDRAL, QUATERNION, EXPONENTIAL; COLOR in
+        KHR_). The decoded data then stands for the whole bufferView (the spec: byteLength of the
+        view is count * byteStride)."""
+        where = f"bufferView {view_index} ({name})"
+        try:
+            import meshopt
+        except ImportError:
+            raise GlintError(f"{self.source}: {where} is meshopt-compressed; reading it needs the "
+                             "Python package meshopt (pip install meshopt)") from None
+        buffer, v0, vlen = self._slice(ext, where)
+        count, stride = ext.get("count"), ext.get("byteStride")
+        mode, filt = ext.get("mode"), ext.get("filter", "NONE")
+        if not (isinstance(count, int) and count >= 0 and isinstance(stride, int) and stride > 0
+                and mode in ("ATTRIBUTES", "TRIANGLES", "INDICES")):
+            raise self.bad(f"{where} has count {count!r}, byteStride {stride!r}, mode {mode!r}")
+        try:
+            rows = meshopt.decode_gltf_buffer(bytes(buffer[v0:v0 + vlen]), count, stride, mode,
+                                              None if filt == "NONE" else filt)
+        except (ValueError, RuntimeError) as err:
+            raise GlintError(f"{self.source}: {where} cannot be decoded ({err}); the file is "
+                             "corrupt or truncated") from None
+        return np.ascontiguousarray(rows).tobytes()
+
+    def _draco(self, prim: dict, node_name: str, what: str) -> dict:
+        """KHR_draco_mesh_compression: decode the primitive's Draco bufferView into the accessors.
+
+        The extension's `attributes` map each semantic (POSITION, NORMAL, TEXCOORD_0, ...) to the
+        Draco attribute's unique id; the primitive's own `attributes` and `indices` accessors keep
+        count, type and normalisation, and have no bufferView (spec). The decoded arrays go into
+        the accessor cache, so the rest of the loader reads them like any accessor. Draco stores
+        triangle lists, so the primitive is read as mode 4 (TRIANGLES)."""
+        ext = (prim.get("extensions") or {}).get("KHR_draco_mesh_compression")
+        if ext is None:
+            return prim
+        where = f"object '{node_name}' {what} (KHR_draco_mesh_compression)"
+        try:
+            import DracoPy
+        except ImportError:
+            raise GlintError(f"{self.source}: {where} needs the Python package DracoPy "
+                             "(pip install DracoPy)") from None
+        view_index = ext.get("bufferView")
+        buffer, v0, vlen = self._view_bytes(view_index, self.item("bufferViews", view_index, where))
+        try:
+            mesh = DracoPy.decode(bytes(buffer[v0:v0 + vlen]))
+        except Exception as err:  # DracoPy raises FileTypeException, ValueError, ... (not documented)
+            raise GlintError(f"{self.source}: {where}: the Draco data cannot be decoded "
+                             f"({type(err).__name__}: {err}); the file is corrupt or truncated") from None
+        faces = getattr(mesh, "faces", None)
+        if faces is None or len(faces) == 0:
+            raise GlintError(f"{self.source}: {where}: the Draco data holds no triangles")
+        attrs = prim.get("attributes") or {}
+        for semantic, uid in (ext.get("attributes") or {}).items():
+            if semantic not in attrs:
+                continue
+            index = attrs[semantic]
+            a = self.item("accessors", index, where)
+            got = mesh.get_attribute_by_unique_id(uid) if isinstance(uid, int) else None
+            if got is None:
+                raise self.bad(f"{where}: {semantic} refers to Draco attribute {uid!r}, which the "
+                               "Draco data does not have")
+            data = np.asarray(got["data"])
+            data = data.reshape(len(data), -1)
+            if len(data) != a.get("count") or data.shape[1] != _TYPES.get(a.get("type")):
+                raise self.bad(f"{where}: {semantic} decodes to {data.shape[0]} x {data.shape[1]} "
+                               f"values; accessor {index} says {a.get('count')} x {a.get('type')}")
+            if data.dtype.kind in "iu" and a.get("normalized") and a.get("componentType") in _NORMALIZE:
+                data = np.maximum(data / _NORMALIZE[a["componentType"]], -1.0)
+            elif data.dtype.kind == "f":
+                data = data.astype(np.float64)
+            self._accessors[index] = data
+        key = prim.get("indices", ("draco", view_index))
+        self._accessors[key] = np.asarray(faces, np.int64).reshape(-1, 1)
+        return {**prim, "indices": key, "mode": 4}
 
     def _index(self, value, size: int, what: str, kind: str) -> int:
         if not isinstance(value, int) or not 0 <= value < size:
@@ -584,6 +684,7 @@ class _SceneBuilder:
 
     def _primitive(self, scene: Scene, prim: dict, world: np.ndarray, node_name: str,
                    what: str) -> Object | None:
+        prim = self._draco(prim, node_name, what)
         mode = prim.get("mode", 4)
         attrs = prim.get("attributes", {})
         if mode not in (4, 5, 6):

@@ -89,8 +89,8 @@ def assert_mentions(message: str, parts: list[str]) -> None:
     (lambda d: d["accessors"][0].update(componentType=1234), ["componentType 1234"]),
     (lambda d: d["nodes"][0].update(mesh=7), ["mesh 7, which does not exist"]),
     (lambda d: d["meshes"][0]["primitives"][0].update(mode=1), ["no triangle meshes"]),  # lines only
-    (lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"],
-                        extensionsUsed=["KHR_draco_mesh_compression"]), ["KHR_draco_mesh_compression", "requires"]),
+    (lambda d: d.update(extensionsRequired=["EXT_mesh_gpu_instancing"],
+                        extensionsUsed=["EXT_mesh_gpu_instancing"]), ["EXT_mesh_gpu_instancing", "requires"]),
 ], ids=["accessor-past-end", "bad-component-type", "missing-mesh", "lines-only", "required-extension"])
 def test_broken_gltf_is_one_line_naming_what_is_wrong(tmp_path, edit, expected):
     path = tmp_path / "scene.gltf"
