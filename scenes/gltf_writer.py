@@ -163,8 +163,11 @@ class GltfWriter:
     def add_material(self, name, base_color=(0.8, 0.8, 0.8, 1.0), metallic=0.0, roughness=1.0,
                      emissive=(0, 0, 0), emissive_strength=1.0, double_sided=False,
                      base_color_texture=None, extensions=None, extras=None, alpha_mode=None,
-                     alpha_cutoff=None) -> int:
+                     alpha_cutoff=None, texcoord=None, texture_transform=None) -> int:
         """A metallic-roughness material; `base_color` is linear RGB(A).
+
+        `texcoord` (the base colour textureInfo's texCoord) and `texture_transform` (its
+        KHR_texture_transform object: offset, rotation, scale, texCoord) are written when given.
 
         `alpha_mode` ("OPAQUE", "MASK", "BLEND") and `alpha_cutoff` are written when given; the
         alpha comes from base_color[3] and an RGBA `base_color_texture`.
@@ -182,6 +185,12 @@ class GltfWriter:
         if base_color_texture is not None:
             pbr["baseColorTexture"] = {"index": self.add_texture(np.asarray(base_color_texture),
                                                                  f"{name} base colour")}
+            if texcoord is not None:
+                pbr["baseColorTexture"]["texCoord"] = int(texcoord)
+            if texture_transform is not None:
+                pbr["baseColorTexture"]["extensions"] = {
+                    "KHR_texture_transform": dict(texture_transform)}
+                self.extensions_used.add("KHR_texture_transform")
         mat = {"name": str(name), "pbrMetallicRoughness": pbr}
         emissive = _floats(emissive)
         if any(emissive):
@@ -204,12 +213,13 @@ class GltfWriter:
         return len(self.materials) - 1
 
     def add_mesh(self, name, positions, indices, material, normals=None, uvs=None,
-                 tangents=None) -> int:
+                 tangents=None, uvs1=None) -> int:
         """One mesh with one indexed triangle primitive; indices (M, 3) CCW front faces.
 
         `uvs` are written as given, in glTF's convention: (0, 0) is the top-left
         corner of the image, v grows downwards (trimesh flips v on load).
         `tangents` (N, 4): xyz unit tangent, w = +-1 bitangent sign (glTF TANGENT).
+        `uvs1` (N, 2): a second set, TEXCOORD_1.
         """
         pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         idx = np.asarray(indices, dtype=np.int64).reshape(-1, 3)
@@ -224,6 +234,9 @@ class GltfWriter:
             attrs["NORMAL"] = self._add_accessor(nrm, "VEC3", _ARRAY_BUFFER, True)
         if uvs is not None:
             attrs["TEXCOORD_0"] = self._add_accessor(np.asarray(uvs).reshape(-1, 2), "VEC2",
+                                                     _ARRAY_BUFFER, True)
+        if uvs1 is not None:
+            attrs["TEXCOORD_1"] = self._add_accessor(np.asarray(uvs1).reshape(-1, 2), "VEC2",
                                                      _ARRAY_BUFFER, True)
         if tangents is not None:
             attrs["TANGENT"] = self._add_accessor(np.asarray(tangents).reshape(-1, 4), "VEC4",

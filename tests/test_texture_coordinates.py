@@ -1,0 +1,121 @@
+"""The base colour texture's coordinates as glTF defines them: textureInfo.texCoord and
+KHR_texture_transform (offset, rotation, scale and its own texCoord).
+
+The scene is made here: two quads of 0.6 m facing +z, lit by a constant sky only (nothing
+shadows them, so E = pi everywhere and the capture shows the base colour). Both have a
+TEXCOORD_1 that is the quad's planar (u, v) ((0, 0) at the top-left corner, v downwards) and a
+TEXCOORD_0 that is its transpose (v, u), a wrong set to read. The image is 8 x 8 texels in
+2 x 2-texel blocks of 8 colours (channels 0 or 255, the same in sRGB and linear):
+- "Set1" uses texCoord 1, no transform: it shows the image.
+- "Example" uses texCoord 0 with KHR_texture_transform {offset (0, 1), rotation pi/2, scale
+  (0.5, 0.5), texCoord 1}, the extension's example, which "utilizes only the lower left quadrant
+  of the source image, rotated clockwise 90 degrees" (KHR_texture_transform README, Example
+  JSON): it shows np.rot90(image[4:, :4], -1).
+The references are those image operations, not glint's code; the colours are read at the
+blocks' centres, where bilinear filtering reads one colour.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from glint.bake.gltf_loader import load_scene
+from glint.scenes.gltf_writer import GltfWriter, quad
+
+HALF, CENTRES = 0.3, {"Set1": -0.35, "Example": 0.35}  # quads' half size and x centres (y = 1, z = 0)
+EXAMPLE = {"offset": [0.0, 1.0], "rotation": math.pi / 2, "scale": [0.5, 0.5], "texCoord": 1}
+EYE, FOV, SIZE = (0.0, 1.0, 1.5), 60.0, 128
+
+
+def image() -> np.ndarray:
+    """(8, 8, 3) uint8: 4 x 4 blocks of 2 x 2 texels, each one of the 8 colours (0 / 255 channels)."""
+    rng = np.random.default_rng(7)
+    blocks = rng.permutation(np.tile(np.arange(8), 2)).reshape(4, 4)
+    colours = np.array([[(c >> k) & 1 for k in range(3)] for c in range(8)], np.uint8) * 255
+    return np.repeat(np.repeat(colours[blocks], 2, axis=0), 2, axis=1)
+
+
+def expected(name: str) -> np.ndarray:
+    """The image the quad shows, linear RGB in 0..1, by the spec's words (module docstring)."""
+    img = image().astype(float) / 255.0
+    return img if name == "Set1" else np.rot90(img[4:, :4], -1)
+
+
+def write_scene(path: Path) -> Path:
+    w = GltfWriter()
+    img = image()
+    mats = {"Set1": w.add_material("Set1", base_color=(1, 1, 1), base_color_texture=img, texcoord=1),
+            "Example": w.add_material("Example", base_color=(1, 1, 1), base_color_texture=img,
+                                      texture_transform=EXAMPLE)}
+    for name, cx in CENTRES.items():
+        p, i = quad((cx, 1.0, 0.0), (HALF, 0, 0), (0, HALF, 0))
+        uv = np.stack([(p[:, 0] - cx) / (2 * HALF) + 0.5, 0.5 - (p[:, 1] - 1.0) / (2 * HALF)], axis=1)
+        w.add_node(name, mesh=w.add_mesh(name, p, i, mats[name], normals=np.tile([0, 0, 1], (4, 1)),
+                                         uvs=uv[:, ::-1], uvs1=uv))
+    path = Path(path)
+    w.write(path)
+    path.with_name(path.stem + ".glint.toml").write_text("[sky]\nradiance = 1.0\n")
+    return path
+
+
+def block_centres(name: str):
+    """(x, y, expected colour) at the centres of the blocks the quad shows."""
+    ref = expected(name)
+    n = len(ref) // 2 if name == "Set1" else len(ref)  # blocks per side
+    step = 1 if name == "Example" else 2
+    for r in range(n):
+        for c in range(n):
+            u, v = (c + 0.5) / n, (r + 0.5) / n
+            yield (CENTRES[name] + (u - 0.5) * 2 * HALF, 1.0 - (v - 0.5) * 2 * HALF,
+                   ref[r * step, c * step])
+
+
+def test_bake_reads_the_texcoord_set_and_the_texture_transform(tmp_path):
+    """The bake's base colour (kd x texture, bake/irradiance.py `albedo`) where rays hit the quads
+    is the reference image's colour.
+
+    Deliberate bugs this catches (tried): TEXCOORD_0 read whatever texCoord says (both quads
+    transposed); the transform's texCoord not overriding (Example transposed); the rotation's
+    sign flipped (u' = cos u - sin v: another quadrant); offset applied before the scale
+    (S T R: offset halved, another quadrant)."""
+    from glint.bake.irradiance import _Transport
+    from glint.bake.raytrace import RayTracer
+
+    scene = load_scene(write_scene(tmp_path / "tex.glb"))
+    tracer = RayTracer(scene)
+    transport = _Transport(scene, tracer)
+    for name in CENTRES:
+        points = list(block_centres(name))
+        o = np.array([[x, y, 1.0] for x, y, _ in points])
+        d = np.tile([0.0, 0.0, -1.0], (len(o), 1))
+        prim, b1, b2, _ = tracer.intersect_raw(o, d)
+        assert (prim >= 0).all()
+        mat = tracer.tri_material[prim]
+        kd = transport.albedo(mat, prim, b1, b2)
+        np.testing.assert_allclose(kd, np.array([c for *_, c in points]), atol=1e-3, err_msg=name)
+
+
+def test_capture_shows_the_texcoord_set_and_the_texture_transform(tmp_path):
+    """The viewer's capture (G-buffer pass, constant light map of E = pi) at the blocks' centres
+    shows the reference image's colours: each channel above 0.5 where it is 1, below 0.2 where 0.
+
+    Deliberate bug this catches (tried): the rotation's sign flipped in the loader (the viewer
+    samples the loader's uvs, as the bake does)."""
+    from glint.cli import main
+    from glint.core.image_io import read_image
+
+    path = write_scene(tmp_path / "tex.glb")
+    out = tmp_path / "tex.exr"
+    assert main(["capture", str(path), "-o", str(out), "--size", f"{SIZE}x{SIZE}", "--eye",
+                 ",".join(map(str, EYE)), "--target", "0,1,0", "--fov", str(FOV), "-q", "draft",
+                 "--samples", "16", "--texels-per-metre", "8", "--no-denoise",
+                 "--bake-dir", str(tmp_path / "tex.bake")]) == 0
+    img = read_image(out)[..., :3]
+    t = math.tan(math.radians(FOV) / 2) * EYE[2]
+    for name in CENTRES:
+        for x, y, colour in block_centres(name):
+            r, c = int((1 - (y - 1) / t) / 2 * SIZE), int((1 + x / t) / 2 * SIZE)
+            got = img[r, c]
+            assert np.all(np.where(colour > 0.5, got > 0.5, got < 0.2)), (name, x, y, colour, got)
