@@ -24,8 +24,9 @@ Conventions:
   with `[lights] units = "photometric"` (default) it is divided by 683 lm/W to
   W/sr and W/m^2. Lights shine along the node's -Z; `range` is ignored with a
   warning (the inverse-square law applies everywhere).
-- What is not supported (vertex colours, skins, morph targets, animations, texture
-  samplers other than bilinear repeating, ...) is warned about, with a kind where it
+- The base colour texture's glTF sampler (wrapS, wrapT, magFilter NEAREST) is kept in
+  Material.kd_wrap / kd_nearest; minFilter is not read.
+- What is not supported (vertex colours, skins, morph targets, animations, ...) is warned about, with a kind where it
   repeats per object or material, and counted in Scene.ignored_features.
 - Cameras: every perspective camera on a node (eye = node origin, forward = -Z,
   up = +Y, in world space); orthographic cameras are skipped with a warning.
@@ -94,13 +95,12 @@ SKINNED = WarningKind("{n} objects are skinned; skins are not supported, shown a
                       "(the bind pose)")
 MORPHED = WarningKind("{n} objects have morph target weights, not supported; shown without "
                       "their morph targets")
-SAMPLERS = WarningKind("{n} materials' base colour textures have a sampler glint does not "
-                       "support; sampled bilinear, repeating")
 NO_UVS = WarningKind("{n} objects have a textured material but not the texture coordinates "
                      "it names; the texel at (0, 0) is used everywhere")
 LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
                           "everywhere")
-_SAMPLER_MODES = {9728: "NEAREST", 33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}
+_WRAP_MODES = {10497: "REPEAT", 33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}  # glTF 5.26
+_NEAREST = 9728
 
 
 @dataclass
@@ -452,15 +452,19 @@ class _SceneBuilder:
         side = self.side
         out, names = [], set()
         self._uv_sets: dict[int, tuple[int, np.ndarray | None]] = {}
+        self._samplers: dict[int, tuple[tuple[str, str], bool]] = {}
         for i, gm in enumerate(_list(self.tree, "materials", self.source)):
             name = gm.get("name") or f"material{i}"
             names.add(name)
             rgba = self._base_color_texture(gm, name, i)
+            wrap, nearest = self._samplers.get(i, (("REPEAT", "REPEAT"), False))
             out.append(material_from_gltf(
                 gm, name, kd_texture=None if rgba is None else np.ascontiguousarray(rgba[..., :3]),
                 alpha_texture=None if rgba is None else np.ascontiguousarray(rgba[..., 3]),
                 diffuse_roughness=side.diffuse_roughness, override=side.materials.get(name),
                 warnings=self.warnings, source=self.source))
+            # The base colour's sampler; not in material_from_gltf, which sees no textures' JSON.
+            out[-1].kd_wrap, out[-1].kd_nearest = wrap, nearest
         self._default_material = None
         self._material_names = names
         return out
@@ -492,16 +496,7 @@ class _SceneBuilder:
             matrix = texture_transform_matrix(transform, where)
         self._uv_sets[index] = (texcoord, matrix)
         tex = self.item("textures", info.get("index"), f"material '{name}' baseColorTexture")
-        samplers = self.tree.get("samplers", [])
-        if isinstance(tex.get("sampler"), int) and 0 <= tex["sampler"] < len(samplers):
-            # Only read to warn: a broken sampler reference is not worth stopping for.
-            sampler = samplers[tex["sampler"]]
-            modes = sorted({_SAMPLER_MODES[v] for v in (sampler.get(k) for k in ("magFilter", "wrapS", "wrapT"))
-                            if isinstance(v, int) and v in _SAMPLER_MODES})
-            if modes:
-                self.warn(f"{where}: base colour texture sampler {', '.join(modes)} not "
-                          "supported; sampled bilinear, repeating", SAMPLERS, name,
-                          detail=", ".join(modes), ignored=[f"sampler {m}" for m in modes])
+        self._samplers[index] = self._sampler(tex)
         source = tex.get("source")
         if source is None:
             self.warn(f"{where}: base colour texture has no PNG/JPEG source; ignored",
@@ -510,6 +505,18 @@ class _SceneBuilder:
         if source not in self._images:
             self._images[source] = self._decode_image(source, where)
         return self._images[source]
+
+    def _sampler(self, tex: dict) -> tuple[tuple[str, str], bool]:
+        """The texture's glTF sampler: ((wrapS, wrapT), magFilter is NEAREST). glTF 5.26: without
+        a sampler, or without a wrap, REPEAT; without magFilter, the client's choice (LINEAR).
+        minFilter is not read (the viewer mip-maps)."""
+        samplers = self.tree.get("samplers", [])
+        sampler = {}
+        if isinstance(tex.get("sampler"), int) and 0 <= tex["sampler"] < len(samplers):
+            # A broken sampler reference is not worth stopping for: the defaults.
+            sampler = samplers[tex["sampler"]] if isinstance(samplers[tex["sampler"]], dict) else {}
+        wrap = tuple(_WRAP_MODES.get(sampler.get(k), "REPEAT") for k in ("wrapS", "wrapT"))
+        return wrap, sampler.get("magFilter") == _NEAREST
 
     def _decode_image(self, index: int, where: str) -> np.ndarray | None:
         image = self.item("images", index, f"{where} texture")

@@ -147,27 +147,34 @@ class GltfWriter:
         return len(self.accessors) - 1
 
     # -- scene content ---------------------------------------------------------------------
-    def add_texture(self, image: np.ndarray, name: str | None = None) -> int:
-        """Embed an (H, W, 3|4) uint8 sRGB image as PNG; returns the texture index."""
+    def add_texture(self, image: np.ndarray, name: str | None = None, sampler: dict | None = None) -> int:
+        """Embed an (H, W, 3|4) uint8 sRGB image as PNG; returns the texture index. `sampler` (a
+        glTF sampler object: magFilter, minFilter, wrapS, wrapT) is added for this texture;
+        without it the texture shares sampler 0 (linear, mip-mapped, repeating)."""
         if not self.samplers:
             self.samplers.append({"magFilter": _LINEAR, "minFilter": _LINEAR_MIPMAP_LINEAR,
                                   "wrapS": _REPEAT, "wrapT": _REPEAT})
+        index = 0
+        if sampler is not None:
+            self.samplers.append(dict(sampler))
+            index = len(self.samplers) - 1
         img = {"bufferView": self._add_view(encode_png(image, self.png_level)),
                "mimeType": "image/png"}
         if name:
             img["name"] = name
         self.images.append(img)
-        self.textures.append({"sampler": 0, "source": len(self.images) - 1})
+        self.textures.append({"sampler": index, "source": len(self.images) - 1})
         return len(self.textures) - 1
 
     def add_material(self, name, base_color=(0.8, 0.8, 0.8, 1.0), metallic=0.0, roughness=1.0,
                      emissive=(0, 0, 0), emissive_strength=1.0, double_sided=False,
                      base_color_texture=None, extensions=None, extras=None, alpha_mode=None,
-                     alpha_cutoff=None, texcoord=None, texture_transform=None) -> int:
+                     alpha_cutoff=None, texcoord=None, texture_transform=None, sampler=None) -> int:
         """A metallic-roughness material; `base_color` is linear RGB(A).
 
         `texcoord` (the base colour textureInfo's texCoord) and `texture_transform` (its
-        KHR_texture_transform object: offset, rotation, scale, texCoord) are written when given.
+        KHR_texture_transform object: offset, rotation, scale, texCoord) are written when given;
+        `sampler` is the base colour texture's glTF sampler object (`add_texture`).
 
         `alpha_mode` ("OPAQUE", "MASK", "BLEND") and `alpha_cutoff` are written when given; the
         alpha comes from base_color[3] and an RGBA `base_color_texture`.
@@ -184,7 +191,7 @@ class GltfWriter:
                "roughnessFactor": float(roughness)}
         if base_color_texture is not None:
             pbr["baseColorTexture"] = {"index": self.add_texture(np.asarray(base_color_texture),
-                                                                 f"{name} base colour")}
+                                                                 f"{name} base colour", sampler)}
             if texcoord is not None:
                 pbr["baseColorTexture"]["texCoord"] = int(texcoord)
             if texture_transform is not None:

@@ -119,3 +119,110 @@ def test_capture_shows_the_texcoord_set_and_the_texture_transform(tmp_path):
             r, c = int((1 - (y - 1) / t) / 2 * SIZE), int((1 + x / t) / 2 * SIZE)
             got = img[r, c]
             assert np.all(np.where(colour > 0.5, got > 0.5, got < 0.2)), (name, x, y, colour, got)
+
+
+# -- samplers ---------------------------------------------------------------------------------
+# Quads whose TEXCOORD_0 runs from -1 to 2 on both axes (three periods), each with an 4 x 4 image
+# of random 0 / 255 channels and its own glTF sampler (glTF 5.26; 33071 CLAMP_TO_EDGE, 33648
+# MIRRORED_REPEAT, 10497 REPEAT, 9728 NEAREST, 9729 LINEAR). The reference is the image padded by
+# numpy per axis ("edge", "symmetric" (the edge texel repeated, then backwards), "wrap"): the
+# texture as the sampler extends it, looked up directly in texels.
+N = 4
+SAMPLERS = {"ClampMirror": {"wrapS": 33071, "wrapT": 33648, "magFilter": 9728},
+            "MirrorRepeat": {"wrapS": 33648, "wrapT": 10497, "magFilter": 9729}}
+SAMPLER_CENTRES = {"ClampMirror": -0.35, "MirrorRepeat": 0.35}
+PAD = {33071: "edge", 33648: "symmetric", 10497: "wrap"}
+
+
+def sampler_image() -> np.ndarray:
+    return np.random.default_rng(3).integers(0, 2, (N, N, 3)).astype(np.uint8) * 255
+
+
+def extended(name: str) -> np.ndarray:
+    """The image over uv -1..2 (plus one texel each side), linear, as its sampler wraps it."""
+    s = SAMPLERS[name]
+    img = sampler_image().astype(float) / 255.0
+    img = np.pad(img, ((N + 1, N + 1), (0, 0), (0, 0)), mode=PAD[s["wrapT"]])
+    return np.pad(img, ((0, 0), (N + 1, N + 1), (0, 0)), mode=PAD[s["wrapS"]])
+
+
+def write_sampler_scene(path: Path) -> Path:
+    w = GltfWriter()
+    for name, cx in SAMPLER_CENTRES.items():
+        mat = w.add_material(name, base_color=(1, 1, 1), base_color_texture=sampler_image(),
+                             sampler=SAMPLERS[name])
+        p, i = quad((cx, 1.0, 0.0), (HALF, 0, 0), (0, HALF, 0))
+        uv = np.stack([(p[:, 0] - cx) / (2 * HALF) + 0.5, 0.5 - (p[:, 1] - 1.0) / (2 * HALF)], axis=1)
+        w.add_node(name, mesh=w.add_mesh(name, p, i, mat, normals=np.tile([0, 0, 1], (4, 1)),
+                                         uvs=3 * uv - 1))
+    path = Path(path)
+    w.write(path)
+    path.with_name(path.stem + ".glint.toml").write_text("[sky]\nradiance = 1.0\n")
+    return path
+
+
+def sampler_points(name: str, shift: float):
+    """(x, y, expected) at every texel of the three periods, `shift` texels right of and below its
+    centre: NEAREST reads that texel, LINEAR blends it with its right and lower neighbours."""
+    ext, k = extended(name), 3 * N
+    nearest = SAMPLERS[name]["magFilter"] == 9728
+    for r in range(k):
+        for c in range(k):
+            u, v = (c + 0.5 + shift) / k, (r + 0.5 + shift) / k  # 0..1 over the quad
+            a, b = r + 1, c + 1  # uv -1 is the padded image's texel 1
+            if nearest:
+                colour = ext[a, b]
+            else:
+                colour = ((1 - shift) ** 2 * ext[a, b] + shift * (1 - shift) * (ext[a, b + 1] + ext[a + 1, b])
+                          + shift ** 2 * ext[a + 1, b + 1])
+            yield (SAMPLER_CENTRES[name] + (u - 0.5) * 2 * HALF, 1.0 - (v - 0.5) * 2 * HALF, colour)
+
+
+def test_bake_samples_through_the_glTF_sampler(tmp_path):
+    """The bake's base colour (bake/irradiance.py `albedo`, bake/alpha.py `sample_texture`) a
+    quarter texel off the texel centres over uv -1..2 is the padded image's (nearest or bilinear).
+
+    Deliberate bugs this catches (tried): CLAMP_TO_EDGE treated as REPEAT (`wrap_texel`);
+    MIRRORED_REPEAT without the edge texel repeated (2 size - m instead of 2 size - 1 - m);
+    magFilter NEAREST read as LINEAR; wrapS and wrapT swapped."""
+    from glint.bake.irradiance import _Transport
+    from glint.bake.raytrace import RayTracer
+
+    scene = load_scene(write_sampler_scene(tmp_path / "samplers.glb"))
+    tracer = RayTracer(scene)
+    transport = _Transport(scene, tracer)
+    for name in SAMPLERS:
+        points = list(sampler_points(name, 0.25))
+        o = np.array([[x, y, 1.0] for x, y, _ in points])
+        prim, b1, b2, _ = tracer.intersect_raw(o, np.tile([0.0, 0.0, -1.0], (len(o), 1)))
+        assert (prim >= 0).all()
+        kd = transport.albedo(tracer.tri_material[prim], prim, b1, b2)
+        np.testing.assert_allclose(kd, np.array([c for *_, c in points]), atol=1e-3, err_msg=name)
+
+
+def test_capture_samples_through_the_glTF_sampler(tmp_path):
+    """The viewer's capture at the texels' centres over uv -1..2 shows the padded image's colours
+    (each channel above 0.5 where it is 1, below 0.2 where 0), and a quarter texel off them the
+    nearest quad reads its texel's colour, with the same thresholds.
+
+    Deliberate bugs this catches (tried): the shader's `wrap_kd` ignoring the flags (all REPEAT);
+    the S and T flags swapped in viewer/gpu_scene.py `_sampler_flags`; the NEAREST snap to the
+    texel's centre left out of `sample_kd`."""
+    from glint.cli import main
+    from glint.core.image_io import read_image
+
+    size = 256
+    out = tmp_path / "samplers.exr"
+    assert main(["capture", str(write_sampler_scene(tmp_path / "samplers.glb")), "-o", str(out),
+                 "--size", f"{size}x{size}", "--eye", ",".join(map(str, EYE)), "--target", "0,1,0",
+                 "--fov", str(FOV), "-q", "draft", "--samples", "16", "--texels-per-metre", "8",
+                 "--no-denoise", "--bake-dir", str(tmp_path / "samplers.bake")]) == 0
+    img = read_image(out)[..., :3]
+    t = math.tan(math.radians(FOV) / 2) * EYE[2]
+    for name in SAMPLERS:
+        shifts = (0.0, 0.25) if SAMPLERS[name]["magFilter"] == 9728 else (0.0,)
+        for shift in shifts:
+            for x, y, colour in sampler_points(name, shift):
+                r, c = int((1 - (y - 1) / t) / 2 * size), int((1 + x / t) / 2 * size)
+                got = img[r, c]
+                assert np.all(np.where(colour > 0.5, got > 0.5, got < 0.2)), (name, shift, x, y, colour, got)

@@ -51,6 +51,21 @@ from glint.viewer.gl import software_renderer
 from glint.viewer.gl_bindings import LOBE_BINDING, LOBE_PATTERN_BINDING, MATERIAL_BINDING, PATTERN_BINDING
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
+
+def _sampler_flags(sampler: dict) -> int:
+    """MAT_KD_* flags of a manifest material's `kd_sampler` (bake/pipeline.py); {} is REPEAT, LINEAR."""
+    flags = 0
+    for key, axis in (("wrap_s", "S"), ("wrap_t", "T")):
+        mode = sampler.get(key, "REPEAT")
+        if mode == "CLAMP_TO_EDGE":
+            flags |= MATERIAL_FLAGS[f"MAT_KD_CLAMP_{axis}"]
+        elif mode == "MIRRORED_REPEAT":
+            flags |= MATERIAL_FLAGS[f"MAT_KD_MIRROR_{axis}"]
+    if sampler.get("mag_filter") == "NEAREST":
+        flags |= MATERIAL_FLAGS["MAT_KD_NEAREST"]
+    return flags
+
+
 MATERIAL_FLAGS = {
     "MAT_TWO_SIDED": 1,    # glTF doubleSided, or thin transmissive (the bake treats both as two-sided)
     "MAT_EMISSIVE": 2,
@@ -59,6 +74,12 @@ MATERIAL_FLAGS = {
     "MAT_TRANSMISSIVE": 16,
     "MAT_ALPHA_MASK": 32,   # glTF alphaMode MASK: fragments with alpha < cutoff are discarded
     "MAT_ALPHA_BLEND": 64,  # glTF alphaMode BLEND: dithered coverage (shaders/raster_surface.glsl)
+    # The base colour's glTF sampler where it is not REPEAT / LINEAR (shaders/raster_surface.glsl)
+    "MAT_KD_CLAMP_S": 128,
+    "MAT_KD_CLAMP_T": 256,
+    "MAT_KD_MIRROR_S": 512,
+    "MAT_KD_MIRROR_T": 1024,
+    "MAT_KD_NEAREST": 2048,
 }
 LOBE_KINDS = {"LOBE_REFLECT": 0, "LOBE_TRANSMIT": 1}
 SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
@@ -208,7 +229,7 @@ class GpuScene:
                 alpha = image[..., 3:4] if mode in ("MASK", "BLEND") and image.shape[-1] >= 4 else None
                 texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0), mipmaps=True,
                                         alpha=None if alpha is None else np.clip(_clean(alpha), 0.0, 1.0))
-                flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"]
+                flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.kd_textures.append(texture)
             mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
             mats[i]["emission"][:3] = emission
