@@ -26,7 +26,8 @@ Conventions:
   warning (the inverse-square law applies everywhere).
 - The base colour texture's glTF sampler (wrapS, wrapT, magFilter NEAREST) is kept in
   Material.kd_wrap / kd_nearest; minFilter is not read.
-- What is not supported (vertex colours, skins, morph targets, animations, ...) is warned about, with a kind where it
+- COLOR_0 (RGB) is Object.colors; its alpha is warned about as not supported.
+- What is not supported (skins, morph targets, animations, ...) is warned about, with a kind where it
   repeats per object or material, and counted in Scene.ignored_features.
 - Cameras: every perspective camera on a node (eye = node origin, forward = -Z,
   up = +Y, in world space); orthographic cameras are skipped with a warning.
@@ -90,7 +91,8 @@ SPOT_CONES = WarningKind("{n} spot lights have cone angles outside 0 <= inner < 
                          "clamped")
 ORTHOGRAPHIC = WarningKind("{n} cameras are orthographic; only perspective cameras are "
                            "supported, skipped")
-VERTEX_COLOURS = WarningKind("{n} objects have vertex colours (COLOR_0), not supported; ignored")
+VERTEX_ALPHA = WarningKind("{n} objects have vertex colours (COLOR_0) with alpha below 1; the alpha "
+                           "is not supported, ignored")
 SKINNED = WarningKind("{n} objects are skinned; skins are not supported, shown as stored "
                       "(the bind pose)")
 MORPHED = WarningKind("{n} objects have morph target weights, not supported; shown without "
@@ -625,10 +627,18 @@ class _SceneBuilder:
         if np.linalg.det(linear) < 0:  # mirrored: keep counter-clockwise front faces
             indices = indices[:, [0, 2, 1]]
 
+        normals = uvs = colors = None
         if "COLOR_0" in attrs:
-            self.warn(f"{self.source}: object '{name}' has vertex colours (COLOR_0), not "
-                      "supported; ignored", VERTEX_COLOURS, name, ignored=["COLOR_0"])
-        normals = uvs = None
+            # glTF 3.7.2.1: COLOR_0 (VEC3 or VEC4, linear) multiplies the base colour.
+            raw = self.accessor(attrs["COLOR_0"], f"'{node_name}' COLOR_0")
+            if len(raw) != n or raw.shape[1] not in (3, 4):
+                raise self.bad(f"object '{node_name}' COLOR_0 is not VEC3 or VEC4 of one per POSITION")
+            colors = np.clip(np.nan_to_num(raw[:, :3].astype(np.float64), nan=0.0, posinf=1.0,
+                                           neginf=0.0), 0.0, 1.0)
+            if raw.shape[1] == 4 and float(np.nanmin(raw[:, 3], initial=1.0)) < 1.0:
+                self.warn(f"{self.source}: object '{name}' has vertex colour alpha below 1 "
+                          "(COLOR_0), not supported; ignored", VERTEX_ALPHA, name,
+                          ignored=["COLOR_0 alpha"])
         if "NORMAL" in attrs:
             normals = self.accessor(attrs["NORMAL"], f"'{node_name}' NORMAL")[:, :3]
             if len(normals) != n:
@@ -672,6 +682,7 @@ class _SceneBuilder:
                       NO_NORMALS, name)
             positions, uvs = positions[indices].reshape(-1, 3), (
                 None if uvs is None else uvs[indices].reshape(-1, 2))
+            colors = None if colors is None else colors[indices].reshape(-1, 3)
             cross = face_cross(positions, np.arange(len(positions)).reshape(-1, 3))
             normals = np.repeat(cross / np.linalg.norm(cross, axis=1, keepdims=True), 3, axis=0)
             indices = np.arange(len(positions), dtype=np.int64).reshape(-1, 3)
@@ -680,6 +691,7 @@ class _SceneBuilder:
             used, inverse = np.unique(indices, return_inverse=True)
             positions, normals = positions[used], normals[used]
             uvs = None if uvs is None else uvs[used]
+            colors = None if colors is None else colors[used]
             indices = inverse.reshape(-1, 3).astype(np.int64)
             normals, replaced = repair_normals(normals, positions, indices)
             if replaced:
@@ -698,7 +710,8 @@ class _SceneBuilder:
                           detail=uv_name)
         return Object(name=name, positions=positions, normals=np.asarray(normals, np.float32),
                       indices=indices, material=material,
-                      uvs=None if uvs is None else uvs.astype(np.float32))
+                      uvs=None if uvs is None else uvs.astype(np.float32),
+                      colors=None if colors is None else colors.astype(np.float32))
 
     # ---- lights and cameras
 

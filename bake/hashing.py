@@ -65,6 +65,8 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
         h.value(obj.material)
         if obj.uvs is not None:
             h.array(obj.uvs)
+        if obj.colors is not None:  # only then: objects without keep the hashes of existing bakes
+            h.array(obj.colors)
     for m in scene.materials:
         h.value([m.kd, m.emission, m.double_sided, [lobe.to_dict() for lobe in m.transmit_lobes]])
         if m.kd_texture is not None:

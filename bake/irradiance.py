@@ -184,8 +184,8 @@ class _Transport:
         return np.einsum("nlc,nl->nc", self.t_ks[mat], 1.0 - (r0 + (1.0 - r0) * c5[:, None]))
 
     def albedo(self, mat: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
-        """kd x base-colour texture (the material's glTF sampler: wrap per axis, bilinear or
-        nearest; glTF uv: (0, 0) = top-left of the image)."""
+        """kd x base-colour texture x vertex colour (glTF COLOR_0); the texture through the
+        material's glTF sampler (wrap per axis, bilinear or nearest; uv (0, 0) = the image's top-left)."""
         kd = np.take(self.kd, mat, axis=0)
         for m, tex in self.textures.items():
             sel = np.nonzero(mat == m)[0]
@@ -194,6 +194,8 @@ class _Transport:
             uv = self.tracer.texcoords(prim[sel], b1[sel], b2[sel])
             c = sample_texture(tex, uv, *self.samplers[m])
             kd[sel] = kd[sel] * c
+        if self.tracer.has_vertex_colors:  # glTF: COLOR_0 x baseColorFactor x texture
+            kd = kd * self.tracer.colors(prim, b1, b2)
         return kd
 
     # -- shadow rays -------------------------------------------------------------------------

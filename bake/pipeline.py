@@ -294,6 +294,7 @@ def _atlas(scene: Scene, settings: BakeSettings, path: Path, old_dir: Path | Non
         v = charts.vmapping
         meshes.append({"positions": obj.positions[v].astype(np.float32), "normals": obj.normals[v].astype(np.float32),
                        "uvs": None if obj.uvs is None else obj.uvs[v].astype(np.float32),
+                       "colors": None if obj.colors is None else obj.colors[v].astype(np.float32),
                        "lm_uv": charts.uv.astype(np.float32), "lm_page": charts.page.astype(np.int32),
                        "indices": charts.indices.astype(np.uint32), "vmapping": v.astype(np.int64)})
     save_meshes(path / "meshes.npz", meshes)

@@ -102,6 +102,8 @@ class Object:
     indices: np.ndarray
     material: int
     uvs: np.ndarray | None = None
+    # glTF COLOR_0 (N, 3) linear RGB in 0..1: multiplies the material's base colour (None = 1)
+    colors: np.ndarray | None = None
     role: str = "diffuse"
     role_overridden: bool = False
     options: dict = field(default_factory=dict)  # sidecar [objects."NAME"]: cubemap_size, bounding_planes

@@ -220,13 +220,13 @@ class GltfWriter:
         return len(self.materials) - 1
 
     def add_mesh(self, name, positions, indices, material, normals=None, uvs=None,
-                 tangents=None, uvs1=None) -> int:
+                 tangents=None, uvs1=None, colors=None) -> int:
         """One mesh with one indexed triangle primitive; indices (M, 3) CCW front faces.
 
         `uvs` are written as given, in glTF's convention: (0, 0) is the top-left
         corner of the image, v grows downwards (trimesh flips v on load).
         `tangents` (N, 4): xyz unit tangent, w = +-1 bitangent sign (glTF TANGENT).
-        `uvs1` (N, 2): a second set, TEXCOORD_1.
+        `uvs1` (N, 2): a second set, TEXCOORD_1. `colors` (N, 3|4): linear COLOR_0 (float).
         """
         pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         idx = np.asarray(indices, dtype=np.int64).reshape(-1, 3)
@@ -242,6 +242,11 @@ class GltfWriter:
         if uvs is not None:
             attrs["TEXCOORD_0"] = self._add_accessor(np.asarray(uvs).reshape(-1, 2), "VEC2",
                                                      _ARRAY_BUFFER, True)
+        if colors is not None:
+            col = np.asarray(colors, dtype=np.float64)
+            attrs["COLOR_0"] = self._add_accessor(col.reshape(len(col), -1),
+                                                  "VEC4" if col.shape[-1] == 4 else "VEC3",
+                                                  _ARRAY_BUFFER, False)
         if uvs1 is not None:
             attrs["TEXCOORD_1"] = self._add_accessor(np.asarray(uvs1).reshape(-1, 2), "VEC2",
                                                      _ARRAY_BUFFER, True)

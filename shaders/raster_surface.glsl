@@ -17,6 +17,7 @@ in vec3 v_position;
 in vec3 v_normal;
 in vec4 v_tangent;
 in vec2 v_uv;
+in vec3 v_color;  // glTF COLOR_0 in 0..1; -1 for objects without (viewer/gpu_scene.py)
 in vec2 v_lm_uv;
 flat in int v_lm_page;
 flat in int v_object;
@@ -98,6 +99,10 @@ RasterSurface raster_surface() {
     vec3 kd = m.kd.rgb;
     if (has_flag(m, MAT_KD_TEXTURE))
         kd *= sample_kd(m).rgb;
+    // glTF: COLOR_0 x baseColorFactor x texture. Objects without are marked by -1, not 1: the
+    // interpolation of a constant 1 need not give exactly 1, and their images must not change.
+    if (v_color.r >= 0.0)
+        kd *= v_color;
     // E of the side seen: a two-sided surface is lit on each side by its own light map.
     int layer = v_lm_page + (back ? lightmap_back_layer : 0);
     vec3 E = clean_radiance(texture(lightmaps, vec3(v_lm_uv, float(layer))).rgb);

@@ -1,5 +1,6 @@
-"""The base colour texture's coordinates as glTF defines them: textureInfo.texCoord and
-KHR_texture_transform (offset, rotation, scale and its own texCoord).
+"""The base colour as glTF defines it: the texture's coordinates (textureInfo.texCoord and
+KHR_texture_transform: offset, rotation, scale and its own texCoord), its sampler (wrap modes,
+magFilter NEAREST) and the vertex colours (COLOR_0). Sections below for the last two.
 
 The scene is made here: two quads of 0.6 m facing +z, lit by a constant sky only (nothing
 shadows them, so E = pi everywhere and the capture shows the base colour). Both have a
@@ -226,3 +227,79 @@ def test_capture_samples_through_the_glTF_sampler(tmp_path):
                 r, c = int((1 - (y - 1) / t) / 2 * size), int((1 + x / t) / 2 * size)
                 got = img[r, c]
                 assert np.all(np.where(colour > 0.5, got > 0.5, got < 0.2)), (name, shift, x, y, colour, got)
+
+
+# -- vertex colours ---------------------------------------------------------------------------
+# A quad with COLOR_0 affine in its planar (u, v) (so the two triangles' barycentric interpolation
+# is exactly that function), baseColorFactor FACTOR and the block image of the first tests on
+# TEXCOORD_0: glTF 3.9.2, the base colour is COLOR_0 x baseColorFactor x texture.
+FACTOR = (0.5, 1.0, 0.8)
+
+
+def vertex_colour(u, v) -> np.ndarray:
+    u, v = np.asarray(u, float), np.asarray(v, float)
+    return np.stack([0.1 + 0.8 * u, 0.9 - 0.8 * v, 0.2 + 0.3 * u + 0.4 * v], axis=-1)
+
+
+def write_colour_scene(path: Path) -> Path:
+    w = GltfWriter()
+    mat = w.add_material("Coloured", base_color=FACTOR, base_color_texture=image())
+    p, i = quad((0.0, 1.0, 0.0), (HALF, 0, 0), (0, HALF, 0))
+    uv = np.stack([(p[:, 0]) / (2 * HALF) + 0.5, 0.5 - (p[:, 1] - 1.0) / (2 * HALF)], axis=1)
+    w.add_node("Coloured", mesh=w.add_mesh("Coloured", p, i, mat, normals=np.tile([0, 0, 1], (4, 1)),
+                                           uvs=uv, colors=vertex_colour(uv[:, 0], uv[:, 1])))
+    path = Path(path)
+    w.write(path)
+    path.with_name(path.stem + ".glint.toml").write_text("[sky]\nradiance = 1.0\n")
+    return path
+
+
+def colour_points():
+    """(x, y, expected base colour) at the image's block centres."""
+    img = image().astype(float) / 255.0
+    for r in range(4):
+        for c in range(4):
+            u, v = (c + 0.5) / 4, (r + 0.5) / 4
+            yield (u - 0.5) * 2 * HALF, 1.0 - (v - 0.5) * 2 * HALF, \
+                vertex_colour(u, v) * np.array(FACTOR) * img[2 * r, 2 * c]
+
+
+def test_bake_multiplies_the_vertex_colours(tmp_path):
+    """The bake's base colour on a quad with COLOR_0 is COLOR_0 x factor x texture.
+
+    Deliberate bug this catches (tried): bake/irradiance.py `albedo` not multiplying the
+    interpolated colours (the colours ignored)."""
+    from glint.bake.irradiance import _Transport
+    from glint.bake.raytrace import RayTracer
+
+    scene = load_scene(write_colour_scene(tmp_path / "colours.glb"))
+    tracer = RayTracer(scene)
+    transport = _Transport(scene, tracer)
+    points = list(colour_points())
+    o = np.array([[x, y, 1.0] for x, y, _ in points])
+    prim, b1, b2, _ = tracer.intersect_raw(o, np.tile([0.0, 0.0, -1.0], (len(o), 1)))
+    assert (prim >= 0).all()
+    kd = transport.albedo(tracer.tri_material[prim], prim, b1, b2)
+    np.testing.assert_allclose(kd, np.array([c for *_, c in points]), atol=1e-3)
+
+
+def test_capture_multiplies_the_vertex_colours(tmp_path):
+    """The capture (constant light map E = pi, so the diffuse radiance is the base colour) on the
+    quad with COLOR_0 is COLOR_0 x factor x texture, within 0.03 (the dielectric's specular
+    reflection of the sky adds a little).
+
+    Deliberate bugs this catches (tried): raster_surface.glsl not multiplying v_color; the
+    pipeline not writing `colors` into meshes.npz (the viewer's colours all 1)."""
+    from glint.cli import main
+    from glint.core.image_io import read_image
+
+    out = tmp_path / "colours.exr"
+    assert main(["capture", str(write_colour_scene(tmp_path / "colours.glb")), "-o", str(out),
+                 "--size", f"{SIZE}x{SIZE}", "--eye", ",".join(map(str, EYE)), "--target", "0,1,0",
+                 "--fov", str(FOV), "-q", "draft", "--samples", "16", "--texels-per-metre", "8",
+                 "--no-denoise", "--bake-dir", str(tmp_path / "colours.bake")]) == 0
+    img = read_image(out)[..., :3]
+    t = math.tan(math.radians(FOV) / 2) * EYE[2]
+    for x, y, colour in colour_points():
+        r, c = int((1 - (y - 1) / t) / 2 * SIZE), int((1 + x / t) / 2 * SIZE)
+        np.testing.assert_allclose(img[r, c], colour, atol=0.03, err_msg=f"{x:.3f}, {y:.3f}")

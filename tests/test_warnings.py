@@ -179,10 +179,10 @@ def test_summary_line_counts_subjects_and_sums(capsys):
 
 def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
     """What glint does not support, and used to ignore silently, warns and is counted in
-    Scene.ignored_features (-> the end-of-bake line): vertex colours, skins, morph targets
+    Scene.ignored_features (-> the end-of-bake line): skins, morph targets
     with weights, animations, light range, a volume's thickness, a textured
     material on an object without the texture coordinates it names. Deliberate bug this catches (tried): the
-    COLOR_0 warning without `ignored=` (COLOR_0 missing from the counts)."""
+    morph targets' warning without `ignored=` (morph targets missing from the counts)."""
     from glint.bake.gltf_loader import load_scene
 
     w, wall = room_writer()
@@ -193,7 +193,6 @@ def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
     node = {n["name"]: n for n in w.nodes}
     back = w.meshes[node["Back"]["mesh"]]
     attributes = back["primitives"][0]["attributes"]
-    attributes["COLOR_0"] = attributes["NORMAL"]  # any VEC3 float accessor will do
     back["primitives"][0]["targets"] = [{"POSITION": attributes["NORMAL"]}]
     back["weights"] = [0.5]
     node["Left"]["skin"] = 0
@@ -207,9 +206,9 @@ def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
     scene = load_scene(path)
     assert scene.ignored_features == {
         "animations": 1, "KHR_materials_volume": 1, "skins": 1,
-        "morph targets": 1, "COLOR_0": 1, "light range": 1}
+        "morph targets": 1, "light range": 1}
     err = capsys.readouterr().err
     for words in ("animation(s) not played", "KHR_materials_volume thickness",
-                  "'Left' is skinned", "'Back' has morph target weights", "'Back' has vertex colours",
+                  "'Left' is skinned", "'Back' has morph target weights",
                   "light 'Bulb': range", "objects have a textured material but not the texture coordinates"):
         assert words in err, words

@@ -93,9 +93,11 @@ PATTERN_DTYPE = np.dtype([("info", "<i4", 4)])
 PATTERN_KINDS = {"ring": 0, "line_x": 1, "line_y": 2, "multi_ring": 3}
 PLANAR_PATTERNS = ("auto", "ring", "multi_ring")  # GpuScene(planar_pattern=...)
 VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent", "<f4", 4),
-                         ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4"), ("object", "<i4")])
-VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i"
-VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object")
+                         ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4"), ("object", "<i4"),
+                         ("color", "<f4", 3)])
+VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i 3f"
+VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object",
+                     "in_color")
 
 
 def shader_defines() -> dict:
@@ -188,6 +190,8 @@ class GpuScene:
         none = ~np.any(v["tangent"][:, :3] != 0, axis=1)  # no texture coordinates, or degenerate ones
         v["tangent"][none] = axis_tangents(v["normal"][none])
         v["object"] = index
+        colors = mesh.get("colors")  # glTF COLOR_0; -1 without (shaders/raster_surface.glsl)
+        v["color"] = -1.0 if colors is None else np.clip(_clean(colors), 0.0, 1.0).reshape(-1, 3)
         v["lm_uv"] = _clean(mesh["lm_uv"], None).reshape(-1, 2)
         v["lm_page"] = np.asarray(mesh["lm_page"], np.int32).reshape(-1)
         bounds = (np.stack([positions[indices.ravel()].min(axis=0), positions[indices.ravel()].max(axis=0)])
