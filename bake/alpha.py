@@ -28,19 +28,36 @@ MAX_CUTOUTS = 16  # cut-out layers a ray may pass (a tree crown seen through); t
 MODES = {"OPAQUE": 0, "MASK": 1, "BLEND": 2}
 
 
-def sample_repeat(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear look-up with repeat of an (H, W) or (H, W, C) texture at glTF uv ((0, 0) = top-left
-    of the image, texel centres at half-integers), as the viewer's GL_LINEAR + GL_REPEAT sampler."""
+def wrap_texel(i: np.ndarray, size: int, mode: str) -> np.ndarray:
+    """Integer texel indices wrapped as OpenGL 4.6 section 8.14.2 (Table 8.20) defines the glTF
+    sampler modes: REPEAT i mod size, CLAMP_TO_EDGE clamped to 0..size-1, MIRRORED_REPEAT
+    (i mod 2 size) read backwards in the second copy."""
+    if mode == "CLAMP_TO_EDGE":
+        return np.clip(i, 0, size - 1)
+    if mode == "MIRRORED_REPEAT":
+        m = i % (2 * size)
+        return np.where(m < size, m, 2 * size - 1 - m)
+    return i % size
+
+
+def sample_texture(texture: np.ndarray, uv: np.ndarray, wrap: tuple[str, str] = ("REPEAT", "REPEAT"),
+                   nearest: bool = False) -> np.ndarray:
+    """Look-up of an (H, W) or (H, W, C) texture at glTF uv ((0, 0) = top-left of the image, texel
+    centres at half-integers), as the viewer's level-0 sampler: bilinear, or the nearest texel
+    (magFilter NEAREST), the indices wrapped per axis by `wrap` ((wrapS, wrapT))."""
     H, W = texture.shape[:2]
-    x = np.nan_to_num(uv[:, 0]) * W - 0.5
-    y = np.nan_to_num(uv[:, 1]) * H - 0.5
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = x - x0, y - y0
+    x = np.nan_to_num(uv[:, 0]) * W
+    y = np.nan_to_num(uv[:, 1]) * H
+    if nearest:
+        return texture[wrap_texel(np.floor(y).astype(np.int64), H, wrap[1]),
+                       wrap_texel(np.floor(x).astype(np.int64), W, wrap[0])]
+    x0, y0 = np.floor(x - 0.5), np.floor(y - 0.5)
+    fx, fy = x - 0.5 - x0, y - 0.5 - y0
     if texture.ndim == 3:
         fx, fy = fx[:, None], fy[:, None]
-    x0 = x0.astype(np.int64) % W
-    y0 = y0.astype(np.int64) % H
-    x1, y1 = (x0 + 1) % W, (y0 + 1) % H
+    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
+    x1, y1 = wrap_texel(x0 + 1, W, wrap[0]), wrap_texel(y0 + 1, H, wrap[1])
+    x0, y0 = wrap_texel(x0, W, wrap[0]), wrap_texel(y0, H, wrap[1])
     return ((1 - fy) * ((1 - fx) * texture[y0, x0] + fx * texture[y0, x1])
             + fy * ((1 - fx) * texture[y1, x0] + fx * texture[y1, x1]))
 
@@ -55,6 +72,7 @@ class _Tables:
         self.cutoff = np.zeros(M)
         self.factor = np.ones(M)
         self.textures: dict[int, np.ndarray] = {}
+        self.samplers: dict[int, tuple[tuple[str, str], bool]] = {}
         for i, m in enumerate(mats):
             if not m.has_coverage:
                 continue
@@ -63,6 +81,7 @@ class _Tables:
             self.factor[i] = float(np.clip(np.nan_to_num(m.alpha), 0.0, 1.0))
             if m.alpha_texture is not None:
                 self.textures[i] = np.clip(np.nan_to_num(np.asarray(m.alpha_texture, np.float64)), 0.0, 1.0)
+                self.samplers[i] = (tuple(m.kd_wrap), bool(m.kd_nearest))
         self.cut = self.mode > 0
         self.any = bool(self.cut.any())
 
@@ -72,7 +91,7 @@ class _Tables:
         for m, tex in self.textures.items():
             sel = np.flatnonzero(mat == m)
             if len(sel):
-                a[sel] *= sample_repeat(tex, uv_of(sel))
+                a[sel] *= sample_texture(tex, uv_of(sel), *self.samplers[m])
         return a
 
     def open_fraction(self, mat: np.ndarray, uv_of) -> np.ndarray:

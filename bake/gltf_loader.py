@@ -16,15 +16,18 @@ Conventions:
 - Missing normals are computed flat (one normal per face, vertices split), as
   the glTF spec requires of clients; zero-length or non-finite normals are
   replaced by the (area-weighted) face normal. Degenerate triangles are dropped.
-- Object.uvs is TEXCOORD_0 unchanged: (0, 0) is the top-left of the image, and
+- Object.uvs is the base colour texture's set (textureInfo.texCoord, default TEXCOORD_0)
+  with its KHR_texture_transform applied: (0, 0) is the top-left of the image, and
   Material.kd_texture row 0 is the image's top row, so texel = (v * H, u * W).
 - Primitives without a material get "default": a grey (kd 0.8) diffuse material.
 - KHR_lights_punctual: intensity is candela (point, spot) or lux (directional);
   with `[lights] units = "photometric"` (default) it is divided by 683 lm/W to
   W/sr and W/m^2. Lights shine along the node's -Z; `range` is ignored with a
   warning (the inverse-square law applies everywhere).
-- What is not supported (vertex colours, skins, morph targets, animations, texture
-  samplers other than bilinear repeating, ...) is warned about, with a kind where it
+- The base colour texture's glTF sampler (wrapS, wrapT, magFilter NEAREST) is kept in
+  Material.kd_wrap / kd_nearest; minFilter is not read.
+- COLOR_0 (RGB) is Object.colors; its alpha is warned about as not supported.
+- What is not supported (skins, morph targets, animations, ...) is warned about, with a kind where it
   repeats per object or material, and counted in Scene.ignored_features.
 - Cameras: every perspective camera on a node (eye = node origin, forward = -Z,
   up = +Y, in world space); orthographic cameras are skipped with a warning.
@@ -61,7 +64,7 @@ LUMENS_PER_WATT = 683.0  # luminous efficacy that defines the candela
 # Compressed geometry is decoded where it is read: KHR_draco_mesh_compression per primitive
 # (_SceneBuilder._draco, DracoPy), EXT/KHR_meshopt_compression per bufferView (_view_bytes, meshopt).
 MESHOPT = ("EXT_meshopt_compression", "KHR_meshopt_compression")
-SUPPORTED_EXTENSIONS = frozenset(("KHR_lights_punctual", "KHR_mesh_quantization",
+SUPPORTED_EXTENSIONS = frozenset(("KHR_lights_punctual", "KHR_mesh_quantization", "KHR_texture_transform",
                                   "KHR_draco_mesh_compression") + MESHOPT + MATERIAL_EXTENSIONS)
 
 _CHUNK_JSON, _CHUNK_BIN = 0x4E4F534A, 0x004E4942
@@ -84,10 +87,6 @@ NO_AREA = WarningKind("{n} objects have no triangles with area and were skipped"
 NO_NORMALS = WarningKind("{n} objects have no normals; using flat face normals")
 ZERO_NORMALS = WarningKind("{n} objects have zero-length normals ({normals:,} in all), "
                            "replaced by the face normal")
-TEXCOORD = WarningKind("{n} materials' base colour textures use TEXCOORD_1 or higher; "
-                       "glint reads TEXCOORD_0")
-TEXTURE_TRANSFORM = WarningKind("{n} materials use KHR_texture_transform, which is not "
-                                "supported; ignored")
 NO_IMAGE = WarningKind("{n} materials' base colour textures have no PNG/JPEG source; ignored")
 UNREADABLE = WarningKind("{n} base colour images cannot be read; their materials use "
                          "baseColorFactor only")
@@ -95,18 +94,18 @@ SPOT_CONES = WarningKind("{n} spot lights have cone angles outside 0 <= inner < 
                          "clamped")
 ORTHOGRAPHIC = WarningKind("{n} cameras are orthographic; only perspective cameras are "
                            "supported, skipped")
-VERTEX_COLOURS = WarningKind("{n} objects have vertex colours (COLOR_0), not supported; ignored")
+VERTEX_ALPHA = WarningKind("{n} objects have vertex colours (COLOR_0) with alpha below 1; the alpha "
+                           "is not supported, ignored")
 SKINNED = WarningKind("{n} objects are skinned; skins are not supported, shown as stored "
                       "(the bind pose)")
 MORPHED = WarningKind("{n} objects have morph target weights, not supported; shown without "
                       "their morph targets")
-SAMPLERS = WarningKind("{n} materials' base colour textures have a sampler glint does not "
-                       "support; sampled bilinear, repeating")
-NO_UVS = WarningKind("{n} objects have a textured material but no TEXCOORD_0; the texel at "
-                     "(0, 0) is used everywhere")
+NO_UVS = WarningKind("{n} objects have a textured material but not the texture coordinates "
+                     "it names; the texel at (0, 0) is used everywhere")
 LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
                           "everywhere")
-_SAMPLER_MODES = {9728: "NEAREST", 33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}
+_WRAP_MODES = {10497: "REPEAT", 33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}  # glTF 5.26
+_NEAREST = 9728
 
 
 @dataclass
@@ -554,15 +553,20 @@ class _SceneBuilder:
     def _materials(self) -> list[Material]:
         side = self.side
         out, names = [], set()
+        self._uv_sets: dict[int, tuple[int, np.ndarray | None]] = {}
+        self._samplers: dict[int, tuple[tuple[str, str], bool]] = {}
         for i, gm in enumerate(_list(self.tree, "materials", self.source)):
             name = gm.get("name") or f"material{i}"
             names.add(name)
-            rgba = self._base_color_texture(gm, name)
+            rgba = self._base_color_texture(gm, name, i)
+            wrap, nearest = self._samplers.get(i, (("REPEAT", "REPEAT"), False))
             out.append(material_from_gltf(
                 gm, name, kd_texture=None if rgba is None else np.ascontiguousarray(rgba[..., :3]),
                 alpha_texture=None if rgba is None else np.ascontiguousarray(rgba[..., 3]),
                 diffuse_roughness=side.diffuse_roughness, override=side.materials.get(name),
                 warnings=self.warnings, source=self.source))
+            # The base colour's sampler; not in material_from_gltf, which sees no textures' JSON.
+            out[-1].kd_wrap, out[-1].kd_nearest = wrap, nearest
         self._default_material = None
         self._material_names = names
         return out
@@ -579,31 +583,22 @@ class _SceneBuilder:
             self._default_material = len(scene.materials) - 1
         return self._default_material
 
-    def _base_color_texture(self, gm: dict, name: str) -> np.ndarray | None:
-        """(H, W, 4) float32: linear RGB and alpha, or None."""
+    def _base_color_texture(self, gm: dict, name: str, index: int) -> np.ndarray | None:
+        """(H, W, 4) float32: linear RGB and alpha, or None. Records in self._uv_sets[index] the
+        texture coordinate set and KHR_texture_transform matrix its primitives' uvs get."""
         info = gm.get("pbrMetallicRoughness", {}).get("baseColorTexture")
         if info is None:
             return None
         where = f"{self.source}: material '{name}'"
-        if info.get("texCoord", 0) != 0:
-            self.warn(f"{where}: base colour texture uses TEXCOORD_{info['texCoord']}; "
-                      "glint reads TEXCOORD_0", TEXCOORD, name,
-                      detail=f"TEXCOORD_{info['texCoord']}", ignored=["texCoord > 0"])
-        if "KHR_texture_transform" in info.get("extensions", {}):
-            # Counted in ignored features as an extension of extensionsUsed (_check_extensions).
-            self.warn(f"{where}: KHR_texture_transform is not supported, ignored",
-                      TEXTURE_TRANSFORM, name)
+        texcoord, matrix = _texcoord(info.get("texCoord", 0)), None
+        transform = info.get("extensions", {}).get("KHR_texture_transform")
+        if isinstance(transform, dict):
+            # KHR_texture_transform: its own texCoord overrides the textureInfo's.
+            texcoord = _texcoord(transform.get("texCoord", texcoord))
+            matrix = texture_transform_matrix(transform, where)
+        self._uv_sets[index] = (texcoord, matrix)
         tex = self.item("textures", info.get("index"), f"material '{name}' baseColorTexture")
-        samplers = self.tree.get("samplers", [])
-        if isinstance(tex.get("sampler"), int) and 0 <= tex["sampler"] < len(samplers):
-            # Only read to warn: a broken sampler reference is not worth stopping for.
-            sampler = samplers[tex["sampler"]]
-            modes = sorted({_SAMPLER_MODES[v] for v in (sampler.get(k) for k in ("magFilter", "wrapS", "wrapT"))
-                            if isinstance(v, int) and v in _SAMPLER_MODES})
-            if modes:
-                self.warn(f"{where}: base colour texture sampler {', '.join(modes)} not "
-                          "supported; sampled bilinear, repeating", SAMPLERS, name,
-                          detail=", ".join(modes), ignored=[f"sampler {m}" for m in modes])
+        self._samplers[index] = self._sampler(tex)
         source = tex.get("source")
         if source is None:
             self.warn(f"{where}: base colour texture has no PNG/JPEG source; ignored",
@@ -612,6 +607,18 @@ class _SceneBuilder:
         if source not in self._images:
             self._images[source] = self._decode_image(source, where)
         return self._images[source]
+
+    def _sampler(self, tex: dict) -> tuple[tuple[str, str], bool]:
+        """The texture's glTF sampler: ((wrapS, wrapT), magFilter is NEAREST). glTF 5.26: without
+        a sampler, or without a wrap, REPEAT; without magFilter, the client's choice (LINEAR).
+        minFilter is not read (the viewer mip-maps)."""
+        samplers = self.tree.get("samplers", [])
+        sampler = {}
+        if isinstance(tex.get("sampler"), int) and 0 <= tex["sampler"] < len(samplers):
+            # A broken sampler reference is not worth stopping for: the defaults.
+            sampler = samplers[tex["sampler"]] if isinstance(samplers[tex["sampler"]], dict) else {}
+        wrap = tuple(_WRAP_MODES.get(sampler.get(k), "REPEAT") for k in ("wrapS", "wrapT"))
+        return wrap, sampler.get("magFilter") == _NEAREST
 
     def _decode_image(self, index: int, where: str) -> np.ndarray | None:
         image = self.item("images", index, f"{where} texture")
@@ -721,25 +728,41 @@ class _SceneBuilder:
         if np.linalg.det(linear) < 0:  # mirrored: keep counter-clockwise front faces
             indices = indices[:, [0, 2, 1]]
 
+        normals = uvs = colors = None
         if "COLOR_0" in attrs:
-            self.warn(f"{self.source}: object '{name}' has vertex colours (COLOR_0), not "
-                      "supported; ignored", VERTEX_COLOURS, name, ignored=["COLOR_0"])
-        normals = uvs = None
+            # glTF 3.7.2.1: COLOR_0 (VEC3 or VEC4, linear) multiplies the base colour.
+            raw = self.accessor(attrs["COLOR_0"], f"'{node_name}' COLOR_0")
+            if len(raw) != n or raw.shape[1] not in (3, 4):
+                raise self.bad(f"object '{node_name}' COLOR_0 is not VEC3 or VEC4 of one per POSITION")
+            colors = np.clip(np.nan_to_num(raw[:, :3].astype(np.float64), nan=0.0, posinf=1.0,
+                                           neginf=0.0), 0.0, 1.0)
+            if raw.shape[1] == 4 and float(np.nanmin(raw[:, 3], initial=1.0)) < 1.0:
+                self.warn(f"{self.source}: object '{name}' has vertex colour alpha below 1 "
+                          "(COLOR_0), not supported; ignored", VERTEX_ALPHA, name,
+                          ignored=["COLOR_0 alpha"])
         if "NORMAL" in attrs:
             normals = self.accessor(attrs["NORMAL"], f"'{node_name}' NORMAL")[:, :3]
             if len(normals) != n:
                 raise self.bad(f"object '{node_name}' NORMAL count differs from POSITION")
             # Inverse transpose up to a positive factor: cofactor * sign(det).
             normals = normals @ (_cofactor(linear) * np.sign(np.linalg.det(linear) or 1.0)).T
-        if "TEXCOORD_0" in attrs:
-            uvs = self.accessor(attrs["TEXCOORD_0"], f"'{node_name}' TEXCOORD_0")[:, :2]
+        # The base colour's texture coordinate set (glTF textureInfo.texCoord), with its
+        # KHR_texture_transform applied, so the bake and the viewer read `uvs` as they are.
+        material = prim.get("material")
+        texcoord, matrix = self._uv_sets.get(material, (0, None)) if isinstance(material, int) \
+            else (0, None)
+        uv_name = f"TEXCOORD_{texcoord}"
+        if uv_name in attrs:
+            uvs = self.accessor(attrs[uv_name], f"'{node_name}' {uv_name}")[:, :2]
             if len(uvs) != n:
-                raise self.bad(f"object '{node_name}' TEXCOORD_0 count differs from POSITION")
+                raise self.bad(f"object '{node_name}' {uv_name} count differs from POSITION")
             uvs = uvs.astype(np.float64)
             if not np.all(np.isfinite(uvs)):
                 self.warn(f"{self.source}: object '{name}': non-finite texture coordinates "
                           "set to 0", NON_FINITE_UVS, name)
                 uvs = np.nan_to_num(uvs, nan=0.0, posinf=0.0, neginf=0.0)
+            if matrix is not None:
+                uvs = uvs @ matrix[:2, :2].T + matrix[:2, 2]
 
         bad = degenerate_triangles(positions, indices)
         if bad.any():
@@ -760,6 +783,7 @@ class _SceneBuilder:
                       NO_NORMALS, name)
             positions, uvs = positions[indices].reshape(-1, 3), (
                 None if uvs is None else uvs[indices].reshape(-1, 2))
+            colors = None if colors is None else colors[indices].reshape(-1, 3)
             cross = face_cross(positions, np.arange(len(positions)).reshape(-1, 3))
             normals = np.repeat(cross / np.linalg.norm(cross, axis=1, keepdims=True), 3, axis=0)
             indices = np.arange(len(positions), dtype=np.int64).reshape(-1, 3)
@@ -768,6 +792,7 @@ class _SceneBuilder:
             used, inverse = np.unique(indices, return_inverse=True)
             positions, normals = positions[used], normals[used]
             uvs = None if uvs is None else uvs[used]
+            colors = None if colors is None else colors[used]
             indices = inverse.reshape(-1, 3).astype(np.int64)
             normals, replaced = repair_normals(normals, positions, indices)
             if replaced:
@@ -782,10 +807,12 @@ class _SceneBuilder:
                                    f"object '{node_name}' {what}", "material")
             if uvs is None and scene.materials[material].kd_texture is not None:
                 self.warn(f"{self.source}: object '{name}' has a textured material but no "
-                          "TEXCOORD_0; its texel at (0, 0) is used everywhere", NO_UVS, name)
+                          f"{uv_name}; its texel at (0, 0) is used everywhere", NO_UVS, name,
+                          detail=uv_name)
         return Object(name=name, positions=positions, normals=np.asarray(normals, np.float32),
                       indices=indices, material=material,
-                      uvs=None if uvs is None else uvs.astype(np.float32))
+                      uvs=None if uvs is None else uvs.astype(np.float32),
+                      colors=None if colors is None else colors.astype(np.float32))
 
     # ---- lights and cameras
 
@@ -937,6 +964,30 @@ def _numbers(values, n: int, where: str, minimum: float | None = None) -> np.nda
         bound = "" if minimum is None else f" >= {minimum:g}"
         raise GlintError(f"{where} must be {n} finite number(s){bound}, not {values!r}")
     return np.asarray(values, np.float64)
+
+
+def _texcoord(value) -> int:
+    """A textureInfo texCoord (a set index >= 0); anything else reads set 0."""
+    return value if isinstance(value, int) and not isinstance(value, bool) and value >= 0 else 0
+
+
+def texture_transform_matrix(ext: dict, where: str = "KHR_texture_transform") -> np.ndarray:
+    """The 3x3 matrix of KHR_texture_transform: uv' = (T R S) (u, v, 1).
+
+    T translates by `offset`, S scales by `scale`, and R rotates by `rotation` radians,
+    counter-clockwise in the image (v grows downwards): u' = cos u + sin v,
+    v' = -sin u + cos v. That is the extension's example: offset (0, 1), rotation pi/2,
+    scale 0.5 reads "only the lower left quadrant of the source image, rotated clockwise
+    90 degrees" (KHR_texture_transform README, Example JSON).
+    """
+    offset = _numbers(ext.get("offset", [0.0, 0.0]), 2, f"{where} KHR_texture_transform offset")
+    scale = _numbers(ext.get("scale", [1.0, 1.0]), 2, f"{where} KHR_texture_transform scale")
+    rotation = float(_numbers([ext.get("rotation", 0.0)], 1,
+                              f"{where} KHR_texture_transform rotation")[0])
+    c, s = np.cos(rotation), np.sin(rotation)
+    t = np.array([[1.0, 0.0, offset[0]], [0.0, 1.0, offset[1]], [0.0, 0.0, 1.0]])
+    r = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+    return t @ r @ np.diag([scale[0], scale[1], 1.0])
 
 
 def _image_name(image: dict, index: int) -> str:

@@ -65,10 +65,14 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
         h.value(obj.material)
         if obj.uvs is not None:
             h.array(obj.uvs)
+        if obj.colors is not None:  # only then: objects without keep the hashes of existing bakes
+            h.array(obj.colors)
     for m in scene.materials:
         h.value([m.kd, m.emission, m.double_sided, [lobe.to_dict() for lobe in m.transmit_lobes]])
         if m.kd_texture is not None:
             h.array(m.kd_texture)
+            if tuple(m.kd_wrap) != ("REPEAT", "REPEAT") or m.kd_nearest:  # else existing bakes' hashes
+                h.value(["sampler", list(m.kd_wrap), bool(m.kd_nearest)])
         if m.has_coverage:  # only then: opaque materials keep the hashes of existing bakes
             h.value(["alpha", m.alpha_mode, float(m.alpha_cutoff), float(m.alpha)])
             if m.alpha_texture is not None:

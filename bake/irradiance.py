@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glint.bake.alpha import MAX_CUTOUTS, Coverage
+from glint.bake.alpha import MAX_CUTOUTS, Coverage, sample_texture
 from glint.bake.lights import LightSet, luminance
 from glint.bake.raytrace import RayTracer
 from glint.core.scene import Scene
@@ -153,6 +153,7 @@ class _Transport:
         M = max(len(mats), 1)
         self.kd = np.zeros((M, 3))
         self.textures = {}
+        self.samplers = {}
         L = max([len(m.transmit_lobes) for m in mats] + [1])
         self.t_ks = np.zeros((M, L, 3))
         self.t_r0 = np.zeros((M, L))
@@ -161,6 +162,7 @@ class _Transport:
             if m.kd_texture is not None:
                 self.textures[i] = np.clip(np.nan_to_num(np.asarray(m.kd_texture, np.float64)[..., :3]),
                                            0.0, 1.0)
+                self.samplers[i] = (tuple(m.kd_wrap), bool(m.kd_nearest))
             for j, lobe in enumerate(m.transmit_lobes):
                 self.t_ks[i, j] = np.clip(np.nan_to_num(np.asarray(lobe.ks, np.float64)), 0.0, 1.0)
                 self.t_r0[i, j] = np.clip(float(lobe.r0), 0.0, 1.0)
@@ -182,24 +184,18 @@ class _Transport:
         return np.einsum("nlc,nl->nc", self.t_ks[mat], 1.0 - (r0 + (1.0 - r0) * c5[:, None]))
 
     def albedo(self, mat: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
-        """kd x base-colour texture (bilinear, repeat; glTF uv: (0, 0) = top-left of the image)."""
+        """kd x base-colour texture x vertex colour (glTF COLOR_0); the texture through the
+        material's glTF sampler (wrap per axis, bilinear or nearest; uv (0, 0) = the image's top-left)."""
         kd = np.take(self.kd, mat, axis=0)
         for m, tex in self.textures.items():
             sel = np.nonzero(mat == m)[0]
             if not len(sel):
                 continue
             uv = self.tracer.texcoords(prim[sel], b1[sel], b2[sel])
-            H, W = tex.shape[:2]
-            x = np.nan_to_num(uv[:, 0]) * W - 0.5
-            y = np.nan_to_num(uv[:, 1]) * H - 0.5
-            x0, y0 = np.floor(x), np.floor(y)
-            fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-            x0 = x0.astype(np.int64) % W
-            y0 = y0.astype(np.int64) % H
-            x1, y1 = (x0 + 1) % W, (y0 + 1) % H
-            c = ((1 - fy) * ((1 - fx) * tex[y0, x0] + fx * tex[y0, x1])
-                 + fy * ((1 - fx) * tex[y1, x0] + fx * tex[y1, x1]))
+            c = sample_texture(tex, uv, *self.samplers[m])
             kd[sel] = kd[sel] * c
+        if self.tracer.has_vertex_colors:  # glTF: COLOR_0 x baseColorFactor x texture
+            kd = kd * self.tracer.colors(prim, b1, b2)
         return kd
 
     # -- shadow rays -------------------------------------------------------------------------

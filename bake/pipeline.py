@@ -85,7 +85,7 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     materials = [{"name": m.name, "kd": vec(m.kd), "emission": vec(m.emission),
                   "double_sided": bool(m.double_sided), "lobes": [lobe.to_dict() for lobe in m.lobes],
                   "kd_texture": f"textures/material_{i}.exr" if m.kd_texture is not None else None,
-                  **_coverage_entry(m)}
+                  **_sampler_entry(m), **_coverage_entry(m)}
                  for i, m in enumerate(scene.materials)]
     lights = {
         "point": [{"name": l.name, "position": vec(l.position), "intensity": vec(l.intensity)}
@@ -105,6 +105,15 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     paths = [{"name": p.name, "keys": p.keys} for p in scene.camera_paths]
     return {"objects": objects, "materials": materials, "lights": lights, "sky": sky,
             "cameras": cameras, "camera_paths": paths}
+
+
+def _sampler_entry(m) -> dict:
+    """A textured material's glTF sampler as `kd_sampler` {wrap_s, wrap_t, mag_filter}, where it is
+    not the default (REPEAT, LINEAR); nothing otherwise, so other manifests stay as they were."""
+    if m.kd_texture is None or (tuple(m.kd_wrap) == ("REPEAT", "REPEAT") and not m.kd_nearest):
+        return {}
+    return {"kd_sampler": {"wrap_s": m.kd_wrap[0], "wrap_t": m.kd_wrap[1],
+                           "mag_filter": "NEAREST" if m.kd_nearest else "LINEAR"}}
 
 
 def _coverage_entry(m) -> dict:
@@ -285,6 +294,7 @@ def _atlas(scene: Scene, settings: BakeSettings, path: Path, old_dir: Path | Non
         v = charts.vmapping
         meshes.append({"positions": obj.positions[v].astype(np.float32), "normals": obj.normals[v].astype(np.float32),
                        "uvs": None if obj.uvs is None else obj.uvs[v].astype(np.float32),
+                       "colors": None if obj.colors is None else obj.colors[v].astype(np.float32),
                        "lm_uv": charts.uv.astype(np.float32), "lm_page": charts.page.astype(np.int32),
                        "indices": charts.indices.astype(np.uint32), "vmapping": v.astype(np.int64)})
     save_meshes(path / "meshes.npz", meshes)

@@ -88,6 +88,12 @@ class RayTracer:
                                 for i, o in enumerate(objs)])
             UV = np.concatenate([np.zeros((len(o.positions), 2)) if o.uvs is None
                                  else np.asarray(o.uvs, np.float64).reshape(-1, 2) for o in objs])
+            colors = [getattr(o, "colors", None) for o in objs]
+            self.has_vertex_colors = any(c is not None for c in colors)
+            if self.has_vertex_colors:
+                self.vertex_colors = np.concatenate([
+                    np.ones((len(o.positions), 3)) if c is None else np.asarray(c, np.float64).reshape(-1, 3)
+                    for o, c in zip(objs, colors)])
         else:
             P, N, I, UV = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2))
         if not len(I):  # keep one degenerate triangle so gathers of (never-hit) misses stay valid
@@ -96,6 +102,9 @@ class RayTracer:
         self.vertex_positions = P
         self.vertex_normals = _unit(N) if len(N) else N
         self.vertex_uvs = UV
+        if not len(objs) or not self.has_vertex_colors or len(self.vertex_colors) != len(P):
+            self.has_vertex_colors = False
+            self.vertex_colors = None
         self.tri_vertices = I
         self.tri_object = np.repeat(np.arange(len(objs), dtype=np.int64), counts)
         self.tri_material = np.repeat(np.array([o.material for o in objs], np.int64), counts)
@@ -207,6 +216,16 @@ class RayTracer:
         if bad.any():
             n[bad] = np.take(self.tri_ng, prim[bad], axis=0)
         return n
+
+    def colors(self, prim, b1, b2) -> np.ndarray:
+        """Interpolated vertex colours (the objects' `colors`, glTF COLOR_0; 1 for objects without)."""
+        if not self.has_vertex_colors:
+            return np.ones((len(prim), 3))
+        v = np.take(self.tri_vertices, prim, axis=0)
+        c = self.vertex_colors
+        b0 = 1.0 - b1 - b2
+        return (b0[:, None] * np.take(c, v[:, 0], axis=0) + b1[:, None] * np.take(c, v[:, 1], axis=0)
+                + b2[:, None] * np.take(c, v[:, 2], axis=0))
 
     def texcoords(self, prim, b1, b2) -> np.ndarray:
         """Interpolated texture coordinates (the objects' `uvs`; 0 for objects without)."""

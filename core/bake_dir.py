@@ -7,8 +7,8 @@
                            readable: no version change); optional `statistics.ignored_features`:
                            {glTF feature: count} the loader ignored (Scene.ignored_features),
                            and `statistics.lightmaps.invalid_texels` of `texels` inside geometry
-    meshes.npz             per object o<i>_*: positions, normals, uvs (texture), lm_uv, lm_page,
-                           indices -- vertices already split along light-map chart seams
+    meshes.npz             per object o<i>_*: positions, normals, uvs (texture), colors
+                           (COLOR_0, optional), lm_uv, lm_page, indices -- vertices already split along light-map chart seams
     lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;
                            half float unless a value does not fit
     lightmaps/back_<k>.exr the back sides of two-sided objects (the manifest's object entries say

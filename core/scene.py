@@ -41,7 +41,10 @@ class Material:
     """Eq. 3.6: kd/pi + sum of reflection lobes + sum of transmission lobes, plus emission.
 
     kd_texture, when present, is an (H, W, 3) float32 array of linear RGB that
-    multiplies kd, looked up with the object's `uvs` (glTF TEXCOORD_0).
+    multiplies kd, looked up with the object's `uvs` (the base colour's texCoord set, its
+    KHR_texture_transform applied). kd_wrap is its glTF sampler's (wrapS, wrapT), each
+    "REPEAT", "CLAMP_TO_EDGE" or "MIRRORED_REPEAT"; kd_nearest its magFilter NEAREST. The
+    alpha_texture is sampled the same way.
     emission is emitted radiance (W / (m^2 sr)); non-zero makes the object an area light.
 
     Coverage (glTF 3.9.4 "Alpha Coverage"): alpha_mode is "OPAQUE", "MASK" or "BLEND"; the
@@ -54,6 +57,8 @@ class Material:
     name: str
     kd: np.ndarray = field(default_factory=lambda: np.full(3, 0.8, np.float32))
     kd_texture: np.ndarray | None = None
+    kd_wrap: tuple[str, str] = ("REPEAT", "REPEAT")
+    kd_nearest: bool = False
     lobes: list[Lobe] = field(default_factory=list)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     double_sided: bool = False
@@ -97,6 +102,8 @@ class Object:
     indices: np.ndarray
     material: int
     uvs: np.ndarray | None = None
+    # glTF COLOR_0 (N, 3) linear RGB in 0..1: multiplies the material's base colour (None = 1)
+    colors: np.ndarray | None = None
     role: str = "diffuse"
     role_overridden: bool = False
     options: dict = field(default_factory=dict)  # sidecar [objects."NAME"]: cubemap_size, bounding_planes

@@ -92,7 +92,7 @@ def fidelity_line(manifest: dict) -> str | None:
     traced) and the glTF features the loader ignored, e.g. "the scene will look wrong where:
     3.1 % of light-map texels lie inside geometry (filled from their neighbours); 0.5 % of
     light-map texels get no light (black where seen); ignored: normalTexture (12),
-    KHR_texture_transform (3)". None when there is nothing to say (or nothing recorded)."""
+    EXT_texture_webp (3)". None when there is nothing to say (or nothing recorded)."""
     stats = manifest.get("statistics", {})
     parts = []
     lightmaps = stats.get("lightmaps", {})

@@ -147,24 +147,34 @@ class GltfWriter:
         return len(self.accessors) - 1
 
     # -- scene content ---------------------------------------------------------------------
-    def add_texture(self, image: np.ndarray, name: str | None = None) -> int:
-        """Embed an (H, W, 3|4) uint8 sRGB image as PNG; returns the texture index."""
+    def add_texture(self, image: np.ndarray, name: str | None = None, sampler: dict | None = None) -> int:
+        """Embed an (H, W, 3|4) uint8 sRGB image as PNG; returns the texture index. `sampler` (a
+        glTF sampler object: magFilter, minFilter, wrapS, wrapT) is added for this texture;
+        without it the texture shares sampler 0 (linear, mip-mapped, repeating)."""
         if not self.samplers:
             self.samplers.append({"magFilter": _LINEAR, "minFilter": _LINEAR_MIPMAP_LINEAR,
                                   "wrapS": _REPEAT, "wrapT": _REPEAT})
+        index = 0
+        if sampler is not None:
+            self.samplers.append(dict(sampler))
+            index = len(self.samplers) - 1
         img = {"bufferView": self._add_view(encode_png(image, self.png_level)),
                "mimeType": "image/png"}
         if name:
             img["name"] = name
         self.images.append(img)
-        self.textures.append({"sampler": 0, "source": len(self.images) - 1})
+        self.textures.append({"sampler": index, "source": len(self.images) - 1})
         return len(self.textures) - 1
 
     def add_material(self, name, base_color=(0.8, 0.8, 0.8, 1.0), metallic=0.0, roughness=1.0,
                      emissive=(0, 0, 0), emissive_strength=1.0, double_sided=False,
                      base_color_texture=None, extensions=None, extras=None, alpha_mode=None,
-                     alpha_cutoff=None) -> int:
+                     alpha_cutoff=None, texcoord=None, texture_transform=None, sampler=None) -> int:
         """A metallic-roughness material; `base_color` is linear RGB(A).
+
+        `texcoord` (the base colour textureInfo's texCoord) and `texture_transform` (its
+        KHR_texture_transform object: offset, rotation, scale, texCoord) are written when given;
+        `sampler` is the base colour texture's glTF sampler object (`add_texture`).
 
         `alpha_mode` ("OPAQUE", "MASK", "BLEND") and `alpha_cutoff` are written when given; the
         alpha comes from base_color[3] and an RGBA `base_color_texture`.
@@ -181,7 +191,13 @@ class GltfWriter:
                "roughnessFactor": float(roughness)}
         if base_color_texture is not None:
             pbr["baseColorTexture"] = {"index": self.add_texture(np.asarray(base_color_texture),
-                                                                 f"{name} base colour")}
+                                                                 f"{name} base colour", sampler)}
+            if texcoord is not None:
+                pbr["baseColorTexture"]["texCoord"] = int(texcoord)
+            if texture_transform is not None:
+                pbr["baseColorTexture"]["extensions"] = {
+                    "KHR_texture_transform": dict(texture_transform)}
+                self.extensions_used.add("KHR_texture_transform")
         mat = {"name": str(name), "pbrMetallicRoughness": pbr}
         emissive = _floats(emissive)
         if any(emissive):
@@ -204,12 +220,13 @@ class GltfWriter:
         return len(self.materials) - 1
 
     def add_mesh(self, name, positions, indices, material, normals=None, uvs=None,
-                 tangents=None) -> int:
+                 tangents=None, uvs1=None, colors=None) -> int:
         """One mesh with one indexed triangle primitive; indices (M, 3) CCW front faces.
 
         `uvs` are written as given, in glTF's convention: (0, 0) is the top-left
         corner of the image, v grows downwards (trimesh flips v on load).
         `tangents` (N, 4): xyz unit tangent, w = +-1 bitangent sign (glTF TANGENT).
+        `uvs1` (N, 2): a second set, TEXCOORD_1. `colors` (N, 3|4): linear COLOR_0 (float).
         """
         pos = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
         idx = np.asarray(indices, dtype=np.int64).reshape(-1, 3)
@@ -224,6 +241,14 @@ class GltfWriter:
             attrs["NORMAL"] = self._add_accessor(nrm, "VEC3", _ARRAY_BUFFER, True)
         if uvs is not None:
             attrs["TEXCOORD_0"] = self._add_accessor(np.asarray(uvs).reshape(-1, 2), "VEC2",
+                                                     _ARRAY_BUFFER, True)
+        if colors is not None:
+            col = np.asarray(colors, dtype=np.float64)
+            attrs["COLOR_0"] = self._add_accessor(col.reshape(len(col), -1),
+                                                  "VEC4" if col.shape[-1] == 4 else "VEC3",
+                                                  _ARRAY_BUFFER, False)
+        if uvs1 is not None:
+            attrs["TEXCOORD_1"] = self._add_accessor(np.asarray(uvs1).reshape(-1, 2), "VEC2",
                                                      _ARRAY_BUFFER, True)
         if tangents is not None:
             attrs["TANGENT"] = self._add_accessor(np.asarray(tangents).reshape(-1, 4), "VEC4",

@@ -17,10 +17,11 @@ invariant gl_Position;
 in vec3 in_position;
 in vec3 in_normal;
 in vec4 in_tangent;     // xyz: tangent along +u of the texture; w: bitangent sign (0 0 0 0: none)
-in vec2 in_uv;          // base-colour texture coordinates (glTF TEXCOORD_0)
+in vec2 in_uv;          // base-colour texture coordinates (its texCoord set, KHR_texture_transform applied)
 in vec2 in_lm_uv;       // light-map coordinates, texel (y, x) centred at ((x + .5) / W, (y + .5) / H)
 in int in_lm_page;      // light-map page = layer of the texture array
 in int in_object;       // index of the object in the bake manifest
+in vec3 in_color;       // vertex colour (glTF COLOR_0; -1 without): multiplies the base colour
 
 out vec3 v_position;
 out vec3 v_normal;
@@ -29,6 +30,7 @@ out vec2 v_uv;
 out vec2 v_lm_uv;
 flat out int v_lm_page;
 flat out int v_object;
+out vec3 v_color;
 
 void main() {
     v_position = in_position;
@@ -38,6 +40,7 @@ void main() {
     v_lm_uv = in_lm_uv;
     v_lm_page = in_lm_page;
     v_object = in_object;
+    v_color = in_color;
     gl_Position = view_proj * vec4(in_position, 1.0);
 #ifdef MIRROR_CLIP
     gl_ClipDistance[0] = dot(clip_plane, vec4(in_position, 1.0));

@@ -17,6 +17,7 @@ in vec3 v_position;
 in vec3 v_normal;
 in vec4 v_tangent;
 in vec2 v_uv;
+in vec3 v_color;  // glTF COLOR_0 in 0..1; -1 for objects without (viewer/gpu_scene.py)
 in vec2 v_lm_uv;
 flat in int v_lm_page;
 flat in int v_object;
@@ -35,13 +36,36 @@ struct RasterSurface {
 // deferred renderer; it keeps a fragment where a 4 x 4 ordered-dither threshold lies below alpha,
 // so a block of supersamples keeps the fraction alpha and the resolve averages it (docs/SCENES.md),
 // shifted per object so that stacked layers do not drop the same pixels.
+// The base colour texture through its glTF sampler. The texture object repeats, bilinear; where the
+// sampler says otherwise (MAT_KD_* flags) the uv is wrapped here: MIRRORED_REPEAT folds it into
+// 0..1, and both it and CLAMP_TO_EDGE keep it half a texel inside the image, so the bilinear
+// filter reads what GL's wrap of the texel indices reads (OpenGL 4.6 section 8.14.2) at level 0;
+// magFilter NEAREST snaps to the texel's centre. The unwrapped uv's derivatives pick the mip level.
+float wrap_kd(float u, float size, bool clamp_edge, bool mirror) {
+    if (mirror)
+        u = 1.0 - abs(mod(u, 2.0) - 1.0);
+    return (clamp_edge || mirror) ? clamp(u, 0.5 / size, 1.0 - 0.5 / size) : u;
+}
+
+vec4 sample_kd(Material m) {
+    const int wrapped = MAT_KD_CLAMP_S | MAT_KD_CLAMP_T | MAT_KD_MIRROR_S | MAT_KD_MIRROR_T | MAT_KD_NEAREST;
+    if ((m.info.x & wrapped) == 0)
+        return texture(kd_texture, v_uv);
+    vec2 size = vec2(textureSize(kd_texture, 0));
+    vec2 uv = vec2(wrap_kd(v_uv.x, size.x, has_flag(m, MAT_KD_CLAMP_S), has_flag(m, MAT_KD_MIRROR_S)),
+                   wrap_kd(v_uv.y, size.y, has_flag(m, MAT_KD_CLAMP_T), has_flag(m, MAT_KD_MIRROR_T)));
+    if (has_flag(m, MAT_KD_NEAREST))
+        uv = (floor(uv * size) + 0.5) / size;
+    return textureGrad(kd_texture, uv, dFdx(v_uv), dFdy(v_uv));
+}
+
 bool coverage_discards(Material m) {
     bool mask = has_flag(m, MAT_ALPHA_MASK);
     if (!mask && !has_flag(m, MAT_ALPHA_BLEND))
         return false;
     float alpha = m.kd.a;
     if (has_flag(m, MAT_KD_TEXTURE))
-        alpha *= texture(kd_texture, v_uv).a;
+        alpha *= sample_kd(m).a;
     if (mask)
         return alpha < m.emission.a;
     const float bayer[16] = float[16](0.0, 8.0, 2.0, 10.0, 12.0, 4.0, 14.0, 6.0,
@@ -74,7 +98,11 @@ RasterSurface raster_surface() {
     // Light-mapped diffuse radiance, Eq. 4.1: L = kd / pi * E (times the base-colour texture).
     vec3 kd = m.kd.rgb;
     if (has_flag(m, MAT_KD_TEXTURE))
-        kd *= texture(kd_texture, v_uv).rgb;
+        kd *= sample_kd(m).rgb;
+    // glTF: COLOR_0 x baseColorFactor x texture. Objects without are marked by -1, not 1: the
+    // interpolation of a constant 1 need not give exactly 1, and their images must not change.
+    if (v_color.r >= 0.0)
+        kd *= v_color;
     // E of the side seen: a two-sided surface is lit on each side by its own light map.
     int layer = v_lm_page + (back ? lightmap_back_layer : 0);
     vec3 E = clean_radiance(texture(lightmaps, vec3(v_lm_uv, float(layer))).rgb);

@@ -86,20 +86,20 @@ def test_many_objects_with_zero_area_triangles_give_one_line_and_verbose_each(tm
 
 
 def test_ignored_features_named_at_the_end_of_a_bake(tmp_path, capsys):
-    """A normal map on two materials and KHR_texture_transform on one are named in the last
+    """A normal map on two materials and EXT_texture_webp on their texture are named in the last
     line of `glint bake` and of a bake that capture/view/bench start (glint.services.run_bake),
     and kept in the manifest. Deliberate bugs this catches (tried): the textures' warning in
     bake/material_mapping.py without `ignored=` (no normalTexture in the line); the pipeline
     not writing `statistics.ignored_features` (no "ignored:" at all); `cmd_bake` not printing
     the line; `run_bake` not printing it; unsupported extensions of extensionsUsed not
-    counted (no KHR_texture_transform)."""
+    counted (no EXT_texture_webp)."""
     w, wall = room_writer()
     texture = w.add_texture(np.full((2, 2, 3), 128, np.uint8))
     w.materials[wall]["normalTexture"] = {"index": texture}
     w.materials[1]["normalTexture"] = {"index": texture}  # the floor
-    w.materials[1]["pbrMetallicRoughness"]["baseColorTexture"] = {
-        "index": texture, "extensions": {"KHR_texture_transform": {"scale": [2, 2]}}}
-    w.extensions_used.add("KHR_texture_transform")
+    w.materials[1]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": texture}
+    w.textures[texture]["extensions"] = {"EXT_texture_webp": {"source": 0}}
+    w.extensions_used.add("EXT_texture_webp")
     scene = w.write(tmp_path / "maps.glb")
     bake_dir = tmp_path / "maps.bake"
 
@@ -108,10 +108,10 @@ def test_ignored_features_named_at_the_end_of_a_bake(tmp_path, capsys):
     add_bake_options(parser)
     run_bake(parser.parse_args([str(scene), "-o", str(bake_dir), *FAST]), progress=False)
     manifest = json.loads((bake_dir / "manifest.json").read_text())
-    assert manifest["statistics"]["ignored_features"] == {"KHR_texture_transform": 1, "normalTexture": 2}
+    assert manifest["statistics"]["ignored_features"] == {"EXT_texture_webp": 1, "normalTexture": 2}
     last = capsys.readouterr().err.splitlines()[-1]
     assert last.startswith("glint: the scene will look wrong where: ")
-    assert last.endswith("ignored: KHR_texture_transform (1), normalTexture (2)")
+    assert last.endswith("ignored: EXT_texture_webp (1), normalTexture (2)")
 
     assert main(["bake", str(scene), "-o", str(bake_dir), *FAST]) == 0  # up to date: still said, last
     out, err = capsys.readouterr()
@@ -179,22 +179,20 @@ def test_summary_line_counts_subjects_and_sums(capsys):
 
 def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
     """What glint does not support, and used to ignore silently, warns and is counted in
-    Scene.ignored_features (-> the end-of-bake line): vertex colours, skins, morph targets
-    with weights, animations, sampler modes, light range, a volume's thickness, a textured
-    material on an object without TEXCOORD_0. Deliberate bug this catches (tried): the
-    COLOR_0 warning without `ignored=` (COLOR_0 missing from the counts)."""
+    Scene.ignored_features (-> the end-of-bake line): skins, morph targets
+    with weights, animations, light range, a volume's thickness, a textured
+    material on an object without the texture coordinates it names. Deliberate bug this catches (tried): the
+    morph targets' warning without `ignored=` (morph targets missing from the counts)."""
     from glint.bake.gltf_loader import load_scene
 
     w, wall = room_writer()
     texture = w.add_texture(np.full((2, 2, 3), 128, np.uint8))
-    w.samplers[0]["wrapS"] = 33071  # CLAMP_TO_EDGE
     w.materials[wall]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": texture}
     w.materials[wall]["extensions"] = {"KHR_materials_volume": {"thicknessFactor": 0.1}}
     w.extensions_used.add("KHR_materials_volume")
     node = {n["name"]: n for n in w.nodes}
     back = w.meshes[node["Back"]["mesh"]]
     attributes = back["primitives"][0]["attributes"]
-    attributes["COLOR_0"] = attributes["NORMAL"]  # any VEC3 float accessor will do
     back["primitives"][0]["targets"] = [{"POSITION": attributes["NORMAL"]}]
     back["weights"] = [0.5]
     node["Left"]["skin"] = 0
@@ -207,12 +205,12 @@ def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
 
     scene = load_scene(path)
     assert scene.ignored_features == {
-        "animations": 1, "sampler CLAMP_TO_EDGE": 1, "KHR_materials_volume": 1, "skins": 1,
-        "morph targets": 1, "COLOR_0": 1, "light range": 1}
+        "animations": 1, "KHR_materials_volume": 1, "skins": 1,
+        "morph targets": 1, "light range": 1}
     err = capsys.readouterr().err
-    for words in ("animation(s) not played", "sampler CLAMP_TO_EDGE", "KHR_materials_volume thickness",
-                  "'Left' is skinned", "'Back' has morph target weights", "'Back' has vertex colours",
-                  "light 'Bulb': range", "objects have a textured material but no TEXCOORD_0"):
+    for words in ("animation(s) not played", "KHR_materials_volume thickness",
+                  "'Left' is skinned", "'Back' has morph target weights",
+                  "light 'Bulb': range", "objects have a textured material but not the texture coordinates"):
         assert words in err, words
 
 

@@ -51,6 +51,21 @@ from glint.viewer.gl import software_renderer
 from glint.viewer.gl_bindings import LOBE_BINDING, LOBE_PATTERN_BINDING, MATERIAL_BINDING, PATTERN_BINDING
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
+
+def _sampler_flags(sampler: dict) -> int:
+    """MAT_KD_* flags of a manifest material's `kd_sampler` (bake/pipeline.py); {} is REPEAT, LINEAR."""
+    flags = 0
+    for key, axis in (("wrap_s", "S"), ("wrap_t", "T")):
+        mode = sampler.get(key, "REPEAT")
+        if mode == "CLAMP_TO_EDGE":
+            flags |= MATERIAL_FLAGS[f"MAT_KD_CLAMP_{axis}"]
+        elif mode == "MIRRORED_REPEAT":
+            flags |= MATERIAL_FLAGS[f"MAT_KD_MIRROR_{axis}"]
+    if sampler.get("mag_filter") == "NEAREST":
+        flags |= MATERIAL_FLAGS["MAT_KD_NEAREST"]
+    return flags
+
+
 MATERIAL_FLAGS = {
     "MAT_TWO_SIDED": 1,    # glTF doubleSided, or thin transmissive (the bake treats both as two-sided)
     "MAT_EMISSIVE": 2,
@@ -59,6 +74,12 @@ MATERIAL_FLAGS = {
     "MAT_TRANSMISSIVE": 16,
     "MAT_ALPHA_MASK": 32,   # glTF alphaMode MASK: fragments with alpha < cutoff are discarded
     "MAT_ALPHA_BLEND": 64,  # glTF alphaMode BLEND: dithered coverage (shaders/raster_surface.glsl)
+    # The base colour's glTF sampler where it is not REPEAT / LINEAR (shaders/raster_surface.glsl)
+    "MAT_KD_CLAMP_S": 128,
+    "MAT_KD_CLAMP_T": 256,
+    "MAT_KD_MIRROR_S": 512,
+    "MAT_KD_MIRROR_T": 1024,
+    "MAT_KD_NEAREST": 2048,
 }
 LOBE_KINDS = {"LOBE_REFLECT": 0, "LOBE_TRANSMIT": 1}
 SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
@@ -72,9 +93,11 @@ PATTERN_DTYPE = np.dtype([("info", "<i4", 4)])
 PATTERN_KINDS = {"ring": 0, "line_x": 1, "line_y": 2, "multi_ring": 3}
 PLANAR_PATTERNS = ("auto", "ring", "multi_ring")  # GpuScene(planar_pattern=...)
 VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent", "<f4", 4),
-                         ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4"), ("object", "<i4")])
-VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i"
-VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object")
+                         ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4"), ("object", "<i4"),
+                         ("color", "<f4", 3)])
+VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i 3f"
+VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object",
+                     "in_color")
 
 
 def shader_defines() -> dict:
@@ -167,6 +190,8 @@ class GpuScene:
         none = ~np.any(v["tangent"][:, :3] != 0, axis=1)  # no texture coordinates, or degenerate ones
         v["tangent"][none] = axis_tangents(v["normal"][none])
         v["object"] = index
+        colors = mesh.get("colors")  # glTF COLOR_0; -1 without (shaders/raster_surface.glsl)
+        v["color"] = -1.0 if colors is None else np.clip(_clean(colors), 0.0, 1.0).reshape(-1, 3)
         v["lm_uv"] = _clean(mesh["lm_uv"], None).reshape(-1, 2)
         v["lm_page"] = np.asarray(mesh["lm_page"], np.int32).reshape(-1)
         bounds = (np.stack([positions[indices.ravel()].min(axis=0), positions[indices.ravel()].max(axis=0)])
@@ -208,7 +233,7 @@ class GpuScene:
                 alpha = image[..., 3:4] if mode in ("MASK", "BLEND") and image.shape[-1] >= 4 else None
                 texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0), mipmaps=True,
                                         alpha=None if alpha is None else np.clip(_clean(alpha), 0.0, 1.0))
-                flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"]
+                flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.kd_textures.append(texture)
             mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
             mats[i]["emission"][:3] = emission
