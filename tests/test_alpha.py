@@ -34,16 +34,21 @@ def ring_alpha(n: int = 64) -> np.ndarray:
     return np.where((r >= R_IN) & (r <= R_OUT), 255, 0).astype(np.uint8)
 
 
+def green_texture(alpha: np.ndarray | None, green: int) -> np.ndarray:
+    """RGBA uint8: green `green`, alpha `alpha` (default: the ring)."""
+    alpha = ring_alpha() if alpha is None else alpha
+    image = np.zeros(alpha.shape + (4,), np.uint8)
+    image[..., 1] = green
+    image[..., 3] = alpha
+    return image
+
+
 def write_leaf_scene(path: Path, mode: str | None = "MASK", cutoff: float | None = None,
                      base_alpha: float = 1.0, texture_alpha: np.ndarray | None = None, lamp: bool = True) -> Path:
     w = GltfWriter()
     floor = w.add_material("Floor", base_color=(0.5, 0.5, 0.5), roughness=1.0)
-    alpha = ring_alpha() if texture_alpha is None else texture_alpha
-    image = np.zeros(alpha.shape + (4,), np.uint8)
-    image[..., 1] = 160
-    image[..., 3] = alpha
     leaf = w.add_material("Leaf", base_color=(0.3, 0.6, 0.2, base_alpha), roughness=1.0,
-                          base_color_texture=image, alpha_mode=mode, alpha_cutoff=cutoff)
+                          base_color_texture=green_texture(texture_alpha, 160), alpha_mode=mode, alpha_cutoff=cutoff)
     p, i = quad((0, 0, 0), (FLOOR_HALF, 0, 0), (0, 0, -FLOOR_HALF))
     w.add_node("Floor", mesh=w.add_mesh("Floor", p, i, floor, normals=np.tile([0, 1, 0], (4, 1))))
     p, i = quad((0, LEAF_HEIGHT, 0), (LEAF_HALF, 0, 0), (0, 0, -LEAF_HALF))
@@ -295,12 +300,8 @@ def write_wall_scene(path: Path, mode: str | None, base_alpha: float = 1.0,
     """A red wall 1 m behind the leaf (facing the camera, centred at (0, 1, 0)), lit by a constant sky."""
     w = GltfWriter()
     wall = w.add_material("Wall", base_color=(0.8, 0.05, 0.05), roughness=1.0)
-    alpha = ring_alpha() if texture_alpha is None else texture_alpha
-    image = np.zeros(alpha.shape + (4,), np.uint8)
-    image[..., 1] = 200
-    image[..., 3] = alpha
     leaf = w.add_material("Leaf", base_color=(0.1, 0.8, 0.1, base_alpha), roughness=1.0,
-                          base_color_texture=image, alpha_mode=mode)
+                          base_color_texture=green_texture(texture_alpha, 200), alpha_mode=mode)
     p, i = quad((0, 1, -1), (1, 0, 0), (0, 1, 0))
     w.add_node("Wall", mesh=w.add_mesh("Wall", p, i, wall, normals=np.tile([0, 0, 1], (4, 1))))
     p, i = quad((0, 1, 0), (LEAF_HALF, 0, 0), (0, LEAF_HALF, 0))

@@ -73,6 +73,18 @@ def block_centres(name: str):
                    ref[r * step, c * step])
 
 
+
+def capture_front(scene: Path, size: int) -> np.ndarray:
+    """Linear RGB of `glint capture` of `scene` from EYE towards (0, 1, 0), size x size, draft bake."""
+    from glint.cli import main
+    from glint.core.image_io import read_image
+
+    out = scene.with_suffix(".exr")
+    assert main(["capture", str(scene), "-o", str(out), "--size", f"{size}x{size}", "--eye",
+                 ",".join(map(str, EYE)), "--target", "0,1,0", "--fov", str(FOV), "-q", "draft", "--samples", "16",
+                 "--texels-per-metre", "8", "--no-denoise", "--bake-dir", str(scene.with_suffix(".bake"))]) == 0
+    return read_image(out)[..., :3]
+
 def test_bake_reads_the_texcoord_set_and_the_texture_transform(tmp_path):
     """The bake's base colour (kd x texture, bake/irradiance.py `albedo`) where rays hit the quads
     is the reference image's colour.
@@ -209,16 +221,9 @@ def test_capture_samples_through_the_glTF_sampler(tmp_path):
     Deliberate bugs this catches (tried): the shader's `wrap_kd` ignoring the flags (all REPEAT);
     the S and T flags swapped in viewer/gpu_scene.py `_sampler_flags`; the NEAREST snap to the
     texel's centre left out of `sample_kd`."""
-    from glint.cli import main
-    from glint.core.image_io import read_image
 
     size = 256
-    out = tmp_path / "samplers.exr"
-    assert main(["capture", str(write_sampler_scene(tmp_path / "samplers.glb")), "-o", str(out),
-                 "--size", f"{size}x{size}", "--eye", ",".join(map(str, EYE)), "--target", "0,1,0",
-                 "--fov", str(FOV), "-q", "draft", "--samples", "16", "--texels-per-metre", "8",
-                 "--no-denoise", "--bake-dir", str(tmp_path / "samplers.bake")]) == 0
-    img = read_image(out)[..., :3]
+    img = capture_front(write_sampler_scene(tmp_path / "samplers.glb"), size)
     t = math.tan(math.radians(FOV) / 2) * EYE[2]
     for name in SAMPLERS:
         shifts = (0.0, 0.25) if SAMPLERS[name]["magFilter"] == 9728 else (0.0,)
@@ -290,15 +295,8 @@ def test_capture_multiplies_the_vertex_colours(tmp_path):
 
     Deliberate bugs this catches (tried): raster_surface.glsl not multiplying v_color; the
     pipeline not writing `colors` into meshes.npz (the viewer's colours all 1)."""
-    from glint.cli import main
-    from glint.core.image_io import read_image
 
-    out = tmp_path / "colours.exr"
-    assert main(["capture", str(write_colour_scene(tmp_path / "colours.glb")), "-o", str(out),
-                 "--size", f"{SIZE}x{SIZE}", "--eye", ",".join(map(str, EYE)), "--target", "0,1,0",
-                 "--fov", str(FOV), "-q", "draft", "--samples", "16", "--texels-per-metre", "8",
-                 "--no-denoise", "--bake-dir", str(tmp_path / "colours.bake")]) == 0
-    img = read_image(out)[..., :3]
+    img = capture_front(write_colour_scene(tmp_path / "colours.glb"), SIZE)
     t = math.tan(math.radians(FOV) / 2) * EYE[2]
     for x, y, colour in colour_points():
         r, c = int((1 - (y - 1) / t) / 2 * SIZE), int((1 + x / t) / 2 * SIZE)
