@@ -24,6 +24,7 @@ from glint.core.errors import GlintError, summarised
 from glint.core.scene import Scene
 from glint.cubemap_stage import render_cubemaps
 from glint.scenes import BUILTIN, resolve
+from glint.viewer.camera import find_named
 
 SCENE_HELP = ("a built-in scene name (see `glint scenes`) or a .glb/.gltf file; "
               "an optional NAME.glint.toml beside the file adds lights, sky, material overrides and bake settings")
@@ -135,6 +136,18 @@ def settings_for(scene: Scene, args, existing: dict | None) -> BakeSettings:
     return resolve_settings({**made_with, **sidecar}, **cli)
 
 
+def check_view_names(scene: Scene, args) -> None:
+    """A one-line GlintError for a --camera or --path the scene does not have (capture, view and
+    bench take them; bench's --camera repeats)."""
+    cameras = [{"name": c.name} for c in scene.cameras]
+    wanted = getattr(args, "camera", None)
+    for name in wanted if isinstance(wanted, list) else [wanted] if wanted else []:
+        find_named(cameras, name)
+    if getattr(args, "path", None):
+        find_named([{"name": p.name} for p in scene.camera_paths], args.path, "camera path",
+                   "the scene has none (sidecar [camera_paths])")
+
+
 def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool = True) -> BakeReport:
     """Bake, or find up to date, the scene of a command's arguments (add_bake_options).
 
@@ -144,6 +157,7 @@ def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool =
     stderr says what the scene will look like wrong (fidelity_line); `glint bake` passes False
     and prints it last itself."""
     scene, builtin = open_scene(args.scene)
+    check_view_names(scene, args)  # before the bake: a typo costs nothing
     bake_dir = args.out or default_bake_dir(scene.source, builtin)
     existing = read_manifest(bake_dir) if reuse and not args.force else None
     settings = settings_for(scene, args, existing)

@@ -38,7 +38,7 @@ def add_view_parser(subparsers, common_parent: argparse.ArgumentParser) -> argpa
     p.add_argument("--fullscreen", action="store_true", help="start in fullscreen (F toggles it)")
     p.add_argument("--vsync", action=argparse.BooleanOptionalAction, default=True,
                    help="wait for the monitor's refresh (default: on); --no-vsync shows the real frame rate")
-    add_bake_options(p)
+    add_bake_options(p, out_flags=("--bake-dir", "-o", "--out"))  # --bake-dir as capture and bench; -o kept
     p.set_defaults(run=cmd_view)
     return p
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 
@@ -13,9 +14,9 @@ from glint.core.image_io import read_image
 from glint.scenes.gltf_writer import GltfWriter
 
 
-def glint(*args, cwd=None):
+def glint(*args, cwd=None, env=None):
     return subprocess.run([sys.executable, "-m", "glint", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, timeout=300)
+                          cwd=cwd, timeout=300, env=None if env is None else {**os.environ, **env})
 
 
 def assert_one_line_error(result, *words):
@@ -107,3 +108,15 @@ def test_bake_living_room_preview(tmp_path):
         assert image[..., :3].max() > 0.1
     again = glint("bake", "living-room", "--quality", "preview", "-o", out)
     assert again.returncode == 0 and "up to date" in again.stdout
+
+
+@pytest.mark.parametrize("command", ["capture", "view"])
+def test_unknown_camera_is_reported_before_the_bake(tmp_path, command):
+    """`--camera nope` is one line naming the cameras there are, and nothing is baked. Catches
+    the check made after the bake (it was: a typo cost a whole bake of a big scene first)."""
+    scene = write_room(tmp_path / "room.glb")
+    out = ["-o", str(tmp_path / "x.png")] if command == "capture" else []
+    result = glint(command, scene, "--camera", "nope", *out, "--bake-dir", tmp_path / "room.bake",
+                   env={"DISPLAY": ":0"} if command == "view" else None)
+    assert_one_line_error(result, "unknown camera 'nope'", "Camera")
+    assert not (tmp_path / "room.bake").exists()
