@@ -17,6 +17,7 @@ import numpy as np
 
 from glint.bake import pipeline
 from glint.bake.gltf_loader import load_scene
+from glint.bake.lightmap import INVALID_WARN_SHARE, UNLIT_WARN_SHARE
 from glint.bake.pipeline import BakeReport
 from glint.bake.settings import PRESETS, BakeSettings, resolve_settings
 from glint.core.bake_dir import default_bake_dir, read_manifest
@@ -91,19 +92,22 @@ def fidelity_line(manifest: dict) -> str | None:
     """One line of what the scene will look like wrong, from a bake's statistics: the share of
     light-map texels inside geometry (invalid: lit by dilation from their neighbours, not path
     traced) and the glTF features the loader ignored, e.g. "the scene will look wrong where:
-    3.1 % of light-map texels lie inside geometry (filled from their neighbours); 0.5 % of
-    light-map texels get no light (black where seen); ignored: normalTexture (12),
+    31.2 % of light-map texels lie inside geometry (filled from their neighbours); 12.0 % of
+    the surface gets no light (black where seen); ignored: normalTexture (12),
     EXT_texture_webp (3)". None when there is nothing to say (or nothing recorded)."""
     stats = manifest.get("statistics", {})
     parts = []
     lightmaps = stats.get("lightmaps", {})
-    texels = lightmaps.get("texels")
-    for key, what in (("invalid_texels", "lie inside geometry (filled from their neighbours)"),
-                      ("unlit_texels", "get no light (black where seen)")):
-        count = lightmaps.get(key)
-        if texels and count:
-            share = 100.0 * count / texels
-            parts.append((f"{share:.1f} %" if share >= 0.1 else f"{share:.2g} %") + f" of light-map texels {what}")
+    texels = lightmaps.get("texels") or 0
+    surface = texels - (lightmaps.get("back_texels") or 0)
+    # Only past the bake's warning shares: well-made scenes have some of both (contacts, chart
+    # borders, backs of furniture; glint.bake.lightmap INVALID_WARN_SHARE).
+    for key, of, limit, what in (
+            ("invalid_texels", texels, INVALID_WARN_SHARE, "light-map texels lie inside geometry (filled from their neighbours)"),
+            ("unlit_texels", surface, UNLIT_WARN_SHARE, "the surface gets no light (black where seen)")):
+        count = lightmaps.get(key) or 0
+        if of > 0 and count > limit * of:
+            parts.append(f"{100.0 * count / of:.1f} % of {what}")
     ignored = stats.get("ignored_features") or {}
     if ignored:
         parts.append("ignored: " + ", ".join(f"{name} ({count})" for name, count in ignored.items()))
