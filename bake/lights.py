@@ -120,7 +120,7 @@ class SkyLight:
 
 
 # -- area lights ---------------------------------------------------------------------------------
-EMISSION_PROBES = 8  # per side: 64 probe points (36 inside after folding duplicates) per triangle
+EMISSION_PROBES = 8  # per side of the barycentric grid: 64 probes per triangle (36 distinct after folding)
 EMISSION_FLOOR = 1e-3  # x the brightest texel: keeps pdf_A > 0 on triangles whose probes missed light
 
 
