@@ -16,7 +16,8 @@ Conventions:
 - Missing normals are computed flat (one normal per face, vertices split), as
   the glTF spec requires of clients; zero-length or non-finite normals are
   replaced by the (area-weighted) face normal. Degenerate triangles are dropped.
-- Object.uvs is the base colour texture's set (textureInfo.texCoord, default TEXCOORD_0)
+- Object.uvs is the base colour texture's set (textureInfo.texCoord, default TEXCOORD_0; the
+  emissiveTexture's when there is no base colour texture)
   with its KHR_texture_transform applied: (0, 0) is the top-left of the image, and
   Material.kd_texture row 0 is the image's top row, so texel = (v * H, u * W).
 - Primitives without a material get "default": a grey (kd 0.8) diffuse material.
@@ -100,6 +101,8 @@ SKINNED = WarningKind("{n} objects are skinned; skins are not supported, shown a
                       "(the bind pose)")
 MORPHED = WarningKind("{n} objects have morph target weights, not supported; shown without "
                       "their morph targets")
+EMISSIVE_UVS = WarningKind("{n} materials' emissive textures use another texture coordinate set "
+                           "than their base colour textures; the base colour's is used")
 NO_UVS = WarningKind("{n} objects have a textured material but not the texture coordinates "
                      "it names; the texel at (0, 0) is used everywhere")
 LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
@@ -559,9 +562,11 @@ class _SceneBuilder:
             name = gm.get("name") or f"material{i}"
             names.add(name)
             rgba = self._base_color_texture(gm, name, i)
+            emissive = self._emissive_texture(gm, name, i)
             wrap, nearest = self._samplers.get(i, (("REPEAT", "REPEAT"), False))
             out.append(material_from_gltf(
                 gm, name, kd_texture=None if rgba is None else np.ascontiguousarray(rgba[..., :3]),
+                emission_texture=None if emissive is None else np.ascontiguousarray(emissive[..., :3]),
                 alpha_texture=None if rgba is None else np.ascontiguousarray(rgba[..., 3]),
                 diffuse_roughness=side.diffuse_roughness, override=side.materials.get(name),
                 warnings=self.warnings, source=self.source))
@@ -602,6 +607,41 @@ class _SceneBuilder:
         source = tex.get("source")
         if source is None:
             self.warn(f"{where}: base colour texture has no PNG/JPEG source; ignored",
+                      NO_IMAGE, name, ignored=["textures without a PNG/JPEG source"])
+            return None
+        if source not in self._images:
+            self._images[source] = self._decode_image(source, where)
+        return self._images[source]
+
+    def _emissive_texture(self, gm: dict, name: str, index: int) -> np.ndarray | None:
+        """(H, W, 4) float32 of the emissiveTexture (glTF 3.9.3: sRGB, multiplies emissiveFactor),
+        or None. It is looked up with the base colour's uv set and sampler, the one set an object
+        keeps; when it names another set (or transform), that is warned and the base colour's is
+        used. Without a base colour texture its own set and sampler are the object's."""
+        info = gm.get("emissiveTexture")
+        if not isinstance(info, dict):
+            return None
+        where = f"{self.source}: material '{name}'"
+        texcoord, matrix = _texcoord(info.get("texCoord", 0)), None
+        transform = info.get("extensions", {}).get("KHR_texture_transform")
+        if isinstance(transform, dict):
+            texcoord = _texcoord(transform.get("texCoord", texcoord))
+            matrix = texture_transform_matrix(transform, where)
+        tex = self.item("textures", info.get("index"), f"material '{name}' emissiveTexture")
+        if index not in self._uv_sets:
+            self._uv_sets[index] = (texcoord, matrix)
+            self._samplers[index] = self._sampler(tex)
+        else:
+            base_set, base_matrix = self._uv_sets[index]
+            if base_set != texcoord or not np.array_equal(
+                    np.eye(3) if base_matrix is None else base_matrix,
+                    np.eye(3) if matrix is None else matrix):
+                self.warn(f"{where}: emissiveTexture uses another texture coordinate set or "
+                          "transform than the base colour texture; the base colour's is used",
+                          EMISSIVE_UVS, name)
+        source = tex.get("source")
+        if source is None:
+            self.warn(f"{where}: emissive texture has no PNG/JPEG source; ignored",
                       NO_IMAGE, name, ignored=["textures without a PNG/JPEG source"])
             return None
         if source not in self._images:
@@ -805,7 +845,9 @@ class _SceneBuilder:
         else:
             material = self._index(material, len(_list(self.tree, "materials", self.source)),
                                    f"object '{node_name}' {what}", "material")
-            if uvs is None and scene.materials[material].kd_texture is not None:
+            textured = scene.materials[material]
+            if uvs is None and (textured.kd_texture is not None
+                                or textured.emission_texture is not None):
                 self.warn(f"{self.source}: object '{name}' has a textured material but no "
                           f"{uv_name}; its texel at (0, 0) is used everywhere", NO_UVS, name,
                           detail=uv_name)

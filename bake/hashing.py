@@ -69,8 +69,11 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
             h.array(obj.colors)
     for m in scene.materials:
         h.value([m.kd, m.emission, m.double_sided, [lobe.to_dict() for lobe in m.transmit_lobes]])
-        if m.kd_texture is not None:
-            h.array(m.kd_texture)
+        if m.emission_texture is not None:  # only then: existing bakes keep their hashes
+            h.array(m.emission_texture)
+        if m.kd_texture is not None or m.emission_texture is not None:
+            if m.kd_texture is not None:
+                h.array(m.kd_texture)
             if tuple(m.kd_wrap) != ("REPEAT", "REPEAT") or m.kd_nearest:  # else existing bakes' hashes
                 h.value(["sampler", list(m.kd_wrap), bool(m.kd_nearest)])
         if m.has_coverage:  # only then: opaque materials keep the hashes of existing bakes

@@ -174,7 +174,7 @@ class _Transport:
         self.emit_two_sided = np.array([m.double_sided for m in mats] or [False], bool)
         self.emission = self.lights.area.material_emission if len(mats) else np.zeros((1, 3))
         self.emissive = self.emission.max(axis=1) > 0 if len(mats) else np.zeros(1, bool)
-        self.emitter_pdf_area = self.lights.area.material_pdf_area if len(mats) else np.zeros(1)
+        self.emitter_pdf_area = self.lights.area.tri_pdf_area  # by prim (per triangle: textures)
         self.coverage = Coverage(scene, tracer)
 
     def transmittance(self, mat: np.ndarray, cos: np.ndarray) -> np.ndarray:
@@ -428,12 +428,13 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
         # emission reached by the direction sample: MIS against the light sample of the previous vertex
         em = np.flatnonzero(tp.emissive[mat] & (front | tp.emit_two_sided[mat]))
         if len(em):
-            me = mat[em]
+            me, pr = mat[em], h.prim[em]
             pe, ppe, ne, de, be = _take(em, pos, prev_pos, ngeo, d, beta)
             v = pe - ppe
-            pdf_l = tp.emitter_pdf_area[me] * _dot(v, v) / np.maximum(np.abs(_dot(ne, de)), 1e-12)
-            _add_rows(L, idx[em], be * np.take(tp.emission, me, axis=0)
-                      * _power_weight(prev_pdf[em], pdf_l)[:, None])
+            pdf_l = tp.emitter_pdf_area[pr] * _dot(v, v) / np.maximum(np.abs(_dot(ne, de)), 1e-12)
+            # factor x emissive texture at the hit (glTF 3.9.3)
+            Le = tp.lights.area.emission_at(me, pr, h.b1[em], h.b2[em])
+            _add_rows(L, idx[em], be * Le * _power_weight(prev_pdf[em], pdf_l)[:, None])
         if depth + 1 >= max_depth:
             break
 

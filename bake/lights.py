@@ -1,10 +1,14 @@
 """Light sources of the bake: sampling and evaluation, vectorised over many shading points.
 
 Area lights: every triangle of an emissive material. One is chosen with probability
-proportional to area x luminance(emission), then a point uniformly on it, so the
-area density is pdf_A = luminance(emission) / sum(area x luminance) for every
-triangle of that material. A triangle emits from its front (counter-clockwise)
-face only, unless its material is double_sided.
+proportional to area x w, then a point uniformly on it, so the area density is
+pdf_A = w / sum(area x w) on that triangle. w is luminance(emission) for an untextured
+material; with an emissive texture (glTF 3.9.3: emission = factor x texture) it is the mean
+luminance of factor x texture at EMISSION_PROBES fixed points of the triangle plus
+EMISSION_FLOOR x the texture's brightest texel, so pdf_A > 0 wherever a texel can be non-zero
+(which keeps the estimator unbiased: the emission itself is always evaluated at the sampled
+point, `emission_at`). A triangle emits from its front (counter-clockwise) face only, unless
+its material is double_sided.
 
 Punctual lights (KHR_lights_punctual): point and spot lights give irradiance
 I / d^2 x attenuation at normal incidence; the spot attenuation is the glTF
@@ -33,6 +37,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from glint.bake.alpha import sample_texture
 from glint.bake.raytrace import RayTracer
 from glint.core.scene import Scene, Sky
 
@@ -115,24 +120,40 @@ class SkyLight:
 
 
 # -- area lights ---------------------------------------------------------------------------------
+EMISSION_PROBES = 8  # per side of the barycentric grid: 64 probes per triangle (36 distinct after folding)
+EMISSION_FLOOR = 1e-3  # x the brightest texel: keeps pdf_A > 0 on triangles whose probes missed light
+
+
 class AreaLights:
-    """All triangles of emissive materials, sampled by area x luminance."""
+    """All triangles of emissive materials, sampled by area x (mean textured) luminance."""
 
     def __init__(self, scene: Scene, tracer: RayTracer):
         M = len(scene.materials)
+        self.tracer = tracer
         emission = np.array([np.asarray(m.emission, np.float64).reshape(3) for m in scene.materials]
                             ).reshape(M, 3)
         emission = np.maximum(np.nan_to_num(emission, nan=0.0, posinf=0.0), 0.0)
         self.material_emission = emission  # (M, 3)
         self.material_two_sided = np.array([m.double_sided for m in scene.materials], bool)
+        # emissive textures (linear RGB, >= 0) with the material's sampler, by material
+        self.textures: dict[int, tuple[np.ndarray, tuple]] = {}
+        for i, m in enumerate(scene.materials):
+            if m.emission_texture is not None and np.any(emission[i] > 0):
+                tex = np.maximum(np.nan_to_num(np.asarray(m.emission_texture, np.float64)[..., :3],
+                                               nan=0.0, posinf=0.0), 0.0)
+                self.textures[i] = (tex, (tuple(m.kd_wrap), bool(m.kd_nearest)))
         lum = luminance(emission) if M else np.zeros(0)
         tri_lum = lum[tracer.tri_material] if tracer.n_triangles else np.zeros(0)
+        for m, (tex, _) in self.textures.items():
+            tri = np.flatnonzero(tracer.tri_material == m) if tracer.n_triangles else np.zeros(0, int)
+            if len(tri):
+                tri_lum[tri] = self._mean_luminance(m, tri)
         weight = tracer.tri_area * tri_lum
         self.prims = np.nonzero(weight > 0)[0]
         total = weight.sum()
         self.count = len(self.prims)
-        # pdf_A of a point on any triangle of material m (0 for non-emitters)
-        self.material_pdf_area = lum / total if total > 0 else np.zeros(M)
+        # pdf_A of a point on each triangle (0 for non-emitters), indexed by the tracer's prim
+        self.tri_pdf_area = tri_lum / total if total > 0 else np.zeros_like(tri_lum)
         if not self.count:
             return
         w = weight[self.prims]
@@ -143,14 +164,40 @@ class AreaLights:
         self.e1 = tracer.tri_e1[self.prims]
         self.e2 = tracer.tri_e2[self.prims]
         self.normal = tracer.tri_ng[self.prims]
-        mat = tracer.tri_material[self.prims]
-        self.emission = emission[mat]
-        self.two_sided = self.material_two_sided[mat]
-        self.pdf_area = self.material_pdf_area[mat]
+        self.material = tracer.tri_material[self.prims]
+        self.two_sided = self.material_two_sided[self.material]
+        self.pdf_area = self.tri_pdf_area[self.prims]
         self.eps = tracer.tri_eps[self.prims]
         # one row per emitting triangle, gathered once per sample
-        self._table = np.concatenate([self.p0, self.e1, self.e2, self.normal, self.emission,
+        self._table = np.concatenate([self.p0, self.e1, self.e2, self.normal,
                                       self.two_sided[:, None], self.pdf_area[:, None], self.eps[:, None]], axis=1)
+
+    def _mean_luminance(self, m: int, tri: np.ndarray) -> np.ndarray:
+        """w of the module docstring for triangles `tri` of textured material m."""
+        tex, sampler = self.textures[m]
+        # EMISSION_PROBES x EMISSION_PROBES stratified points, folded into the triangle
+        g = (np.arange(EMISSION_PROBES) + 0.5) / EMISSION_PROBES
+        b1, b2 = (a.ravel() for a in np.meshgrid(g, g))
+        fold = b1 + b2 > 1.0
+        b1, b2 = np.where(fold, 1.0 - b1, b1), np.where(fold, 1.0 - b2, b2)
+        k = len(b1)
+        prim = np.repeat(tri, k)
+        e = self.emission_at(np.full(len(prim), m), prim, np.tile(b1, len(tri)), np.tile(b2, len(tri)))
+        mean = luminance(e).reshape(len(tri), k).mean(axis=1)
+        brightest = float(luminance(self.material_emission[m] * tex.reshape(-1, 3)).max(initial=0.0))
+        return mean + EMISSION_FLOOR * brightest
+
+    def emission_at(self, mat: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
+        """(N, 3) emitted radiance at points (prim, barycentrics b1, b2) of materials mat: the
+        factor, times the emissive texture at the point's uv where the material has one."""
+        e = np.take(self.material_emission, mat, axis=0) if len(self.material_emission) \
+            else np.zeros((len(mat), 3))
+        for m, (tex, sampler) in self.textures.items():
+            sel = np.flatnonzero(mat == m)
+            if len(sel):
+                uv = self.tracer.texcoords(prim[sel], b1[sel], b2[sel])
+                e[sel] = e[sel] * sample_texture(tex, uv, *sampler)
+        return e
 
     def sample(self, u1: np.ndarray, u2: np.ndarray):
         """Points on the emitters: u1 chooses the triangle (and, rescaled, one coordinate), u2 the other.
@@ -166,7 +213,8 @@ class AreaLights:
         s = np.sqrt(a)
         bary = np.stack([np.ones(len(s)), 1.0 - s, u2 * s], axis=1)
         p = np.einsum("ij,ijk->ik", bary, row[:, :9].reshape(-1, 3, 3))
-        return p, row[:, 9:12], row[:, 12:15], row[:, 15] > 0, row[:, 16], row[:, 17]
+        Le = self.emission_at(self.material[k], self.prims[k], bary[:, 1], bary[:, 2])
+        return p, row[:, 9:12], Le, row[:, 12] > 0, row[:, 13], row[:, 14]
 
 
 # -- punctual and directional lights -------------------------------------------------------------

@@ -30,13 +30,14 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   worth a cube map, and Blender's default Principled BSDF exports r = 0.5, so plain
   walls stay in the `diffuse` role (light map only). Metal and transmit lobes are
   always kept. Lobes whose ks is 0 are dropped.
-- Emission (radiance, W/(m^2 sr)) = e * k.
+- Emission (radiance, W/(m^2 sr)) = e * k; the emissiveTexture (sRGB, glTF 3.9.3) multiplies it
+  per texel (`Material.emission_texture`, read by the loader).
 - Coverage (glTF 3.9.4): alphaMode, alphaCutoff (default 0.5) and the alpha of
   baseColorFactor and of the base colour texture go to `Material.alpha_mode`,
   `alpha_cutoff`, `alpha` and `alpha_texture` unchanged; OPAQUE drops the alpha (the
   spec: "the rendered output is fully opaque and any alpha value is ignored"). An
   unknown mode warns and is opaque.
-- Ignored, with a warning: metallicRoughness, normal and emissive textures
+- Ignored, with a warning: metallicRoughness and normal textures
   (the factors are used), a KHR_materials_volume thickness (a thin surface). Occlusion
   textures are not read (the bake computes occlusion itself). Warnings repeated over materials
   are summarised per kind.
@@ -174,7 +175,7 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
                     VOLUME, name, ignored=["KHR_materials_volume"])
 
     ignored = [key for key, table in (
-        ("metallicRoughnessTexture", pmr), ("normalTexture", gm), ("emissiveTexture", gm),
+        ("metallicRoughnessTexture", pmr), ("normalTexture", gm),
         ("transmissionTexture", ext.get("KHR_materials_transmission", {})),
         ("specularTexture", ext.get("KHR_materials_specular", {})),
         ("specularColorTexture", ext.get("KHR_materials_specular", {})),
@@ -213,6 +214,7 @@ def coverage_from_gltf(gm: dict, alpha_texture: np.ndarray | None, where: str,
 
 
 def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = None,
+                       emission_texture: np.ndarray | None = None,
                        alpha_texture: np.ndarray | None = None,
                        diffuse_roughness: float = DIFFUSE_ROUGHNESS,
                        override: dict | None = None, warnings: list[str] | None = None,
@@ -222,6 +224,7 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     where = f"{source}: material '{name}'" if source else f"material '{name}'"
     kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings, name), diffuse_roughness)
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
+                   emission_texture=emission_texture,
                    double_sided=bool(gm.get("doubleSided", False)),
                    **coverage_from_gltf(gm, alpha_texture, where, warnings))
     extras = gm.get("extras")

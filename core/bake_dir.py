@@ -16,6 +16,8 @@
                            E around -n, where the viewer sees a back face. Listed in the manifest's
                            optional `lightmaps_back` (absent or empty: no object has a back side;
                            older bake dirs lack it and stay readable: the front serves both sides)
+    textures/emission_<i>.exr   emissive textures (glTF emissiveTexture, linear RGB; they multiply
+                                the material's `emission`), manifest `emission_texture`
     textures/material_<i>.exr   base-colour textures (linear); RGBA, A the base colour alpha
                            (linear), for materials whose manifest entry has `alpha_mode` MASK or
                            BLEND (with `alpha_cutoff` and `alpha` = baseColorFactor[3]; entries

@@ -46,6 +46,9 @@ class Material:
     "REPEAT", "CLAMP_TO_EDGE" or "MIRRORED_REPEAT"; kd_nearest its magFilter NEAREST. The
     alpha_texture is sampled the same way.
     emission is emitted radiance (W / (m^2 sr)); non-zero makes the object an area light.
+    emission_texture, when present, is an (H, W, 3) float32 array of linear RGB (glTF
+    emissiveTexture, sRGB-decoded) that multiplies emission (glTF 3.9.3: emissiveFactor x
+    emissiveTexture x emissiveStrength), looked up like kd_texture (same `uvs`, same sampler).
 
     Coverage (glTF 3.9.4 "Alpha Coverage"): alpha_mode is "OPAQUE", "MASK" or "BLEND"; the
     alpha is `alpha` (baseColorFactor[3]) x `alpha_texture` (the base colour texture's alpha,
@@ -61,6 +64,7 @@ class Material:
     kd_nearest: bool = False
     lobes: list[Lobe] = field(default_factory=list)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    emission_texture: np.ndarray | None = None
     double_sided: bool = False
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5

@@ -169,8 +169,12 @@ class GltfWriter:
     def add_material(self, name, base_color=(0.8, 0.8, 0.8, 1.0), metallic=0.0, roughness=1.0,
                      emissive=(0, 0, 0), emissive_strength=1.0, double_sided=False,
                      base_color_texture=None, extensions=None, extras=None, alpha_mode=None,
-                     alpha_cutoff=None, texcoord=None, texture_transform=None, sampler=None) -> int:
+                     alpha_cutoff=None, texcoord=None, texture_transform=None, sampler=None,
+                     emissive_texture=None) -> int:
         """A metallic-roughness material; `base_color` is linear RGB(A).
+
+        `emissive_texture` (an (H, W, 3) uint8 sRGB image) is written as the emissiveTexture,
+        with the base colour's texCoord and sampler (glTF 3.9.3: it multiplies emissiveFactor).
 
         `texcoord` (the base colour textureInfo's texCoord) and `texture_transform` (its
         KHR_texture_transform object: offset, rotation, scale, texCoord) are written when given;
@@ -202,6 +206,11 @@ class GltfWriter:
         emissive = _floats(emissive)
         if any(emissive):
             mat["emissiveFactor"] = emissive
+        if emissive_texture is not None:
+            mat["emissiveTexture"] = {"index": self.add_texture(np.asarray(emissive_texture),
+                                                                f"{name} emission", sampler)}
+            if texcoord is not None:
+                mat["emissiveTexture"]["texCoord"] = int(texcoord)
         if double_sided:
             mat["doubleSided"] = True
         if alpha_mode is not None:

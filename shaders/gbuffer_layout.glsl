@@ -1,6 +1,7 @@
 // The G-buffer's render targets (viewer/passes/gbuffer.py allocates them; their attachment numbers
 // come in as defines GB_*_LOCATION from viewer/gl_bindings.py):
-//   GB_DIFFUSE   rgba32f  rgb: light-mapped diffuse radiance kd/pi * E (0 on dark back faces)
+//   GB_DIFFUSE   rgba32f  rgb: light-mapped diffuse radiance kd/pi * E (0 on dark back faces), plus
+//                         emission x emissiveTexture for MAT_EMISSION_TEXTURE materials
 //   GB_NORMAL    rgba16f  xyz: unit shading normal on the side the viewer sees;
 //                         w: GB_DARK_BACK_FACE on back faces of single-sided materials, else 0
 //   GB_TANGENT   rgba16f  xyz: unit tangent orthogonal to the normal, or 0; w: bitangent sign

@@ -19,3 +19,9 @@ layout(std430, binding = LOBE_BINDING) readonly buffer LobeBuffer { Lobe lobes[]
 bool has_flag(Material m, int flag) {
     return (m.info.x & flag) != 0;
 }
+
+// The emission the shading passes add to a pixel: the constant emission, or nothing for textured
+// emitters, whose emission x texture the raster pass already put in the diffuse radiance.
+vec3 constant_emission(Material m) {
+    return has_flag(m, MAT_EMISSION_TEXTURE) ? vec3(0.0) : m.emission.rgb;
+}

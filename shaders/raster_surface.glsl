@@ -7,6 +7,7 @@
 
 uniform int material_index;
 layout(binding = KD_TEXTURE_UNIT) uniform sampler2D kd_texture;   // the material's base colour (1x1 white: none)
+layout(binding = EMISSION_TEXTURE_UNIT) uniform sampler2D emission_texture;  // its emissiveTexture (same)
 layout(binding = LIGHTMAP_UNIT) uniform sampler2DArray lightmaps;  // irradiance E (rgb), one layer per page
 uniform vec3 eye;                   // the eye the pass looks from (a mirror pass: the mirrored eye)
 // Layers a back face adds to its light-map page: the object's back-side pages (E around -n, baked
@@ -47,16 +48,22 @@ float wrap_kd(float u, float size, bool clamp_edge, bool mirror) {
     return (clamp_edge || mirror) ? clamp(u, 0.5 / size, 1.0 - 0.5 / size) : u;
 }
 
-vec4 sample_kd(Material m) {
+// A material texture at v_uv through the material's sampler (the base colour's: the emissive texture
+// shares its uv set and sampler, bake/gltf_loader.py).
+vec4 sample_material_texture(sampler2D tex, Material m) {
     const int wrapped = MAT_KD_CLAMP_S | MAT_KD_CLAMP_T | MAT_KD_MIRROR_S | MAT_KD_MIRROR_T | MAT_KD_NEAREST;
     if ((m.info.x & wrapped) == 0)
-        return texture(kd_texture, v_uv);
-    vec2 size = vec2(textureSize(kd_texture, 0));
+        return texture(tex, v_uv);
+    vec2 size = vec2(textureSize(tex, 0));
     vec2 uv = vec2(wrap_kd(v_uv.x, size.x, has_flag(m, MAT_KD_CLAMP_S), has_flag(m, MAT_KD_MIRROR_S)),
                    wrap_kd(v_uv.y, size.y, has_flag(m, MAT_KD_CLAMP_T), has_flag(m, MAT_KD_MIRROR_T)));
     if (has_flag(m, MAT_KD_NEAREST))
         uv = (floor(uv * size) + 0.5) / size;
-    return textureGrad(kd_texture, uv, dFdx(v_uv), dFdy(v_uv));
+    return textureGrad(tex, uv, dFdx(v_uv), dFdy(v_uv));
+}
+
+vec4 sample_kd(Material m) {
+    return sample_material_texture(kd_texture, m);
 }
 
 bool coverage_discards(Material m) {
@@ -107,6 +114,11 @@ RasterSurface raster_surface() {
     int layer = v_lm_page + (back ? lightmap_back_layer : 0);
     vec3 E = clean_radiance(texture(lightmaps, vec3(v_lm_uv, float(layer))).rgb);
     s.diffuse = s.dark ? vec3(0.0) : clean_radiance(max(kd, 0.0) * INV_PI * E);
+    // glTF 3.9.3: emission = emissiveFactor x emissiveTexture. Textured emission varies per pixel,
+    // so it joins the diffuse radiance here (the G-buffer has no emission target) and the shading
+    // passes add no constant emission for these materials; a dark back face emits nothing.
+    if (has_flag(m, MAT_EMISSION_TEXTURE) && !s.dark)
+        s.diffuse = clean_radiance(s.diffuse + m.emission.rgb * max(sample_material_texture(emission_texture, m).rgb, 0.0));
 
     // Tangent frame for anisotropic lobes: Gram-Schmidt against n; zero if none.
     s.tangent = safe_normalize(v_tangent.xyz - n * dot(v_tangent.xyz, n), vec3(0.0));

@@ -20,7 +20,7 @@ layout(rgba32f, binding = RADIANCE_IMAGE) uniform writeonly image2D radiance_out
 vec3 surface_radiance(Surface s) {
     if (s.dark)
         return vec3(0.0);
-    return s.diffuse + materials[s.material].emission.rgb;
+    return s.diffuse + constant_emission(materials[s.material]);
 }
 
 void main() {

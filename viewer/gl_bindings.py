@@ -35,6 +35,7 @@ MIRROR_OBJECT_BINDING = 11  # mirror_buffer.glsl: per object its slot this frame
 # -- raster passes over the bake's meshes (raster_surface.glsl: G-buffer and mirror passes) -----------
 LIGHTMAP_UNIT = 0
 KD_TEXTURE_UNIT = 1
+EMISSION_TEXTURE_UNIT = 2  # the material's emissive texture (MAT_EMISSION_TEXTURE)
 # gbuffer.frag's outputs = the G-buffer framebuffer's colour attachments, in this order
 GB_DIFFUSE_LOCATION = 0
 GB_NORMAL_LOCATION = 1

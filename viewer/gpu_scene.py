@@ -80,6 +80,9 @@ MATERIAL_FLAGS = {
     "MAT_KD_MIRROR_S": 512,
     "MAT_KD_MIRROR_T": 1024,
     "MAT_KD_NEAREST": 2048,
+    # glTF emissiveTexture: the raster pass adds emission x texture to the G-buffer's diffuse
+    # radiance and the shading pass adds no constant emission (shaders/raster_surface.glsl)
+    "MAT_EMISSION_TEXTURE": 4096,
 }
 LOBE_KINDS = {"LOBE_REFLECT": 0, "LOBE_TRANSMIT": 1}
 SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
@@ -208,6 +211,7 @@ class GpuScene:
         mats = np.zeros(max(len(entries), 1), MATERIAL_DTYPE)
         lobe_rows = []
         self.kd_textures: list[moderngl.Texture | None] = []
+        self.emission_textures: list[moderngl.Texture | None] = []
         for i, m in enumerate(entries):
             flags = 0
             lobes = m.get("lobes") or []
@@ -235,6 +239,14 @@ class GpuScene:
                                         alpha=None if alpha is None else np.clip(_clean(alpha), 0.0, 1.0))
                 flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.kd_textures.append(texture)
+            emission_texture = None
+            if m.get("emission_texture") and np.any(emission > 0):
+                # linear RGB >= 0 (glTF 3.9.3: it multiplies emissiveFactor); read with the
+                # base colour's uv and sampler flags (the loader's choice, bake/gltf_loader.py)
+                image = read_image(bake.path / m["emission_texture"])
+                emission_texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 65504.0), mipmaps=True)  # f16
+                flags |= MATERIAL_FLAGS["MAT_EMISSION_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
+            self.emission_textures.append(emission_texture)
             mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
             mats[i]["emission"][:3] = emission
             mats[i]["info"] = (flags, i if texture is not None else -1, len(lobe_rows), len(lobes))
@@ -300,6 +312,10 @@ class GpuScene:
         t = self.kd_textures[material] if 0 <= material < len(self.kd_textures) else None
         return t if t is not None else self.white
 
+    def emission_texture(self, material: int) -> moderngl.Texture:
+        t = self.emission_textures[material] if 0 <= material < len(self.emission_textures) else None
+        return t if t is not None else self.white
+
     def _texture(self, rgb: np.ndarray, *, mipmaps: bool, alpha: np.ndarray | None = None) -> moderngl.Texture:
         h, w = rgb.shape[:2]
         rgba = np.concatenate([rgb, np.ones((h, w, 1)) if alpha is None else alpha.reshape(h, w, 1)], axis=-1)
@@ -363,7 +379,7 @@ class GpuScene:
     def release(self) -> None:
         for o in self.objects:
             o.release()
-        for t in [*self.kd_textures, self.lightmaps, self.white]:
+        for t in [*self.kd_textures, *self.emission_textures, self.lightmaps, self.white]:
             if t is not None:
                 t.release()
         if self.sky_map is not self.white:

@@ -10,6 +10,7 @@ import moderngl
 
 from glint.viewer.camera import ViewCamera, gl_bytes, in_frustum
 from glint.viewer.gl_bindings import (
+    EMISSION_TEXTURE_UNIT,
     GB_DIFFUSE_LOCATION,
     GB_MATERIAL_LOCATION,
     GB_NORMAL_LOCATION,
@@ -25,11 +26,12 @@ COLOUR_TARGETS = {GB_DIFFUSE_LOCATION: "diffuse", GB_NORMAL_LOCATION: "normal", 
 
 
 def draw_object(program, scene, obj) -> None:
-    """One object with its material index, base-colour texture and back-side light-map layer: the
+    """One object with its material index, base-colour and emissive textures and back-side light-map layer: the
     G-buffer's and the mirror passes' surface shaders (raster_surface.glsl) read them."""
     program["material_index"] = obj.material
     program["lightmap_back_layer"] = obj.back_layer
     scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
+    scene.emission_texture(obj.material).use(EMISSION_TEXTURE_UNIT)
     obj.vertex_array(program).render(moderngl.TRIANGLES)
 
 
