@@ -595,23 +595,11 @@ class _SceneBuilder:
         if info is None:
             return None
         where = f"{self.source}: material '{name}'"
-        texcoord, matrix = _texcoord(info.get("texCoord", 0)), None
-        transform = info.get("extensions", {}).get("KHR_texture_transform")
-        if isinstance(transform, dict):
-            # KHR_texture_transform: its own texCoord overrides the textureInfo's.
-            texcoord = _texcoord(transform.get("texCoord", texcoord))
-            matrix = texture_transform_matrix(transform, where)
+        texcoord, matrix = _uv_set(info, where)
         self._uv_sets[index] = (texcoord, matrix)
         tex = self.item("textures", info.get("index"), f"material '{name}' baseColorTexture")
         self._samplers[index] = self._sampler(tex)
-        source = tex.get("source")
-        if source is None:
-            self.warn(f"{where}: base colour texture has no PNG/JPEG source; ignored",
-                      NO_IMAGE, name, ignored=["textures without a PNG/JPEG source"])
-            return None
-        if source not in self._images:
-            self._images[source] = self._decode_image(source, where)
-        return self._images[source]
+        return self._texture_image(tex, "base colour", name, where)
 
     def _emissive_texture(self, gm: dict, name: str, index: int) -> np.ndarray | None:
         """(H, W, 4) float32 of the emissiveTexture (glTF 3.9.3: sRGB, multiplies emissiveFactor),
@@ -622,11 +610,7 @@ class _SceneBuilder:
         if not isinstance(info, dict):
             return None
         where = f"{self.source}: material '{name}'"
-        texcoord, matrix = _texcoord(info.get("texCoord", 0)), None
-        transform = info.get("extensions", {}).get("KHR_texture_transform")
-        if isinstance(transform, dict):
-            texcoord = _texcoord(transform.get("texCoord", texcoord))
-            matrix = texture_transform_matrix(transform, where)
+        texcoord, matrix = _uv_set(info, where)
         tex = self.item("textures", info.get("index"), f"material '{name}' emissiveTexture")
         if index not in self._uv_sets:
             self._uv_sets[index] = (texcoord, matrix)
@@ -639,9 +623,13 @@ class _SceneBuilder:
                 self.warn(f"{where}: emissiveTexture uses another texture coordinate set or "
                           "transform than the base colour texture; the base colour's is used",
                           EMISSIVE_UVS, name)
+        return self._texture_image(tex, "emissive", name, where)
+
+    def _texture_image(self, tex: dict, what: str, name: str, where: str) -> np.ndarray | None:
+        """The decoded image of a glTF texture (each image decoded once), or None with a warning."""
         source = tex.get("source")
         if source is None:
-            self.warn(f"{where}: emissive texture has no PNG/JPEG source; ignored",
+            self.warn(f"{where}: {what} texture has no PNG/JPEG source; ignored",
                       NO_IMAGE, name, ignored=["textures without a PNG/JPEG source"])
             return None
         if source not in self._images:
@@ -1006,6 +994,17 @@ def _numbers(values, n: int, where: str, minimum: float | None = None) -> np.nda
         bound = "" if minimum is None else f" >= {minimum:g}"
         raise GlintError(f"{where} must be {n} finite number(s){bound}, not {values!r}")
     return np.asarray(values, np.float64)
+
+
+def _uv_set(info: dict, where: str) -> tuple[int, np.ndarray | None]:
+    """(texture coordinate set, KHR_texture_transform matrix or None) of a glTF textureInfo; the
+    extension's own texCoord overrides the textureInfo's (KHR_texture_transform)."""
+    texcoord, matrix = _texcoord(info.get("texCoord", 0)), None
+    transform = info.get("extensions", {}).get("KHR_texture_transform")
+    if isinstance(transform, dict):
+        texcoord = _texcoord(transform.get("texCoord", texcoord))
+        matrix = texture_transform_matrix(transform, where)
+    return texcoord, matrix
 
 
 def _texcoord(value) -> int:

@@ -61,3 +61,16 @@ def error_of(capsys, code):
     assert code == 2 and len(lines) == 1 and lines[0].startswith("glint: "), err
     assert "Traceback" not in "\n".join(err)
     return lines[0]
+
+
+def capture_front(scene, size: int, eye, fov: float) -> np.ndarray:
+    """Linear RGB of `glint capture` of `scene` from `eye` towards (0, 1, 0) (vertical field of view
+    `fov` degrees), size x size, supersample 2, on a small draft bake beside the scene file."""
+    from glint.cli import main
+    from glint.core.image_io import read_image
+
+    out = Path(scene).with_suffix(".exr")
+    assert main(["capture", str(scene), "-o", str(out), "--size", f"{size}x{size}", "--eye",
+                 ",".join(map(str, eye)), "--target", "0,1,0", "--fov", str(fov), "-q", "draft", "--samples", "16",
+                 "--texels-per-metre", "8", "--no-denoise", "--bake-dir", str(Path(scene).with_suffix(".bake"))]) == 0
+    return read_image(out)[..., :3]

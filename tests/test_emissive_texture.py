@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from conftest import capture_front
 
 from glint.bake.gltf_loader import load_scene
 from glint.bake.irradiance import compute_irradiance
@@ -72,16 +73,8 @@ def test_capture_shows_the_emissive_texture(tmp_path):
     Deliberate bugs this catches (tried): the shading pass adding the constant emission for textured
     materials too (the white texels double, the black ones glow); the raster pass not multiplying
     by the texture (every texel at the factor)."""
-    from glint.cli import main
-    from glint.core.image_io import read_image
 
-    path = write_lamp(tmp_path / "lamp.glb")
-    out = tmp_path / "lamp.exr"
-    assert main(["capture", str(path), "-o", str(out), "--size", f"{SIZE}x{SIZE}", "--eye",
-                 ",".join(map(str, EYE)), "--target", "0,1,0", "--fov", str(FOV), "-q", "draft",
-                 "--samples", "16", "--texels-per-metre", "8", "--no-denoise",
-                 "--bake-dir", str(tmp_path / "lamp.bake")]) == 0
-    img = read_image(out)[..., :3]
+    img = capture_front(write_lamp(tmp_path / "lamp.glb"), SIZE, EYE, FOV)
     texels = srgb_to_linear(emissive_image()) * FACTOR * STRENGTH
     t = math.tan(math.radians(FOV) / 2) * EYE[2]  # half the view's width at z = 0
     centre = (np.arange(SIZE) + 0.5) / SIZE * 2 - 1

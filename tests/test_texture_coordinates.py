@@ -21,6 +21,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from conftest import capture_front
 
 from glint.bake.gltf_loader import load_scene
 from glint.scenes.gltf_writer import GltfWriter, quad
@@ -74,16 +75,6 @@ def block_centres(name: str):
 
 
 
-def capture_front(scene: Path, size: int) -> np.ndarray:
-    """Linear RGB of `glint capture` of `scene` from EYE towards (0, 1, 0), size x size, draft bake."""
-    from glint.cli import main
-    from glint.core.image_io import read_image
-
-    out = scene.with_suffix(".exr")
-    assert main(["capture", str(scene), "-o", str(out), "--size", f"{size}x{size}", "--eye",
-                 ",".join(map(str, EYE)), "--target", "0,1,0", "--fov", str(FOV), "-q", "draft", "--samples", "16",
-                 "--texels-per-metre", "8", "--no-denoise", "--bake-dir", str(scene.with_suffix(".bake"))]) == 0
-    return read_image(out)[..., :3]
 
 def test_bake_reads_the_texcoord_set_and_the_texture_transform(tmp_path):
     """The bake's base colour (kd x texture, bake/irradiance.py `albedo`) where rays hit the quads
@@ -116,16 +107,8 @@ def test_capture_shows_the_texcoord_set_and_the_texture_transform(tmp_path):
 
     Deliberate bug this catches (tried): the rotation's sign flipped in the loader (the viewer
     samples the loader's uvs, as the bake does)."""
-    from glint.cli import main
-    from glint.core.image_io import read_image
 
-    path = write_scene(tmp_path / "tex.glb")
-    out = tmp_path / "tex.exr"
-    assert main(["capture", str(path), "-o", str(out), "--size", f"{SIZE}x{SIZE}", "--eye",
-                 ",".join(map(str, EYE)), "--target", "0,1,0", "--fov", str(FOV), "-q", "draft",
-                 "--samples", "16", "--texels-per-metre", "8", "--no-denoise",
-                 "--bake-dir", str(tmp_path / "tex.bake")]) == 0
-    img = read_image(out)[..., :3]
+    img = capture_front(write_scene(tmp_path / "tex.glb"), SIZE, EYE, FOV)
     t = math.tan(math.radians(FOV) / 2) * EYE[2]
     for name in CENTRES:
         for x, y, colour in block_centres(name):
@@ -223,7 +206,7 @@ def test_capture_samples_through_the_glTF_sampler(tmp_path):
     texel's centre left out of `sample_kd`."""
 
     size = 256
-    img = capture_front(write_sampler_scene(tmp_path / "samplers.glb"), size)
+    img = capture_front(write_sampler_scene(tmp_path / "samplers.glb"), size, EYE, FOV)
     t = math.tan(math.radians(FOV) / 2) * EYE[2]
     for name in SAMPLERS:
         shifts = (0.0, 0.25) if SAMPLERS[name]["magFilter"] == 9728 else (0.0,)
@@ -296,7 +279,7 @@ def test_capture_multiplies_the_vertex_colours(tmp_path):
     Deliberate bugs this catches (tried): raster_surface.glsl not multiplying v_color; the
     pipeline not writing `colors` into meshes.npz (the viewer's colours all 1)."""
 
-    img = capture_front(write_colour_scene(tmp_path / "colours.glb"), SIZE)
+    img = capture_front(write_colour_scene(tmp_path / "colours.glb"), SIZE, EYE, FOV)
     t = math.tan(math.radians(FOV) / 2) * EYE[2]
     for x, y, colour in colour_points():
         r, c = int((1 - (y - 1) / t) / 2 * SIZE), int((1 + x / t) / 2 * SIZE)
