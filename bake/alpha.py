@@ -22,44 +22,11 @@ from __future__ import annotations
 import numpy as np
 
 from glint.bake.raytrace import Hits, RayTracer
+from glint.core.image_io import sample_texture
 from glint.core.scene import Scene
 
 MAX_CUTOUTS = 16  # cut-out layers a ray may pass (a tree crown seen through); then the surface counts
 MODES = {"OPAQUE": 0, "MASK": 1, "BLEND": 2}
-
-
-def wrap_texel(i: np.ndarray, size: int, mode: str) -> np.ndarray:
-    """Integer texel indices wrapped as OpenGL 4.6 section 8.14.2 (Table 8.20) defines the glTF
-    sampler modes: REPEAT i mod size, CLAMP_TO_EDGE clamped to 0..size-1, MIRRORED_REPEAT
-    (i mod 2 size) read backwards in the second copy."""
-    if mode == "CLAMP_TO_EDGE":
-        return np.clip(i, 0, size - 1)
-    if mode == "MIRRORED_REPEAT":
-        m = i % (2 * size)
-        return np.where(m < size, m, 2 * size - 1 - m)
-    return i % size
-
-
-def sample_texture(texture: np.ndarray, uv: np.ndarray, wrap: tuple[str, str] = ("REPEAT", "REPEAT"),
-                   nearest: bool = False) -> np.ndarray:
-    """Look-up of an (H, W) or (H, W, C) texture at glTF uv ((0, 0) = top-left of the image, texel
-    centres at half-integers), as the viewer's level-0 sampler: bilinear, or the nearest texel
-    (magFilter NEAREST), the indices wrapped per axis by `wrap` ((wrapS, wrapT))."""
-    H, W = texture.shape[:2]
-    x = np.nan_to_num(uv[:, 0]) * W
-    y = np.nan_to_num(uv[:, 1]) * H
-    if nearest:
-        return texture[wrap_texel(np.floor(y).astype(np.int64), H, wrap[1]),
-                       wrap_texel(np.floor(x).astype(np.int64), W, wrap[0])]
-    x0, y0 = np.floor(x - 0.5), np.floor(y - 0.5)
-    fx, fy = x - 0.5 - x0, y - 0.5 - y0
-    if texture.ndim == 3:
-        fx, fy = fx[:, None], fy[:, None]
-    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
-    x1, y1 = wrap_texel(x0 + 1, W, wrap[0]), wrap_texel(y0 + 1, H, wrap[1])
-    x0, y0 = wrap_texel(x0, W, wrap[0]), wrap_texel(y0, H, wrap[1])
-    return ((1 - fy) * ((1 - fx) * texture[y0, x0] + fx * texture[y0, x1])
-            + fy * ((1 - fx) * texture[y1, x0] + fx * texture[y1, x1]))
 
 
 class _Tables:

@@ -47,9 +47,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glint.bake.alpha import MAX_CUTOUTS, Coverage, sample_texture
+from glint.bake.alpha import MAX_CUTOUTS, Coverage
 from glint.bake.lights import LightSet, luminance
 from glint.bake.raytrace import RayTracer
+from glint.core.image_io import sample_texture
 from glint.core.scene import Scene
 
 BATCH_PATHS = 1 << 16  # paths traced together: bounds memory (~1 kB per path); 2^14..2^18 measured equal

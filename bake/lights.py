@@ -37,8 +37,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from glint.bake.alpha import sample_texture
 from glint.bake.raytrace import RayTracer
+from glint.core.image_io import sample_texture
 from glint.core.scene import Scene, Sky
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance

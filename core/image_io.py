@@ -74,28 +74,44 @@ def write_image(path: str | Path, pixels: np.ndarray, *, half: bool | None = Non
     return kind
 
 
-def sample_bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear look-up of an (H, W, C) image at (K, 2) uv -> (K, C), as OpenGL GL_LINEAR + CLAMP_TO_EDGE.
+def wrap_texel(i: np.ndarray, size: int, mode: str) -> np.ndarray:
+    """Integer texel indices wrapped as OpenGL 4.6 section 8.14.2 (Table 8.20) defines the glTF
+    sampler modes: REPEAT i mod size, CLAMP_TO_EDGE clamped to 0..size-1, MIRRORED_REPEAT
+    (i mod 2 size) read backwards in the second copy."""
+    if mode == "CLAMP_TO_EDGE":
+        return np.clip(i, 0, size - 1)
+    if mode == "MIRRORED_REPEAT":
+        m = i % (2 * size)
+        return np.where(m < size, m, 2 * size - 1 - m)
+    return i % size
 
-    Texel (y, x) has its centre at uv ((x + 0.5) / W, (y + 0.5) / H); texel
-    indices outside the image are clamped to the edge. A 2-D image gives (K,).
-    """
+
+def sample_texture(texture: np.ndarray, uv: np.ndarray, wrap: tuple[str, str] = ("REPEAT", "REPEAT"),
+                   nearest: bool = False) -> np.ndarray:
+    """Look-up of an (H, W) or (H, W, C) texture at glTF uv ((0, 0) = top-left of the image, texel
+    centres at half-integers), as the viewer's level-0 sampler: bilinear, or the nearest texel
+    (magFilter NEAREST), the indices wrapped per axis by `wrap` ((wrapS, wrapT))."""
+    H, W = texture.shape[:2]
+    x = np.nan_to_num(uv[:, 0]) * W
+    y = np.nan_to_num(uv[:, 1]) * H
+    if nearest:
+        return texture[wrap_texel(np.floor(y).astype(np.int64), H, wrap[1]),
+                       wrap_texel(np.floor(x).astype(np.int64), W, wrap[0])]
+    x0, y0 = np.floor(x - 0.5), np.floor(y - 0.5)
+    fx, fy = x - 0.5 - x0, y - 0.5 - y0
+    if texture.ndim == 3:
+        fx, fy = fx[:, None], fy[:, None]
+    x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
+    x1, y1 = wrap_texel(x0 + 1, W, wrap[0]), wrap_texel(y0 + 1, H, wrap[1])
+    x0, y0 = wrap_texel(x0, W, wrap[0]), wrap_texel(y0, H, wrap[1])
+    return ((1 - fy) * ((1 - fx) * texture[y0, x0] + fx * texture[y0, x1])
+            + fy * ((1 - fx) * texture[y1, x0] + fx * texture[y1, x1]))
+
+
+def sample_bilinear(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear look-up of an (H, W, C) image at (K, 2) uv -> (K, C), as OpenGL GL_LINEAR + CLAMP_TO_EDGE
+    (`sample_texture` in float64, the result in the image's float type). A 2-D image gives (K,)."""
     image = np.asarray(image)
-    flat = image.ndim == 2
-    if flat:
-        image = image[..., None]
-    H, W = image.shape[:2]
-    uv = np.asarray(uv, np.float64).reshape(-1, 2)
-    x = uv[:, 0] * W - 0.5
-    y = uv[:, 1] * H - 0.5
-    xf, yf = np.floor(x), np.floor(y)
-    fx, fy = (x - xf)[:, None], (y - yf)[:, None]
-    x0 = np.clip(xf.astype(np.int64), 0, W - 1)
-    x1 = np.clip(xf.astype(np.int64) + 1, 0, W - 1)
-    y0 = np.clip(yf.astype(np.int64), 0, H - 1)
-    y1 = np.clip(yf.astype(np.int64) + 1, 0, H - 1)
-    img = image.astype(np.float64, copy=False)
-    out = ((1 - fy) * ((1 - fx) * img[y0, x0] + fx * img[y0, x1])
-           + fy * ((1 - fx) * img[y1, x0] + fx * img[y1, x1]))
-    out = out.astype(image.dtype if np.issubdtype(image.dtype, np.floating) else np.float64)
-    return out[:, 0] if flat else out
+    out = sample_texture(image.astype(np.float64, copy=False), np.asarray(uv, np.float64).reshape(-1, 2),
+                         ("CLAMP_TO_EDGE", "CLAMP_TO_EDGE"))
+    return out.astype(image.dtype if np.issubdtype(image.dtype, np.floating) else np.float64)

@@ -175,7 +175,7 @@ def sampler_points(name: str, shift: float):
 
 
 def test_bake_samples_through_the_glTF_sampler(tmp_path):
-    """The bake's base colour (bake/irradiance.py `albedo`, bake/alpha.py `sample_texture`) a
+    """The bake's base colour (bake/irradiance.py `albedo`, core/image_io.py `sample_texture`) a
     quarter texel off the texel centres over uv -1..2 is the padded image's (nearest or bilinear).
 
     Deliberate bugs this catches (tried): CLAMP_TO_EDGE treated as REPEAT (`wrap_texel`);
