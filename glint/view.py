@@ -11,12 +11,10 @@ import os
 import sys
 import textwrap
 
-import numpy as np
-
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.services import SCENE_HELP, add_bake_options, parse_size, run_bake
-from glint.viewer.camera import ViewCamera, find_named
+from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 from glint.viewer.controls import KEY_HELP, WalkControls
 
 DEFAULT_SIZE = "1280x720"
@@ -57,12 +55,8 @@ def no_window(scene: str, reason: str) -> GlintError:
 
 
 def home_camera(manifest: dict, aspect: float):
-    """A view of the whole scene, for scenes without cameras."""
-    bounds = np.array([o["bounds"] for o in manifest["objects"] if o.get("triangles")],
-                      np.float64).reshape(-1, 2, 3)
-    if not len(bounds):
-        return ViewCamera(eye=(0.0, 1.6, 3.0), forward=(0.0, 0.0, -1.0), name="home")
-    return ViewCamera.framing(bounds[:, 0].min(axis=0), bounds[:, 1].max(axis=0), aspect)
+    """A view of the whole scene, for scenes without cameras (as `glint capture` frames them)."""
+    return ViewCamera.framing(*scene_bounds(manifest), aspect)
 
 
 def cmd_view(args) -> int:
