@@ -38,3 +38,25 @@ def test_buffer_bindings_are_distinct_and_shading_units_follow_the_fixed_ones():
                  *(units[name] for name in gl_bindings.MIRROR_UNIT_NAMES),
                  *range(units["SPLIT_SUM_FIRST_UNIT"], units["SPLIT_SUM_FIRST_UNIT"] + c), units["SPLIT_SUM_LUT_UNIT"]]
         assert sorted(taken) == list(range(len(taken)))  # no unit twice, none skipped
+
+
+def test_scene_textures_past_the_limits_are_a_glint_error(ctx, tmp_path, monkeypatch):
+    """Light maps (and material textures, the sky map) larger than the context allows are one
+    GlintError naming them and what to do, before GL refuses the upload and leaves them empty
+    (black surfaces). Catches GpuScene uploading without check_texture_size: with the limit
+    lowered below the light-map page the upload would go on."""
+    from conftest import FAST, write_room
+
+    from glint.bake.gltf_loader import load_scene
+    from glint.bake.settings import resolve_settings
+    from glint.core.bake_dir import Bake
+    from glint.services import bake_scene
+    from glint.viewer.gpu_scene import GpuScene
+
+    scene = load_scene(write_room(tmp_path / "room.glb"))
+    bake_scene(scene, resolve_settings(scene.bake_settings, **FAST), tmp_path / "room.bake", progress=False)
+    bake = Bake(tmp_path / "room.bake")
+    page = bake.lightmap(0).shape
+    monkeypatch.setitem(ctx.info, "GL_MAX_TEXTURE_SIZE", max(page[:2]) - 1)
+    with pytest.raises(GlintError, match=r"the light maps \(1 pages\) is .*texels-per-metre"):
+        GpuScene(ctx, bake)

@@ -82,6 +82,19 @@ def max_texture_size(ctx: moderngl.Context) -> int:
     return int(ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
 
 
+def check_texture_size(ctx: moderngl.Context, width: int, height: int, what: str, layers: int = 1,
+                       fix: str = "") -> None:
+    """GlintError unless `ctx` can hold a texture of width x height (x layers, an array); `what`
+    names it and `fix` says what to do, for the message. Past the limits GL refuses the upload
+    (GL_INVALID_VALUE), which would leave the texture empty: black or missing surfaces."""
+    limit = max_texture_size(ctx)
+    max_layers = int(ctx.info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 2048))
+    if width > limit or height > limit or layers > max_layers:
+        size = f"{width}x{height}" + (f", {layers} layers" if layers > 1 else "")
+        raise GlintError(f"{what} is {size}: more than this OpenGL ({describe(ctx)}) allows ({limit} texels a "
+                         f"side, {max_layers} layers)" + (f"; {fix}" if fix else ""))
+
+
 def check_compute_texture_units(ctx: moderngl.Context, needed: int, why: str) -> None:
     """GlintError unless a compute program of `ctx` can read `needed` texture units (0 .. needed - 1);
     `why` says what needs them, for the message."""

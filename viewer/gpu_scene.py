@@ -47,7 +47,7 @@ from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
 from glint.core.image_io import read_image
 from glint.viewer.cubemaps import CubeMaps
-from glint.viewer.gl import software_renderer
+from glint.viewer.gl import GL, check_texture_size, software_renderer
 from glint.viewer.gl_bindings import LOBE_BINDING, LOBE_PATTERN_BINDING, MATERIAL_BINDING, PATTERN_BINDING
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
@@ -155,6 +155,7 @@ class GpuScene:
         self.planar_pattern = planar_pattern
         self.ctx = ctx
         self.software = software_renderer(ctx)
+        self._gl = GL(ctx)
         manifest = bake.manifest
         count = len(manifest["materials"])
         for entry in manifest["objects"]:
@@ -235,7 +236,8 @@ class GpuScene:
                 image = read_image(bake.path / m["kd_texture"])
                 # the base colour alpha only where the coverage reads it (shaders/materials.glsl)
                 alpha = image[..., 3:4] if mode in ("MASK", "BLEND") and image.shape[-1] >= 4 else None
-                texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0), mipmaps=True,
+                texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0), f"the base-colour texture of "
+                                        f"material '{m['name']}'", mipmaps=True,
                                         alpha=None if alpha is None else np.clip(_clean(alpha), 0.0, 1.0))
                 flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.kd_textures.append(texture)
@@ -244,7 +246,8 @@ class GpuScene:
                 # linear RGB >= 0 (glTF 3.9.3: it multiplies emissiveFactor); read with the
                 # base colour's uv and sampler flags (the loader's choice, bake/gltf_loader.py)
                 image = read_image(bake.path / m["emission_texture"])
-                emission_texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 65504.0), mipmaps=True)  # f16
+                emission_texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, HALF_MAX),
+                                                 f"the emissive texture of material '{m['name']}'", mipmaps=True)
                 flags |= MATERIAL_FLAGS["MAT_EMISSION_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.emission_textures.append(emission_texture)
             mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
@@ -316,13 +319,16 @@ class GpuScene:
         t = self.emission_textures[material] if 0 <= material < len(self.emission_textures) else None
         return t if t is not None else self.white
 
-    def _texture(self, rgb: np.ndarray, *, mipmaps: bool, alpha: np.ndarray | None = None) -> moderngl.Texture:
+    def _texture(self, rgb: np.ndarray, what: str, *, mipmaps: bool, alpha: np.ndarray | None = None) -> moderngl.Texture:
         h, w = rgb.shape[:2]
+        check_texture_size(self.ctx, w, h, what, fix="scale it down in the modelling tool and export again")
         rgba = np.concatenate([rgb, np.ones((h, w, 1)) if alpha is None else alpha.reshape(h, w, 1)], axis=-1)
-        tex = self.ctx.texture((w, h), 4, rgba.astype(np.float16).tobytes(), dtype="f2")
+        with self._gl.checked(f"upload {what}"):
+            tex = self.ctx.texture((w, h), 4, rgba.astype(np.float16).tobytes(), dtype="f2")
+            if mipmaps:
+                tex.build_mipmaps()
         tex.repeat_x = tex.repeat_y = True
         if mipmaps:
-            tex.build_mipmaps()
             tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
             if not self.software:  # llvmpipe's anisotropic filter blurs magnified textures (Mesa 22.3)
                 tex.anisotropy = min(8.0, self.ctx.max_anisotropy)
@@ -348,8 +354,11 @@ class GpuScene:
             stack[k, :, :, :p.shape[2]] = p[..., :4]
         self.lightmap_dtype = "f2" if stack.max(initial=0.0) <= HALF_MAX else "f4"
         data = stack.astype(np.float16 if self.lightmap_dtype == "f2" else np.float32)
-        self.lightmaps = self.ctx.texture_array((w, h, len(pages)), 4, data.tobytes(),
-                                                dtype=self.lightmap_dtype)
+        what = f"the light maps ({len(pages)} pages)"
+        check_texture_size(self.ctx, w, h, what, layers=len(pages),
+                           fix="bake with a lower --texels-per-metre or [bake] max_page_size")
+        with self._gl.checked(f"upload {what}"):
+            self.lightmaps = self.ctx.texture_array((w, h, len(pages)), 4, data.tobytes(), dtype=self.lightmap_dtype)
         self.lightmaps.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.lightmaps.repeat_x = self.lightmaps.repeat_y = False  # clamp to edge
 
@@ -366,7 +375,9 @@ class GpuScene:
             image = _clean(read_image(bake.path / sky["map"])[..., :3])
             h, w = image.shape[:2]
             rgba = np.concatenate([image, np.ones((h, w, 1))], axis=-1).astype(np.float32)
-            self.sky_map = self.ctx.texture((w, h), 4, rgba.tobytes(), dtype="f4")
+            check_texture_size(self.ctx, w, h, "the sky map", fix="scale it down")
+            with self._gl.checked("upload the sky map"):
+                self.sky_map = self.ctx.texture((w, h), 4, rgba.tobytes(), dtype="f4")
             self.sky_map.filter = (moderngl.LINEAR, moderngl.LINEAR)
             self.sky_map.repeat_x, self.sky_map.repeat_y = True, False  # wrap in u, clamp in v
             self.sky_mode = SKY_MODES["SKY_MAP"]
