@@ -17,7 +17,7 @@ Conventions:
   the glTF spec requires of clients; zero-length or non-finite normals are
   replaced by the (area-weighted) face normal. Degenerate triangles are dropped.
 - Object.uvs is the base colour texture's set (textureInfo.texCoord, default TEXCOORD_0; the
-  emissiveTexture's when there is no base colour texture)
+  emissiveTexture's or metallicRoughnessTexture's when there is no base colour texture)
   with its KHR_texture_transform applied: (0, 0) is the top-left of the image, and
   Material.kd_texture row 0 is the image's top row, so texel = (v * H, u * W).
 - Primitives without a material get "default": a grey (kd 0.8) diffuse material.
@@ -103,6 +103,8 @@ MORPHED = WarningKind("{n} objects have morph target weights, not supported; sho
                       "their morph targets")
 EMISSIVE_UVS = WarningKind("{n} materials' emissive textures use another texture coordinate set "
                            "than their base colour textures; the base colour's is used")
+METALLIC_ROUGHNESS_UVS = WarningKind("{n} materials' metallic-roughness textures use another texture "
+                                     "coordinate set than their base colour textures; the base colour's is used")
 NO_UVS = WarningKind("{n} objects have a textured material but not the texture coordinates "
                      "it names; the texel at (0, 0) is used everywhere")
 LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
@@ -331,7 +333,7 @@ class _SceneBuilder:
         self.warnings: list[str] = []
         self._accessors: dict[int, np.ndarray] = {}
         self._decoded: dict[int, bytes] = {}  # meshopt-compressed bufferViews, decoded
-        self._images: dict[int, np.ndarray | None] = {}
+        self._images: dict[tuple[int, bool], np.ndarray | None] = {}  # (image, linear) -> pixels
         self._names: set[str] = set()
 
     def build(self) -> Scene:
@@ -563,11 +565,13 @@ class _SceneBuilder:
             names.add(name)
             rgba = self._base_color_texture(gm, name, i)
             emissive = self._emissive_texture(gm, name, i)
+            metallic_roughness = self._metallic_roughness_texture(gm, name, i)
             wrap, nearest = self._samplers.get(i, (("REPEAT", "REPEAT"), False))
             out.append(material_from_gltf(
                 gm, name, kd_texture=None if rgba is None else np.ascontiguousarray(rgba[..., :3]),
                 emission_texture=None if emissive is None else np.ascontiguousarray(emissive[..., :3]),
                 alpha_texture=None if rgba is None else np.ascontiguousarray(rgba[..., 3]),
+                metallic_roughness_texture=metallic_roughness,
                 diffuse_roughness=side.diffuse_roughness, override=side.materials.get(name),
                 warnings=self.warnings, source=self.source))
             # The base colour's sampler; not in material_from_gltf, which sees no textures' JSON.
@@ -603,15 +607,29 @@ class _SceneBuilder:
 
     def _emissive_texture(self, gm: dict, name: str, index: int) -> np.ndarray | None:
         """(H, W, 4) float32 of the emissiveTexture (glTF 3.9.3: sRGB, multiplies emissiveFactor),
-        or None. It is looked up with the base colour's uv set and sampler, the one set an object
-        keeps; when it names another set (or transform), that is warned and the base colour's is
-        used. Without a base colour texture its own set and sampler are the object's."""
-        info = gm.get("emissiveTexture")
+        or None; on the object's one uv set (`_shared_uv_texture`)."""
+        return self._shared_uv_texture(gm.get("emissiveTexture"), "emissiveTexture", name, index,
+                                       EMISSIVE_UVS)
+
+    def _metallic_roughness_texture(self, gm: dict, name: str, index: int) -> np.ndarray | None:
+        """(H, W, 4) float32 of the metallicRoughnessTexture (glTF 3.9.2: linear, G roughness, B
+        metallic), or None; on the object's one uv set (`_shared_uv_texture`)."""
+        info = gm.get("pbrMetallicRoughness", {}).get("metallicRoughnessTexture")
+        return self._shared_uv_texture(info, "metallicRoughnessTexture", name, index,
+                                       METALLIC_ROUGHNESS_UVS, linear=True)
+
+    def _shared_uv_texture(self, info, key: str, name: str, index: int, kind: WarningKind,
+                           linear: bool = False) -> np.ndarray | None:
+        """The image of a material texture other than the base colour (textureInfo `info` under
+        `key`), or None. It is looked up with the base colour's uv set and sampler, the one set an
+        object keeps; when it names another set (or transform), that is warned and the base
+        colour's is used. Without a base colour texture the first such texture's set and sampler
+        are the object's."""
         if not isinstance(info, dict):
             return None
         where = f"{self.source}: material '{name}'"
         texcoord, matrix = _uv_set(info, where)
-        tex = self.item("textures", info.get("index"), f"material '{name}' emissiveTexture")
+        tex = self.item("textures", info.get("index"), f"material '{name}' {key}")
         if index not in self._uv_sets:
             self._uv_sets[index] = (texcoord, matrix)
             self._samplers[index] = self._sampler(tex)
@@ -620,21 +638,23 @@ class _SceneBuilder:
             if base_set != texcoord or not np.array_equal(
                     np.eye(3) if base_matrix is None else base_matrix,
                     np.eye(3) if matrix is None else matrix):
-                self.warn(f"{where}: emissiveTexture uses another texture coordinate set or "
+                self.warn(f"{where}: {key} uses another texture coordinate set or "
                           "transform than the base colour texture; the base colour's is used",
-                          EMISSIVE_UVS, name)
-        return self._texture_image(tex, "emissive", name, where)
+                          kind, name)
+        return self._texture_image(tex, key, name, where, linear)
 
-    def _texture_image(self, tex: dict, what: str, name: str, where: str) -> np.ndarray | None:
-        """The decoded image of a glTF texture (each image decoded once), or None with a warning."""
+    def _texture_image(self, tex: dict, what: str, name: str, where: str,
+                       linear: bool = False) -> np.ndarray | None:
+        """The decoded image of a glTF texture (each image decoded once per encoding: colour is
+        sRGB, `linear` data textures are not), or None with a warning."""
         source = tex.get("source")
         if source is None:
             self.warn(f"{where}: {what} texture has no PNG/JPEG source; ignored",
                       NO_IMAGE, name, ignored=["textures without a PNG/JPEG source"])
             return None
-        if source not in self._images:
-            self._images[source] = self._decode_image(source, where)
-        return self._images[source]
+        if (source, linear) not in self._images:
+            self._images[source, linear] = self._decode_image(source, where, linear)
+        return self._images[source, linear]
 
     def _sampler(self, tex: dict) -> tuple[tuple[str, str], bool]:
         """The texture's glTF sampler: ((wrapS, wrapT), magFilter is NEAREST). glTF 5.26: without
@@ -648,7 +668,7 @@ class _SceneBuilder:
         wrap = tuple(_WRAP_MODES.get(sampler.get(k), "REPEAT") for k in ("wrapS", "wrapT"))
         return wrap, sampler.get("magFilter") == _NEAREST
 
-    def _decode_image(self, index: int, where: str) -> np.ndarray | None:
+    def _decode_image(self, index: int, where: str, linear: bool = False) -> np.ndarray | None:
         image = self.item("images", index, f"{where} texture")
         try:
             if "bufferView" in image:
@@ -671,6 +691,8 @@ class _SceneBuilder:
                       UNREADABLE, _image_name(image, index),
                       ignored=["unreadable base colour images"])
             return None
+        if linear:  # data, not colour (glTF 3.9.2 metallicRoughnessTexture)
+            return rgba
         # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
         return np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
 
@@ -834,8 +856,8 @@ class _SceneBuilder:
             material = self._index(material, len(_list(self.tree, "materials", self.source)),
                                    f"object '{node_name}' {what}", "material")
             textured = scene.materials[material]
-            if uvs is None and (textured.kd_texture is not None
-                                or textured.emission_texture is not None):
+            if uvs is None and (textured.kd_texture is not None or textured.emission_texture is not None
+                                or textured.metallic_roughness_texture is not None):
                 self.warn(f"{self.source}: object '{name}' has a textured material but no "
                           f"{uv_name}; its texel at (0, 0) is used everywhere", NO_UVS, name,
                           detail=uv_name)

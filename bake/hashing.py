@@ -71,7 +71,9 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
         h.value([m.kd, m.emission, m.double_sided, [lobe.to_dict() for lobe in m.transmit_lobes]])
         if m.emission_texture is not None:  # only then: existing bakes keep their hashes
             h.array(m.emission_texture)
-        if m.kd_texture is not None or m.emission_texture is not None:
+        if m.metallic_roughness_texture is not None:  # its metallic scales kd per texel
+            h.array(m.metallic_roughness_texture)
+        if m.kd_texture is not None or m.emission_texture is not None or m.metallic_roughness_texture is not None:
             if m.kd_texture is not None:
                 h.array(m.kd_texture)
             if tuple(m.kd_wrap) != ("REPEAT", "REPEAT") or m.kd_nearest:  # else existing bakes' hashes

@@ -154,6 +154,7 @@ class _Transport:
         M = max(len(mats), 1)
         self.kd = np.zeros((M, 3))
         self.textures = {}
+        self.metallic = {}  # metallic-roughness textures' M' per texel: kd x (1 - M')
         self.samplers = {}
         L = max([len(m.transmit_lobes) for m in mats] + [1])
         self.t_ks = np.zeros((M, L, 3))
@@ -163,6 +164,10 @@ class _Transport:
             if m.kd_texture is not None:
                 self.textures[i] = np.clip(np.nan_to_num(np.asarray(m.kd_texture, np.float64)[..., :3]),
                                            0.0, 1.0)
+                self.samplers[i] = (tuple(m.kd_wrap), bool(m.kd_nearest))
+            if m.metallic_roughness_texture is not None:
+                self.metallic[i] = np.clip(np.nan_to_num(
+                    np.asarray(m.metallic_roughness_texture, np.float64)[..., 2:3]), 0.0, 1.0)
                 self.samplers[i] = (tuple(m.kd_wrap), bool(m.kd_nearest))
             for j, lobe in enumerate(m.transmit_lobes):
                 self.t_ks[i, j] = np.clip(np.nan_to_num(np.asarray(lobe.ks, np.float64)), 0.0, 1.0)
@@ -185,16 +190,17 @@ class _Transport:
         return np.einsum("nlc,nl->nc", self.t_ks[mat], 1.0 - (r0 + (1.0 - r0) * c5[:, None]))
 
     def albedo(self, mat: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
-        """kd x base-colour texture x vertex colour (glTF COLOR_0); the texture through the
-        material's glTF sampler (wrap per axis, bilinear or nearest; uv (0, 0) = the image's top-left)."""
+        """kd x base-colour texture x (1 - M') of a metallic-roughness texture x vertex colour (glTF
+        COLOR_0); the textures through the material's glTF sampler (wrap per axis, bilinear or
+        nearest; uv (0, 0) = the image's top-left)."""
         kd = np.take(self.kd, mat, axis=0)
-        for m, tex in self.textures.items():
-            sel = np.nonzero(mat == m)[0]
-            if not len(sel):
-                continue
-            uv = self.tracer.texcoords(prim[sel], b1[sel], b2[sel])
-            c = sample_texture(tex, uv, *self.samplers[m])
-            kd[sel] = kd[sel] * c
+        for table, scale in ((self.textures, lambda c: c), (self.metallic, lambda c: 1.0 - c)):
+            for m, tex in table.items():
+                sel = np.nonzero(mat == m)[0]
+                if not len(sel):
+                    continue
+                uv = self.tracer.texcoords(prim[sel], b1[sel], b2[sel])
+                kd[sel] = kd[sel] * scale(sample_texture(tex, uv, *self.samplers[m]))
         if self.tracer.has_vertex_colors:  # glTF: COLOR_0 x baseColorFactor x texture
             kd = kd * self.tracer.colors(prim, b1, b2)
         return kd

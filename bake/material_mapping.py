@@ -37,7 +37,19 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   `alpha_cutoff`, `alpha` and `alpha_texture` unchanged; OPAQUE drops the alpha (the
   spec: "the rendered output is fully opaque and any alpha value is ignored"). An
   unknown mode warns and is opaque.
-- Ignored, with a warning: metallicRoughness and normal textures
+- metallicRoughnessTexture (linear; G multiplies r, B multiplies M, per texel; read by the
+  loader with the base colour's uv set and sampler): `Material.metallic_roughness_texture` keeps
+  G and M' = M x B per texel. kd becomes b * (1 - t), multiplied per texel by (1 - M') (the viewer's
+  raster passes, the bake's albedo). The lobes are those the texture can need: the metal lobe
+  (ks = b, times M' per texel) where some texel has M' > 0, the dielectric lobe (ks = s, times
+  1 - M') where some texel has M' < 1 and, unless the material transmits, the smallest
+  roughness r * min G lies below `diffuse_roughness` (then it is kept at every texel, also where
+  r * G is above); the transmit lobe as without the texture (times 1 - M'). Their m is the
+  factor's, and per texel m' = max((r G)^2, 1e-4) = max(m G^2, 1e-4) (an anisotropic lobe keeps
+  a^2 = (mx - my) / (1 - my): mx' = m' + (1 - m') a^2); `Lobe.mr` marks them ("metal",
+  "dielectric"). Clearcoat and override lobes do not follow the texture. Roles follow from the kept
+  lobes, so a texture that can reach a narrow lobe makes the object curved or planar.
+- Ignored, with a warning: normal textures
   (the factors are used), a KHR_materials_volume thickness (a thin surface). Occlusion
   textures are not read (the bake computes occlusion itself). Warnings repeated over materials
   are summarised per kind.
@@ -109,25 +121,36 @@ def fresnel_r0(ior: float) -> float:
     return ((ior - 1.0) / (ior + 1.0)) ** 2
 
 
-def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS):
-    """The rule of the module docstring: -> (kd (3,) float32, lobes, emission (3,) float32)."""
+def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
+            metallic_roughness: np.ndarray | None = None):
+    """The rule of the module docstring: -> (kd (3,) float32, lobes, emission (3,) float32).
+    `metallic_roughness`: the material's texture as `Material.metallic_roughness_texture` holds it
+    (G the roughness multiplier, B the metallic M'), or None."""
     base = np.clip(np.asarray(p.base_color, np.float64)[:3], 0.0, None)
     metal = float(np.clip(p.metallic, 0.0, 1.0))
     t = float(np.clip(p.transmission, 0.0, 1.0))
-    dielectric = 1.0 - metal
     m = beckmann_m(p.roughness)
     a = float(np.clip(p.anisotropy, 0.0, 1.0))
     mx, my = m + (1.0 - m) * a * a, m
-    rough = p.roughness >= diffuse_roughness and t == 0.0
+    roughness, mr = p.roughness, ""
+    if metallic_roughness is None:  # the factors: the lobes' weights at the one metallic M
+        metal_ks, dielectric = metal, 1.0 - metal
+    else:  # full weights, scaled per texel by M' or 1 - M'; kept if some texel needs them
+        g, texel_metal = metallic_roughness[..., 1], metallic_roughness[..., 2]
+        roughness *= float(np.min(g, initial=1.0))
+        metal_ks = 1.0 if np.max(texel_metal, initial=0.0) > 0 else 0.0
+        dielectric = 1.0 if np.min(texel_metal, initial=1.0) < 1 else 0.0
+        mr = "dielectric"
+    rough = roughness >= diffuse_roughness and t == 0.0
 
-    kd = base * dielectric * (1.0 - t)
+    kd = base * (1.0 - metal if mr == "" else 1.0) * (1.0 - t)
     r0 = float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
     lobes = []
     if not rough:
-        lobes.append(Lobe("reflect", _rgb3(dielectric * p.specular), mx, my, r0, 0.0))
-    lobes.append(Lobe("reflect", _rgb3(base * metal), mx, my, 1.0, 0.0))
+        lobes.append(Lobe("reflect", _rgb3(dielectric * p.specular), mx, my, r0, 0.0, mr))
+    lobes.append(Lobe("reflect", _rgb3(base * metal_ks), mx, my, 1.0, 0.0, mr and "metal"))
     if t > 0:
-        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), mx, my, r0, 0.0))
+        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), mx, my, r0, 0.0, mr))
     if p.clearcoat > 0 and not (p.clearcoat_roughness >= diffuse_roughness and t == 0.0):
         mc = beckmann_m(p.clearcoat_roughness)
         lobes.append(Lobe("reflect", _rgb3(p.clearcoat), mc, mc, CLEARCOAT_R0, 0.0))
@@ -175,7 +198,7 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
                     VOLUME, name, ignored=["KHR_materials_volume"])
 
     ignored = [key for key, table in (
-        ("metallicRoughnessTexture", pmr), ("normalTexture", gm),
+        ("normalTexture", gm),
         ("transmissionTexture", ext.get("KHR_materials_transmission", {})),
         ("specularTexture", ext.get("KHR_materials_specular", {})),
         ("specularColorTexture", ext.get("KHR_materials_specular", {})),
@@ -216,15 +239,22 @@ def coverage_from_gltf(gm: dict, alpha_texture: np.ndarray | None, where: str,
 def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = None,
                        emission_texture: np.ndarray | None = None,
                        alpha_texture: np.ndarray | None = None,
+                       metallic_roughness_texture: np.ndarray | None = None,
                        diffuse_roughness: float = DIFFUSE_ROUGHNESS,
                        override: dict | None = None, warnings: list[str] | None = None,
                        source: str = "") -> Material:
-    """One glTF material -> Material: the rule, then `extras.glint`, then the sidecar override."""
+    """One glTF material -> Material: the rule, then `extras.glint`, then the sidecar override.
+    `metallic_roughness_texture`: the glTF metallicRoughnessTexture as read (linear RGB)."""
     warnings = [] if warnings is None else warnings
     where = f"{source}: material '{name}'" if source else f"material '{name}'"
-    kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings, name), diffuse_roughness)
+    pbr = pbr_from_gltf(gm, where, warnings, name)
+    mr = None
+    if metallic_roughness_texture is not None:
+        mr = np.clip(np.nan_to_num(np.asarray(metallic_roughness_texture, np.float32)[..., :3]), 0.0, 1.0)
+        mr[..., 2] *= float(np.clip(pbr.metallic, 0.0, 1.0))  # B x metallicFactor = the texel's M'
+    kd, lobes, emission = map_pbr(pbr, diffuse_roughness, mr)
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
-                   emission_texture=emission_texture,
+                   emission_texture=emission_texture, metallic_roughness_texture=mr,
                    double_sided=bool(gm.get("doubleSided", False)),
                    **coverage_from_gltf(gm, alpha_texture, where, warnings))
     extras = gm.get("extras")

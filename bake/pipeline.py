@@ -85,7 +85,7 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     materials = [{"name": m.name, "kd": vec(m.kd), "emission": vec(m.emission),
                   "double_sided": bool(m.double_sided), "lobes": [lobe.to_dict() for lobe in m.lobes],
                   "kd_texture": f"textures/material_{i}.exr" if m.kd_texture is not None else None,
-                  **_emission_entry(m, i), **_sampler_entry(m), **_coverage_entry(m)}
+                  **_emission_entry(m, i), **_metallic_roughness_entry(m, i), **_sampler_entry(m), **_coverage_entry(m)}
                  for i, m in enumerate(scene.materials)]
     lights = {
         "point": [{"name": l.name, "position": vec(l.position), "intensity": vec(l.intensity)}
@@ -115,10 +115,18 @@ def _emission_entry(m, i: int) -> dict:
     return {"emission_texture": f"textures/emission_{i}.exr"}
 
 
+def _metallic_roughness_entry(m, i: int) -> dict:
+    """`metallic_roughness_texture` (G roughness multiplier, B metallic M', linear) where the
+    material has one; nothing otherwise, so other manifests stay as they were."""
+    if m.metallic_roughness_texture is None:
+        return {}
+    return {"metallic_roughness_texture": f"textures/metallic_roughness_{i}.exr"}
+
+
 def _sampler_entry(m) -> dict:
     """A textured material's glTF sampler as `kd_sampler` {wrap_s, wrap_t, mag_filter}, where it is
     not the default (REPEAT, LINEAR); nothing otherwise, so other manifests stay as they were."""
-    if (m.kd_texture is None and m.emission_texture is None) or (
+    if (m.kd_texture is None and m.emission_texture is None and m.metallic_roughness_texture is None) or (
             tuple(m.kd_wrap) == ("REPEAT", "REPEAT") and not m.kd_nearest):
         return {}
     return {"kd_sampler": {"wrap_s": m.kd_wrap[0], "wrap_t": m.kd_wrap[1],
@@ -235,6 +243,8 @@ def _write_textures(scene: Scene, path: Path) -> None:
             write_image(path / "textures" / f"material_{i}.exr", m.kd_texture)
         if m.emission_texture is not None:
             write_image(path / "textures" / f"emission_{i}.exr", m.emission_texture)
+        if m.metallic_roughness_texture is not None:
+            write_image(path / "textures" / f"metallic_roughness_{i}.exr", m.metallic_roughness_texture)
     if scene.sky is not None and scene.sky.map is not None:
         write_image(path / "sky.exr", scene.sky.map, half=False)
 

@@ -136,6 +136,25 @@ class _Lobe:
         self.r0 = float(d["r0"])
         self.alpha = float(d["alpha"])
         self.luminance = sum(w * c for w, c in zip(LUMA, self.ks))
+        self.mr = d.get("mr", "")
+
+    def at_texel(self, mr):
+        """This lobe at a metallic-roughness texel `mr` (Color3f: g in y, M' in z), as the viewer's
+        lobe_at_pixel (shaders/specular.glsl) and bake/material_mapping.py define it."""
+        import drjit as dr
+        import mitsuba as mi
+
+        if not self.mr:
+            return self
+        out = _Lobe.__new__(_Lobe)
+        out.transmit, out.r0, out.alpha, out.mr = self.transmit, self.r0, self.alpha, self.mr
+        a2 = min(max((self.mx - self.my) / (1.0 - self.my), 0.0), 1.0) if self.my < 1.0 else 0.0
+        m = dr.maximum(self.my * mr.y * mr.y, ref.M_MIN)
+        out.mx, out.my = m + (1.0 - m) * a2, m
+        scale = mr.z if self.mr == "metal" else 1.0 - mr.z
+        out.ks = mi.Color3f(self.ks) * scale
+        out.luminance = sum(w * c for w, c in zip(LUMA, self.ks)) * scale
+        return out
 
 
 def _plugin_class():
@@ -147,11 +166,14 @@ def _plugin_class():
 
     class GlintBSDF(mi.BSDF):
         """Properties: `kd` (texture, linear RGB; a bitmap already multiplied by kd), `lobes` (JSON
-        list of glint.core.scene.Lobe dicts), `two_sided` (bool)."""
+        list of glint.core.scene.Lobe dicts), `two_sided` (bool), optional `mr` (the material's
+        metallic-roughness texture: G roughness multiplier, B metallic M'; it scales kd by 1 - M'
+        and changes the lobes marked `mr`)."""
 
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
             self.kd = props.get_texture("kd", 0.0)
+            self.mr = props.get_texture("mr") if props.has_property("mr") else None
             self.lobes = [_Lobe(d) for d in json.loads(props.get("lobes", "[]"))]
             self.lobes = [lobe for lobe in self.lobes if lobe.luminance > 0.0]
             transmit = any(lobe.transmit for lobe in self.lobes)
@@ -199,32 +221,37 @@ def _plugin_class():
             v = self._to_glint(si, frame, back, si.wi)
             active = active & (v.z >= 0.0)  # core/bsdf.py: zero for a viewer below the shading horizon
             kd = dr.clip(self.kd.eval(si, active), 0.0, 1.0)
-            return frame, back, v, kd, active
+            lobes = self.lobes
+            if self.mr is not None:
+                mr = dr.clip(self.mr.eval(si, active), 0.0, 1.0)
+                kd = kd * (1.0 - mr.z)
+                lobes = [lobe.at_texel(mr) for lobe in self.lobes]
+            return frame, back, v, kd, lobes, active
 
-        def _weights(self, kd):
+        def _weights(self, kd, lobes):
             """Component probabilities: luminance of kd and of each lobe's ks, normalised."""
-            w = [LUMA[0] * kd.x + LUMA[1] * kd.y + LUMA[2] * kd.z] + [mi.Float(lobe.luminance) for lobe in self.lobes]
+            w = [LUMA[0] * kd.x + LUMA[1] * kd.y + LUMA[2] * kd.z] + [mi.Float(lobe.luminance) for lobe in lobes]
             total = w[0]
             for x in w[1:]:
                 total = total + x
             inv = dr.select(total > 0.0, 1.0 / dr.maximum(total, 1e-30), 0.0)
             return [x * inv for x in w]
 
-        def _eval_pdf(self, v, l, kd, weights):
+        def _eval_pdf(self, v, l, kd, lobes, weights):
             """(f_s (Eq. 3.6), mixture pdf) for viewer v, light l in the viewer's frame."""
             same = (l.z >= 0.0) & (v.z >= 0.0)
             f = dr.select(same, kd * INV_PI, 0.0)
             pdf = weights[0] * dr.select(same, dr.maximum(l.z, 0.0) * INV_PI, 0.0)
-            for lobe, w in zip(self.lobes, weights[1:]):
+            for lobe, w in zip(lobes, weights[1:]):
                 f = f + mi.Color3f(lobe.ks) * lobe_value(l, v, lobe)
                 pdf = pdf + w * lobe_pdf(l, v, lobe)
             return f, pdf
 
         # -- the BSDF interface ---------------------------------------------------------------------
         def eval_pdf(self, ctx, si, wo, active=True):
-            frame, back, v, kd, active = self._setup(si, active)
+            frame, back, v, kd, lobes, active = self._setup(si, active)
             l = self._to_glint(si, frame, back, wo)
-            f, pdf = self._eval_pdf(v, l, kd, self._weights(kd))
+            f, pdf = self._eval_pdf(v, l, kd, lobes, self._weights(kd, lobes))
             return dr.select(active, f * dr.abs(l.z), 0.0), dr.select(active, pdf, 0.0)
 
         def eval(self, ctx, si, wo, active=True):
@@ -234,15 +261,15 @@ def _plugin_class():
             return self.eval_pdf(ctx, si, wo, active)[1]
 
         def sample(self, ctx, si, sample1, sample2, active=True):
-            frame, back, v, kd, active = self._setup(si, active)
-            weights = self._weights(kd)
+            frame, back, v, kd, lobes, active = self._setup(si, active)
+            weights = self._weights(kd, lobes)
             # Component by sample1 against the running sum of the weights.
             l = mi.warp.square_to_cosine_hemisphere(sample2)
             valid = mi.Bool(True)
             component = mi.UInt32(0)
             flags = mi.UInt32(+Flags.DiffuseReflection)
             cdf = weights[0]
-            for i, (lobe, w) in enumerate(zip(self.lobes, weights[1:])):
+            for i, (lobe, w) in enumerate(zip(lobes, weights[1:])):
                 h = sample_half_vector(sample2.x, sample2.y, lobe.mx, lobe.my)
                 oh = dr.dot(v, h)
                 d = 2.0 * oh * h - v  # Eq. 4.8
@@ -255,7 +282,7 @@ def _plugin_class():
                 kind = Flags.GlossyTransmission if lobe.transmit else Flags.GlossyReflection
                 flags = dr.select(pick, mi.UInt32(+kind), flags)
                 cdf = cdf + w
-            f, pdf = self._eval_pdf(v, l, kd, weights)
+            f, pdf = self._eval_pdf(v, l, kd, lobes, weights)
             ok = active & valid & (pdf > 0.0)
             bs = dr.zeros(mi.BSDFSample3f)
             bs.wo = self._to_mitsuba(si, frame, back, l)

@@ -76,8 +76,21 @@ def bsdf_dict(material) -> dict:
                       "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
     else:
         kd_texture = _rgb(kd)
-    return {"type": mitsuba_bsdf.PLUGIN, "kd": kd_texture, "lobes": mitsuba_bsdf.lobes_json(material.lobes),
-            "two_sided": bool(material.double_sided)}
+    out = {"type": mitsuba_bsdf.PLUGIN, "kd": kd_texture, "lobes": mitsuba_bsdf.lobes_json(material.lobes),
+           "two_sided": bool(material.double_sided)}
+    if material.metallic_roughness_texture is not None:
+        out["mr"] = _bitmap(material.metallic_roughness_texture, material)
+    return out
+
+
+def _bitmap(texture, material) -> dict:
+    """A material texture as a linear `bitmap` read as the viewer does: bilinear (or nearest with
+    the base colour's magFilter NEAREST), repeating."""
+    import mitsuba as mi
+
+    image = np.clip(np.nan_to_num(np.asarray(texture, np.float32)[..., :3]), 0.0, 1.0)
+    return {"type": "bitmap", "bitmap": mi.Bitmap(np.ascontiguousarray(image)), "raw": True,
+            "filter_type": "nearest" if material.kd_nearest else "bilinear", "wrap_mode": "repeat"}
 
 
 def mesh(obj, bsdf, emitter=None):

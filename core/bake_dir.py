@@ -18,6 +18,10 @@
                            older bake dirs lack it and stay readable: the front serves both sides)
     textures/emission_<i>.exr   emissive textures (glTF emissiveTexture, linear RGB; they multiply
                                 the material's `emission`), manifest `emission_texture`
+    textures/metallic_roughness_<i>.exr   glTF metallicRoughnessTexture (linear; G multiplies the
+                                roughness of the material's `mr` lobes, B is the metallic M' per
+                                texel: kd x (1 - M'), lobes' ks x M' or 1 - M'), manifest
+                                `metallic_roughness_texture`; lobes carry `mr` ("metal", "dielectric")
     textures/material_<i>.exr   base-colour textures (linear); RGBA, A the base colour alpha
                            (linear), for materials whose manifest entry has `alpha_mode` MASK or
                            BLEND (with `alpha_cutoff` and `alpha` = baseColorFactor[3]; entries

@@ -22,6 +22,9 @@ class Lobe:
     mx, my: Beckmann roughness along tangent / bitangent (Eq. 3.3).
     r0:   Schlick reflectance at normal incidence.
     alpha: Kurt et al.'s shadowing/masking exponent in [0, 1] (Eq. 3.4).
+    mr:   how the material's metallic-roughness texture changes it per texel (bake/material_mapping.py):
+          "" not at all; "dielectric" ks x (1 - M'), "metal" ks x M' (M' the texel's metallic), and for
+          both m' = max(m g^2, 1e-4) (g the texel's roughness multiplier; an anisotropic lobe keeps a^2).
     """
 
     kind: str = "reflect"
@@ -30,10 +33,12 @@ class Lobe:
     my: float = 0.1
     r0: float = 0.04
     alpha: float = 0.0
+    mr: str = ""
 
     def to_dict(self) -> dict:
-        return {"kind": self.kind, "ks": list(map(float, self.ks)), "mx": float(self.mx),
-                "my": float(self.my), "r0": float(self.r0), "alpha": float(self.alpha)}
+        d = {"kind": self.kind, "ks": list(map(float, self.ks)), "mx": float(self.mx),
+             "my": float(self.my), "r0": float(self.r0), "alpha": float(self.alpha)}
+        return {**d, "mr": self.mr} if self.mr else d  # untextured lobes: dicts (and hashes) as before
 
 
 @dataclass
@@ -50,6 +55,12 @@ class Material:
     emissiveTexture, sRGB-decoded) that multiplies emission (glTF 3.9.3: emissiveFactor x
     emissiveTexture x emissiveStrength), looked up like kd_texture (same `uvs`, same sampler).
 
+    metallic_roughness_texture, when present, is an (H, W, 3) float32 array (glTF
+    metallicRoughnessTexture, linear, looked up like kd_texture): G multiplies the roughness factor
+    (the `mr` lobes' widths follow it), B is the texel's metallic M' (metallicFactor already
+    multiplied in), R is unused. kd is then the base colour at M' = 0 and is multiplied per texel
+    by (1 - M').
+
     Coverage (glTF 3.9.4 "Alpha Coverage"): alpha_mode is "OPAQUE", "MASK" or "BLEND"; the
     alpha is `alpha` (baseColorFactor[3]) x `alpha_texture` (the base colour texture's alpha,
     (H, W) float32, linear, same uv as kd_texture; None = 1). MASK: the surface exists where
@@ -65,6 +76,7 @@ class Material:
     lobes: list[Lobe] = field(default_factory=list)
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     emission_texture: np.ndarray | None = None
+    metallic_roughness_texture: np.ndarray | None = None
     double_sided: bool = False
     alpha_mode: str = "OPAQUE"
     alpha_cutoff: float = 0.5

@@ -170,11 +170,13 @@ class GltfWriter:
                      emissive=(0, 0, 0), emissive_strength=1.0, double_sided=False,
                      base_color_texture=None, extensions=None, extras=None, alpha_mode=None,
                      alpha_cutoff=None, texcoord=None, texture_transform=None, sampler=None,
-                     emissive_texture=None) -> int:
+                     emissive_texture=None, metallic_roughness_texture=None) -> int:
         """A metallic-roughness material; `base_color` is linear RGB(A).
 
         `emissive_texture` (an (H, W, 3) uint8 sRGB image) is written as the emissiveTexture,
         with the base colour's texCoord and sampler (glTF 3.9.3: it multiplies emissiveFactor).
+        `metallic_roughness_texture` (an (H, W, 3) uint8 image, linear: G roughness, B metallic)
+        is written as the metallicRoughnessTexture, with the same texCoord and sampler.
 
         `texcoord` (the base colour textureInfo's texCoord) and `texture_transform` (its
         KHR_texture_transform object: offset, rotation, scale, texCoord) are written when given;
@@ -202,6 +204,11 @@ class GltfWriter:
                 pbr["baseColorTexture"]["extensions"] = {
                     "KHR_texture_transform": dict(texture_transform)}
                 self.extensions_used.add("KHR_texture_transform")
+        if metallic_roughness_texture is not None:
+            pbr["metallicRoughnessTexture"] = {"index": self.add_texture(
+                np.asarray(metallic_roughness_texture), f"{name} metallic roughness", sampler)}
+            if texcoord is not None:
+                pbr["metallicRoughnessTexture"]["texCoord"] = int(texcoord)
         mat = {"name": str(name), "pbrMetallicRoughness": pbr}
         emissive = _floats(emissive)
         if any(emissive):

@@ -8,6 +8,7 @@ layout(location = GB_DIFFUSE_LOCATION) out vec4 out_diffuse;
 layout(location = GB_NORMAL_LOCATION) out vec4 out_normal;
 layout(location = GB_TANGENT_LOCATION) out vec4 out_tangent;
 layout(location = GB_MATERIAL_LOCATION) out uint out_material;
+layout(location = GB_SURFACE_LOCATION) out vec2 out_surface;
 
 void main() {
     RasterSurface s = raster_surface();
@@ -15,4 +16,5 @@ void main() {
     out_normal = vec4(s.normal, s.dark ? GB_DARK_BACK_FACE : 0.0);
     out_tangent = vec4(s.tangent, s.bitangent_sign);
     out_material = gb_pack_ids(material_index, v_object);
+    out_surface = s.mr;
 }

@@ -5,6 +5,8 @@
 //   GB_NORMAL    rgba16f  xyz: unit shading normal on the side the viewer sees;
 //                         w: GB_DARK_BACK_FACE on back faces of single-sided materials, else 0
 //   GB_TANGENT   rgba16f  xyz: unit tangent orthogonal to the normal, or 0; w: bitangent sign
+//   GB_SURFACE   rg16f    metallic-roughness texel of MAT_MR_TEXTURE materials: x roughness multiplier g,
+//                         y metallic M' (1, 0 for the others; specular.glsl lobe_at_pixel reads it)
 //   GB_MATERIAL  r32ui    bits 0-15: material index, bits 16-31: object index (the object picks its
 //                         cube map; gb_pack_ids / gb_material_id / gb_object_id)
 //   depth        24 bit   window depth; 1.0 (the clear value) = nothing drawn = sky

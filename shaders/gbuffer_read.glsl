@@ -9,6 +9,7 @@ layout(binding = GB_NORMAL_UNIT) uniform sampler2D gb_normal;
 layout(binding = GB_TANGENT_UNIT) uniform sampler2D gb_tangent;
 layout(binding = GB_MATERIAL_UNIT) uniform usampler2D gb_material;
 layout(binding = GB_DEPTH_UNIT) uniform sampler2D gb_depth;
+layout(binding = GB_SURFACE_UNIT) uniform sampler2D gb_surface;
 
 // One visible surface point, as the shading pass and its per-pixel hooks see it.
 struct Surface {
@@ -21,6 +22,7 @@ struct Surface {
     int material;
     int object;          // index of the object in the bake manifest
     bool dark;           // back face of a single-sided material: sends no light to the viewer
+    vec2 mr;             // metallic-roughness texel: roughness multiplier g, metallic M' (GB_SURFACE)
 };
 
 // True where nothing was drawn (the sky shows).
@@ -37,6 +39,7 @@ Surface gbuffer_surface(ivec2 p, vec3 ray) {
     s.bitangent_sign = t.w < 0.0 ? -1.0 : 1.0;
     s.dark = n.w > 0.5 * GB_DARK_BACK_FACE;
     s.diffuse = texelFetch(gb_diffuse, p, 0).rgb;
+    s.mr = clamp(texelFetch(gb_surface, p, 0).rg, 0.0, 1.0);
     uint ids = texelFetch(gb_material, p, 0).r;
     s.material = gb_material_id(ids);
     s.object = gb_object_id(ids);

@@ -15,6 +15,9 @@ struct Lobe {
 
 layout(std430, binding = MATERIAL_BINDING) readonly buffer MaterialBuffer { Material materials[]; };
 layout(std430, binding = LOBE_BINDING) readonly buffer LobeBuffer { Lobe lobes[]; };
+// Per lobe: LOBE_MR_NONE, or how the material's metallic-roughness texture changes it (LOBE_MR_DIELECTRIC,
+// LOBE_MR_METAL; specular.glsl lobe_at_pixel).
+layout(std430, binding = LOBE_MR_BINDING) readonly buffer LobeMrBuffer { int lobe_mr[]; };
 
 bool has_flag(Material m, int flag) {
     return (m.info.x & flag) != 0;

@@ -8,6 +8,7 @@
 uniform int material_index;
 layout(binding = KD_TEXTURE_UNIT) uniform sampler2D kd_texture;   // the material's base colour (1x1 white: none)
 layout(binding = EMISSION_TEXTURE_UNIT) uniform sampler2D emission_texture;  // its emissiveTexture (same)
+layout(binding = METALLIC_ROUGHNESS_TEXTURE_UNIT) uniform sampler2D metallic_roughness_texture;  // G, B (same)
 layout(binding = LIGHTMAP_UNIT) uniform sampler2DArray lightmaps;  // irradiance E (rgb), one layer per page
 uniform vec3 eye;                   // the eye the pass looks from (a mirror pass: the mirrored eye)
 // Layers a back face adds to its light-map page: the object's back-side pages (E around -n, baked
@@ -29,6 +30,7 @@ struct RasterSurface {
     float bitangent_sign;
     vec3 diffuse;         // kd/pi * E; 0 on dark back faces
     bool dark;            // back face of a single-sided material: sends no light
+    vec2 mr;              // metallic-roughness texel: x roughness multiplier g, y metallic M' (MAT_MR_TEXTURE)
 };
 
 // Coverage of MASK and BLEND materials (glTF 3.9.4 "Alpha Coverage"): alpha = the material's
@@ -106,6 +108,13 @@ RasterSurface raster_surface() {
     vec3 kd = m.kd.rgb;
     if (has_flag(m, MAT_KD_TEXTURE))
         kd *= sample_kd(m).rgb;
+    // glTF metallicRoughnessTexture: G multiplies the roughness, B is the metallic M' (the loader
+    // multiplied metallicFactor in); kd is the base colour at M' = 0 (bake/material_mapping.py).
+    s.mr = vec2(1.0, 0.0);
+    if (has_flag(m, MAT_MR_TEXTURE)) {
+        s.mr = clamp(sample_material_texture(metallic_roughness_texture, m).gb, 0.0, 1.0);
+        kd *= 1.0 - s.mr.y;
+    }
     // glTF: COLOR_0 x baseColorFactor x texture. Objects without are marked by -1, not 1: the
     // interpolation of a constant 1 need not give exactly 1, and their images must not change.
     if (v_color.r >= 0.0)

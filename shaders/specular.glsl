@@ -338,6 +338,24 @@ vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, i
 #include "split_sum.glsl"
 #endif
 
+// The lobe at this pixel: a lobe that follows its material's metallic-roughness texture
+// (LOBE_MR_*, bake/material_mapping.py) gets the texel's width and weight, so every estimate below
+// -- the pattern's directions, its MIP levels (second moment or A / n), the importance samples,
+// split-sum's centre and level, the mirror-buffer look-ups -- follows the texel's roughness:
+//   m' = max(m g^2, M_MIN)  (glTF: alpha = (r g)^2 and m = max(r^2, 1e-4)),
+//   anisotropic: a^2 = (mx - my) / (1 - my) kept, mx' = m' + (1 - m') a^2 (KHR_materials_anisotropy),
+//   ks' = ks M' (metal) or ks (1 - M') (dielectric and transmit lobes).
+Lobe lobe_at_pixel(Lobe lobe, int mr, Surface s) {
+    if (mr == LOBE_MR_NONE)
+        return lobe;
+    float my = lobe.shape.y;
+    float a2 = my < 1.0 ? clamp((lobe.shape.x - my) / (1.0 - my), 0.0, 1.0) : 0.0;
+    float m = max(my * s.mr.x * s.mr.x, M_MIN);
+    lobe.shape.xy = vec2(m + (1.0 - m) * a2, m);
+    lobe.ks.rgb *= mr == LOBE_MR_METAL ? s.mr.y : 1.0 - s.mr.y;
+    return lobe;
+}
+
 // One lobe's reflected (or transmitted) radiance towards the eye, times its ks.
 vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
     bool planar = sp.mirror >= 0;
@@ -408,8 +426,10 @@ vec3 specular_radiance(Surface s, Material m, ivec2 pixel) {
         sp.plane_sum_n = imageLoad(mirror_plane_normals, pixel).xyz;
     }
     vec3 sum = vec3(0.0);
-    for (int i = 0; i < m.info.w; ++i)
-        sum += lobe_radiance(sp, lobes[m.info.z + i], m.info.z + i);
+    for (int i = 0; i < m.info.w; ++i) {
+        int k = m.info.z + i;
+        sum += lobe_radiance(sp, lobe_at_pixel(lobes[k], lobe_mr[k], s), k);
+    }
     if (planes) {
         imageStore(mirror_plane_positions, pixel, sp.plane_sum_p);
         imageStore(mirror_plane_normals, pixel, vec4(sp.plane_sum_n, 0.0));

@@ -29,6 +29,8 @@ Everything here is read-only after upload; passes bind what they need.
   back face adds to its page (shaders/raster_surface.glsl); 0 for the others.
 - Materials and lobes: two shader storage buffers (`MATERIAL_DTYPE`,
   `LOBE_DTYPE`, std430; GLSL side in shaders/materials.glsl).
+- Metallic-roughness textures (G roughness multiplier, B metallic): uploaded like the base colour's,
+  with a per-lobe LOBE_MR_* row (`LOBE_MR_BINDING`) saying how the texel changes each lobe.
 - Base-colour textures: one 2-D texture per textured material (sizes differ, so
   no array), mip-mapped, repeating (the glTF default sampler). A draw binds its
   material's texture; the others bind a 1x1 white one. A is the base colour alpha for
@@ -48,7 +50,13 @@ from glint.core.errors import GlintError
 from glint.core.image_io import read_image
 from glint.viewer.cubemaps import CubeMaps
 from glint.viewer.gl import GL, check_texture_size, software_renderer
-from glint.viewer.gl_bindings import LOBE_BINDING, LOBE_PATTERN_BINDING, MATERIAL_BINDING, PATTERN_BINDING
+from glint.viewer.gl_bindings import (
+    LOBE_BINDING,
+    LOBE_MR_BINDING,
+    LOBE_PATTERN_BINDING,
+    MATERIAL_BINDING,
+    PATTERN_BINDING,
+)
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
 
@@ -83,8 +91,13 @@ MATERIAL_FLAGS = {
     # glTF emissiveTexture: the raster pass adds emission x texture to the G-buffer's diffuse
     # radiance and the shading pass adds no constant emission (shaders/raster_surface.glsl)
     "MAT_EMISSION_TEXTURE": 4096,
+    # glTF metallicRoughnessTexture: the raster passes write the texel's roughness multiplier and
+    # metallic to the G-buffer (GB_SURFACE) and scale kd by 1 - metallic (shaders/raster_surface.glsl)
+    "MAT_MR_TEXTURE": 8192,
 }
 LOBE_KINDS = {"LOBE_REFLECT": 0, "LOBE_TRANSMIT": 1}
+# How a metallic-roughness texture changes a lobe (core/scene.py Lobe.mr; specular.glsl lobe_at_pixel)
+LOBE_MR = {"LOBE_MR_NONE": 0, "LOBE_MR_DIELECTRIC": 1, "LOBE_MR_METAL": 2}
 SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
 
 MATERIAL_DTYPE = np.dtype([("kd", "<f4", 4), ("emission", "<f4", 4), ("info", "<i4", 4)])
@@ -106,7 +119,7 @@ VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_u
 def shader_defines() -> dict:
     """The constants shaders/materials.glsl, sky.glsl and specular.glsl take as defines (their buffer
     bindings every program gets: viewer/gl_bindings.py)."""
-    return {**MATERIAL_FLAGS, **LOBE_KINDS, **SKY_MODES}
+    return {**MATERIAL_FLAGS, **LOBE_KINDS, **LOBE_MR, **SKY_MODES}
 
 
 def _clean(a, lo=0.0, hi=None) -> np.ndarray:
@@ -213,6 +226,8 @@ class GpuScene:
         lobe_rows = []
         self.kd_textures: list[moderngl.Texture | None] = []
         self.emission_textures: list[moderngl.Texture | None] = []
+        self.metallic_roughness_textures: list[moderngl.Texture | None] = []
+        lobe_mr = []
         for i, m in enumerate(entries):
             flags = 0
             lobes = m.get("lobes") or []
@@ -250,6 +265,15 @@ class GpuScene:
                                                  f"the emissive texture of material '{m['name']}'", mipmaps=True)
                 flags |= MATERIAL_FLAGS["MAT_EMISSION_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.emission_textures.append(emission_texture)
+            mr_texture = None
+            if m.get("metallic_roughness_texture"):
+                # G: roughness multiplier, B: metallic M' (linear, in 0..1), read with the base
+                # colour's uv and sampler flags (bake/gltf_loader.py)
+                image = read_image(bake.path / m["metallic_roughness_texture"])
+                mr_texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0),
+                                           f"the metallic-roughness texture of material '{m['name']}'", mipmaps=True)
+                flags |= MATERIAL_FLAGS["MAT_MR_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
+            self.metallic_roughness_textures.append(mr_texture)
             mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
             mats[i]["emission"][:3] = emission
             mats[i]["info"] = (flags, i if texture is not None else -1, len(lobe_rows), len(lobes))
@@ -260,12 +284,14 @@ class GpuScene:
                 row["shape"] = (lobe.get("mx", 0.1), lobe.get("my", 0.1), lobe.get("r0", 0.04),
                                 lobe.get("alpha", 0.0))
                 lobe_rows.append(row)
+                lobe_mr.append(LOBE_MR[f"LOBE_MR_{lobe.get('mr') or 'none'}".upper()] if mr_texture is not None else 0)
         lobes = np.array(lobe_rows, LOBE_DTYPE) if lobe_rows else np.zeros(1, LOBE_DTYPE)
         self.material_table = mats
         self.lobe_table = lobes
         self.lobe_count = len(lobe_rows)
         self.material_buffer = self.ctx.buffer(mats.tobytes())
         self.lobe_buffer = self.ctx.buffer(lobes.tobytes())
+        self.lobe_mr_buffer = self.ctx.buffer(np.array(lobe_mr or [0], np.int32).tobytes())
         self.pattern_buffer = self.lobe_pattern_buffer = None
         self.set_lobe_samples(None)
 
@@ -304,6 +330,7 @@ class GpuScene:
     def bind_materials(self) -> None:
         self.material_buffer.bind_to_storage_buffer(MATERIAL_BINDING)
         self.lobe_buffer.bind_to_storage_buffer(LOBE_BINDING)
+        self.lobe_mr_buffer.bind_to_storage_buffer(LOBE_MR_BINDING)
 
     def bind_specular(self) -> None:
         """Lobe patterns, cube maps and bounding planes, for the shading pass."""
@@ -317,6 +344,11 @@ class GpuScene:
 
     def emission_texture(self, material: int) -> moderngl.Texture:
         t = self.emission_textures[material] if 0 <= material < len(self.emission_textures) else None
+        return t if t is not None else self.white
+
+    def metallic_roughness_texture(self, material: int) -> moderngl.Texture:
+        textures = self.metallic_roughness_textures
+        t = textures[material] if 0 <= material < len(textures) else None
         return t if t is not None else self.white
 
     def _texture(self, rgb: np.ndarray, what: str, *, mipmaps: bool, alpha: np.ndarray | None = None) -> moderngl.Texture:
@@ -390,13 +422,15 @@ class GpuScene:
     def release(self) -> None:
         for o in self.objects:
             o.release()
-        for t in [*self.kd_textures, *self.emission_textures, self.lightmaps, self.white]:
+        for t in [*self.kd_textures, *self.emission_textures, *self.metallic_roughness_textures, self.lightmaps,
+                  self.white]:
             if t is not None:
                 t.release()
         if self.sky_map is not self.white:
             self.sky_map.release()
         self.material_buffer.release()
         self.lobe_buffer.release()
+        self.lobe_mr_buffer.release()
         self.pattern_buffer.release()
         self.lobe_pattern_buffer.release()
         self.cubemaps.release()

@@ -14,24 +14,27 @@ from glint.viewer.gl_bindings import (
     GB_DIFFUSE_LOCATION,
     GB_MATERIAL_LOCATION,
     GB_NORMAL_LOCATION,
+    GB_SURFACE_LOCATION,
     GB_TANGENT_LOCATION,
     KD_TEXTURE_UNIT,
     LIGHTMAP_UNIT,
+    METALLIC_ROUGHNESS_TEXTURE_UNIT,
 )
 from glint.viewer.shader_source import raster_program, set_uniforms
 
 # The colour targets by fragment-output location (gbuffer.frag, shaders/gbuffer_layout.glsl).
 COLOUR_TARGETS = {GB_DIFFUSE_LOCATION: "diffuse", GB_NORMAL_LOCATION: "normal", GB_TANGENT_LOCATION: "tangent",
-                  GB_MATERIAL_LOCATION: "material"}
+                  GB_MATERIAL_LOCATION: "material", GB_SURFACE_LOCATION: "surface"}
 
 
 def draw_object(program, scene, obj) -> None:
-    """One object with its material index, base-colour and emissive textures and back-side light-map layer: the
-    G-buffer's and the mirror passes' surface shaders (raster_surface.glsl) read them."""
+    """One object with its material index, base-colour, emissive and metallic-roughness textures and back-side
+    light-map layer: the G-buffer's and the mirror passes' surface shaders (raster_surface.glsl) read them."""
     program["material_index"] = obj.material
     program["lightmap_back_layer"] = obj.back_layer
     scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
     scene.emission_texture(obj.material).use(EMISSION_TEXTURE_UNIT)
+    scene.metallic_roughness_texture(obj.material).use(METALLIC_ROUGHNESS_TEXTURE_UNIT)
     obj.vertex_array(program).render(moderngl.TRIANGLES)
 
 
@@ -55,6 +58,7 @@ class GBufferPass:
              "normal": ctx.texture(size, 4, dtype="f2"),
              "tangent": ctx.texture(size, 4, dtype="f2"),
              "material": ctx.texture(size, 1, dtype="u4"),
+             "surface": ctx.texture(size, 2, dtype="f2"),
              "depth": ctx.depth_texture(size)}
         for tex in t.values():
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # read with texelFetch; integer targets need it
