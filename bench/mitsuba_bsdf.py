@@ -173,7 +173,7 @@ def _plugin_class():
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
             self.kd = props.get_texture("kd", 0.0)
-            self.mr = props.get_texture("mr") if props.has_property("mr") else None
+            self.mr = props.get_texture("mr") if "mr" in props else None
             self.lobes = [_Lobe(d) for d in json.loads(props.get("lobes", "[]"))]
             self.lobes = [lobe for lobe in self.lobes if lobe.luminance > 0.0]
             transmit = any(lobe.transmit for lobe in self.lobes)
