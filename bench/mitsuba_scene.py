@@ -14,6 +14,9 @@ against it. What maps to what:
   already decoded sRGB), bilinear and repeating like the viewer's sampler; glTF's uv (0, 0) is
   the first row of the image, which is also Mitsuba's bitmap convention (checked by a test).
   kd is clamped to [0, 1] as bake/irradiance.py and the viewer do.
+  A metallic-roughness texture becomes the plugin's `mr` bitmap (linear, repeating, nearest with
+  the base colour's magFilter NEAREST, else bilinear): per shading point kd x (1 - M') and the
+  `mr` lobes' texel width and weight (bench/mitsuba_bsdf.py `_Lobe.at_texel`).
 - Emissive materials: an `area` emitter of radiance = Material.emission (W/(m^2 sr), the
   loader's emissiveFactor x strength, as the bake reads it) on each such object; Mitsuba's
   area lights emit from the front, as the bake's one-sided emitters. A double-sided emitter
