@@ -61,7 +61,7 @@ from glint.core.scene import Scene
 from glint.core.volume import fresnel_dielectric, refracted_cos
 
 BATCH_PATHS = 1 << 16  # paths traced together: bounds memory (~1 kB per path); 2^14..2^18 measured equal
-MAX_FILTERS = 4  # transmissive surfaces a shadow ray may pass before it counts as blocked
+MAX_FILTERS = 8  # transmissive surfaces a shadow ray may pass before it counts as blocked (two closed thin-walled glass objects: 4 interfaces each)
 RR_DEPTH = 3
 RR_MAX = 0.95
 INV_PI = 1.0 / np.pi
