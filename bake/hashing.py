@@ -82,6 +82,8 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
             h.value(["alpha", m.alpha_mode, float(m.alpha_cutoff), float(m.alpha)])
             if m.alpha_texture is not None:
                 h.array(m.alpha_texture)
+        if m.has_volume:  # only then: thin materials keep the hashes of existing bakes
+            h.value(["volume", float(m.ior), float(m.thickness), [float(x) for x in m.absorption]])
     for light in (*scene.point_lights, *scene.spot_lights, *scene.directional_lights):
         h.value(type(light).__name__).value({k: v for k, v in vars(light).items() if k != "name"})
     if scene.sky is not None:

@@ -18,6 +18,12 @@ light at run time, so a specular edit needs no re-bake):
   T = sum of the transmit lobes' ks x (1 - Schlick F(cos))), chosen with probability
   proportional to luminance. Shadow rays pass such surfaces multiplied by T (up to
   MAX_FILTERS of them). Transmissive surfaces count as two-sided.
+- Glass solids (volume materials, core/volume.py): the same straight-through passage, with the
+  exact Fresnel of their ior in place of Schlick's at each of the two interfaces, and where the
+  ray leaves the solid (a back-face hit) the Beer-Lambert absorption over the refracted length
+  inside, the slab model's h.t c / cos_t for the distance h.t the ray crossed. The direction is
+  not bent: exact for panes (parallel faces), and irradiance averages over the directions a
+  curved solid would bend.
 - MASK and BLEND materials (glTF alpha coverage): path rays, shadow rays and the back-face
   statistic pass through their missing parts (bake/alpha.py).
 - A path that hits the back face of a single-sided, non-transmissive material ends (black), like
@@ -52,9 +58,10 @@ from glint.bake.lights import LightSet, luminance
 from glint.bake.raytrace import RayTracer
 from glint.core.image_io import sample_texture
 from glint.core.scene import Scene
+from glint.core.volume import fresnel_dielectric, refracted_cos
 
 BATCH_PATHS = 1 << 16  # paths traced together: bounds memory (~1 kB per path); 2^14..2^18 measured equal
-MAX_FILTERS = 4  # transmissive surfaces a shadow ray may pass before it counts as blocked
+MAX_FILTERS = 8  # transmissive surfaces a shadow ray may pass before it counts as blocked (two closed thin-walled glass objects: 4 interfaces each)
 RR_DEPTH = 3
 RR_MAX = 0.95
 INV_PI = 1.0 / np.pi
@@ -173,6 +180,11 @@ class _Transport:
                 self.t_ks[i, j] = np.clip(np.nan_to_num(np.asarray(lobe.ks, np.float64)), 0.0, 1.0)
                 self.t_r0[i, j] = np.clip(float(lobe.r0), 0.0, 1.0)
         self.transmissive = self.t_ks.reshape(M, -1).max(axis=1) > 0
+        # glass solids: index and absorption (core/volume.py)
+        self.volume = np.array([m.has_volume for m in mats] or [False], bool) & self.transmissive
+        self.any_volume = bool(self.volume.any())
+        self.ior = np.array([max(float(m.ior), 1.0) for m in mats] or [1.5])
+        self.sigma = np.array([m.absorption if m.has_volume else np.zeros(3) for m in mats] or [np.zeros(3)])
         self.any_transmissive = bool(self.transmissive.any())
         self.two_sided = self.transmissive.copy()
         for i, m in enumerate(mats):
@@ -183,11 +195,26 @@ class _Transport:
         self.emitter_pdf_area = self.lights.area.tri_pdf_area  # by prim (per triangle: textures)
         self.coverage = Coverage(scene, tracer)
 
-    def transmittance(self, mat: np.ndarray, cos: np.ndarray) -> np.ndarray:
-        """Straight-through weight of thin transmissive surfaces: sum_l ks_l (1 - Schlick F_l(cos))."""
-        c5 = (1.0 - np.clip(cos, 0.0, 1.0)) ** 5
+    def transmittance(self, mat: np.ndarray, cos: np.ndarray, front: np.ndarray | None = None,
+                      length: np.ndarray | None = None) -> np.ndarray:
+        """Straight-through weight of a transmissive surface hit at `cos` to its normal: thin, sum_l ks_l
+        (1 - Schlick F_l(cos)); a glass solid's interface, sum_l ks_l (1 - F(cos)) with the exact
+        Fresnel of its ior, and where the ray leaves it (`front` False) times the absorption over
+        the `length` it crossed inside (module docstring)."""
+        c = np.clip(cos, 0.0, 1.0)
         r0 = self.t_r0[mat]  # (N, L)
-        return np.einsum("nlc,nl->nc", self.t_ks[mat], 1.0 - (r0 + (1.0 - r0) * c5[:, None]))
+        F = r0 + (1.0 - r0) * ((1.0 - c) ** 5)[:, None]
+        vol = self.volume[mat] if self.any_volume else None
+        if vol is not None and vol.any():
+            F = np.where(vol[:, None], fresnel_dielectric(c, self.ior[mat])[:, None], F)
+        T = np.einsum("nlc,nl->nc", self.t_ks[mat], 1.0 - F)
+        if vol is not None and front is not None:
+            out = np.flatnonzero(vol & ~front)
+            if len(out):
+                m, co = mat[out], c[out]
+                inside = length[out] * co / np.maximum(refracted_cos(co, self.ior[m]), 1e-6)
+                T[out] *= np.exp(-self.sigma[m] * inside[:, None])
+        return T
 
     def albedo(self, mat: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
         """kd x base-colour texture x (1 - M') of a metallic-roughness texture x vertex colour (glTF
@@ -237,7 +264,8 @@ class _Transport:
                 break
             dl = d[live]
             ng = h.ng[p]
-            w = np.where(glass[p, None], self.transmittance(h.material[p], np.abs(_dot(dl, ng))), 0.0)
+            w = np.where(glass[p, None], self.transmittance(h.material[p], np.abs(_dot(dl, ng)), h.front[p],
+                                                            h.t[p]), 0.0)
             if cov.any:
                 c = c[p]
                 w = c[:, None] + (1.0 - c)[:, None] * w
@@ -450,7 +478,7 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
         if tp.any_transmissive:
             # scatter (weight kd) or pass straight through (weight T), chosen by luminance
             cos_in = np.abs(_dot(d, ngeo))
-            T = np.where(tp.transmissive[mat][:, None], tp.transmittance(mat, cos_in), 0.0)
+            T = np.where(tp.transmissive[mat][:, None], tp.transmittance(mat, cos_in, front, h.t), 0.0)
             lum_kd, lum_T = luminance(kd), luminance(T)
             total = lum_kd + lum_T
             ok &= total > 0

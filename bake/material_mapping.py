@@ -49,8 +49,15 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   a^2 = (mx - my) / (1 - my): mx' = m' + (1 - m') a^2); `Lobe.mr` marks them ("metal",
   "dielectric"). Clearcoat and override lobes do not follow the texture. Roles follow from the kept
   lobes, so a texture that can reach a narrow lobe makes the object curved or planar.
-- Ignored, with a warning: normal textures
-  (the factors are used), a KHR_materials_volume thickness (a thin surface). Occlusion
+- Volume (KHR_materials_volume, t > 0): thicknessFactor > 0 makes the material a closed glass
+  solid (`Material.thickness`, `ior`, `attenuation_distance`, `attenuation_color`; core/volume.py):
+  the transmit lobe is then the entry interface, the bake and the viewer add the exit interface,
+  the refraction and the Beer-Lambert absorption inside. thicknessFactor is taken in metres (the
+  node's scale is not applied: one material may serve nodes of several scales). thicknessFactor
+  0 (the default) is thin-walled: Eq. 3.5 alone. On a material without transmission the volume
+  changes nothing (no light enters it) and is not read.
+- Ignored, with a warning: normal and thickness textures
+  (the factors are used). Occlusion
   textures are not read (the bake computes occlusion itself). Warnings repeated over materials
   are summarised per kind.
 
@@ -79,7 +86,7 @@ CLEARCOAT_R0 = 0.04  # KHR_materials_clearcoat: fixed ior 1.5
 MATERIAL_EXTENSIONS = (
     "KHR_materials_emissive_strength", "KHR_materials_transmission", "KHR_materials_ior",
     "KHR_materials_specular", "KHR_materials_anisotropy", "KHR_materials_clearcoat",
-    "KHR_materials_volume",  # read only to warn: a volume (thickness > 0) is drawn as a thin surface
+    "KHR_materials_volume",
 )
 OVERRIDE_KEYS = ("kd", "emission", "lobes")
 # Warnings that repeat per material: one summary line each (glint.core.errors.WarningKind).
@@ -87,8 +94,6 @@ ANISOTROPY_ROTATION = WarningKind("{n} materials have an anisotropyRotation, not
                                   "the anisotropy runs along the texture u direction")
 IGNORED_TEXTURES = WarningKind("{n} materials have textures glint does not read; "
                                "the constant factors are used")
-VOLUME = WarningKind("{n} materials have a volume (KHR_materials_volume thickness), not supported; "
-                     "rendered as thin surfaces")
 LOBE_KEYS = ("kind", "ks", "mx", "my", "m", "r0", "alpha")
 
 
@@ -108,6 +113,9 @@ class GltfPbr:
     clearcoat_roughness: float = 0.0
     emissive: tuple = (0.0, 0.0, 0.0)
     emissive_strength: float = 1.0
+    thickness: float = 0.0  # KHR_materials_volume: thicknessFactor (0: thin-walled)
+    attenuation_distance: float = float("inf")
+    attenuation_color: tuple = (1.0, 1.0, 1.0)
 
 
 def beckmann_m(roughness: float) -> float:
@@ -159,6 +167,17 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
     return kd.astype(np.float32), lobes, np.clip(emission, 0.0, None).astype(np.float32)
 
 
+def volume_fields(p: GltfPbr) -> dict:
+    """Material's volume fields: a transmitting material with thicknessFactor > 0 is a glass solid
+    (module docstring); {} for every other, whose Material keeps the thin defaults."""
+    if not (p.thickness > 0 and p.transmission > 0):
+        return {}
+    color = np.clip(np.asarray(p.attenuation_color, np.float64), 0.0, 1.0)
+    return {"ior": max(float(p.ior), 1.0), "thickness": float(p.thickness),
+            "attenuation_distance": float(p.attenuation_distance),
+            "attenuation_color": tuple(float(c) for c in color)}
+
+
 def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = None) -> GltfPbr:
     """Read a glTF material JSON object into GltfPbr; warn about what the rule ignores
     (`name`: the material's, for the summary of a warning repeated over many materials)."""
@@ -192,10 +211,13 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
     p.clearcoat_roughness = _float(e.get("clearcoatRoughnessFactor", 0.0), where,
                                    "clearcoatRoughnessFactor")
     e = ext.get("KHR_materials_volume", {})
-    if _float(e.get("thicknessFactor", 0.0), where, "thicknessFactor") > 0:  # 0: thin-walled, as here
-        add_warning(warnings, f"{where}: KHR_materials_volume thickness not supported; rendered "
-                              "as a thin surface (no refraction or absorption inside)",
-                    VOLUME, name, ignored=["KHR_materials_volume"])
+    p.thickness = max(_float(e.get("thicknessFactor", 0.0), where, "thicknessFactor"), 0.0)
+    distance = e.get("attenuationDistance")  # glTF: absent = infinite (no absorption)
+    p.attenuation_distance = float("inf") if distance is None else _float(distance, where, "attenuationDistance")
+    if p.attenuation_distance <= 0:
+        add_warning(warnings, f"{where}: attenuationDistance must be > 0; no absorption")
+        p.attenuation_distance = float("inf")
+    p.attenuation_color = tuple(_floats(e.get("attenuationColor", [1, 1, 1]), 3, where, "attenuationColor"))
 
     ignored = [key for key, table in (
         ("normalTexture", gm),
@@ -205,7 +227,8 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
         ("anisotropyTexture", ext.get("KHR_materials_anisotropy", {})),
         ("clearcoatTexture", ext.get("KHR_materials_clearcoat", {})),
         ("clearcoatRoughnessTexture", ext.get("KHR_materials_clearcoat", {})),
-        ("clearcoatNormalTexture", ext.get("KHR_materials_clearcoat", {}))) if key in table]
+        ("clearcoatNormalTexture", ext.get("KHR_materials_clearcoat", {})),
+        ("thicknessTexture", ext.get("KHR_materials_volume", {}))) if key in table]
     if ignored:
         add_warning(warnings, f"{where}: {', '.join(ignored)} not supported, "
                               "the constant factors are used",
@@ -255,6 +278,7 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     kd, lobes, emission = map_pbr(pbr, diffuse_roughness, mr)
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
                    emission_texture=emission_texture, metallic_roughness_texture=mr,
+                   **volume_fields(pbr),
                    double_sided=bool(gm.get("doubleSided", False)),
                    **coverage_from_gltf(gm, alpha_texture, where, warnings))
     extras = gm.get("extras")

@@ -85,7 +85,7 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     materials = [{"name": m.name, "kd": vec(m.kd), "emission": vec(m.emission),
                   "double_sided": bool(m.double_sided), "lobes": [lobe.to_dict() for lobe in m.lobes],
                   "kd_texture": f"textures/material_{i}.exr" if m.kd_texture is not None else None,
-                  **_emission_entry(m, i), **_metallic_roughness_entry(m, i), **_sampler_entry(m), **_coverage_entry(m)}
+                  **_emission_entry(m, i), **_metallic_roughness_entry(m, i), **_sampler_entry(m), **_coverage_entry(m), **_volume_entry(m)}
                  for i, m in enumerate(scene.materials)]
     lights = {
         "point": [{"name": l.name, "position": vec(l.position), "intensity": vec(l.intensity)}
@@ -139,6 +139,15 @@ def _coverage_entry(m) -> dict:
     if not m.has_coverage:
         return {}
     return {"alpha_mode": m.alpha_mode, "alpha_cutoff": float(m.alpha_cutoff), "alpha": float(m.alpha)}
+
+
+def _volume_entry(m) -> dict:
+    """A glass solid's `volume` {ior, thickness, absorption (sigma_a, 1/m)} (core/volume.py); nothing
+    for other materials, whose manifest entries stay as they were (readers take them as thin)."""
+    if not m.has_volume:
+        return {}
+    return {"volume": {"ior": float(m.ior), "thickness": float(m.thickness),
+                       "absorption": [float(x) for x in m.absorption]}}
 
 
 # Renders cube-map plans into a bake directory written so far; returns statistics

@@ -17,6 +17,12 @@ against it. What maps to what:
   A metallic-roughness texture becomes the plugin's `mr` bitmap (linear, repeating, nearest with
   the base colour's magFilter NEAREST, else bilinear): per shading point kd x (1 - M') and the
   `mr` lobes' texel width and weight (bench/mitsuba_bsdf.py `_Lobe.at_texel`).
+- Glass solids (Material.has_volume: KHR_materials_volume, core/volume.py): Mitsuba's own
+  two-interface `dielectric` (int_ior = the ior, ext_ior 1, specular_transmittance = the transmit
+  lobe's ks), `roughdielectric` (Beckmann, alpha_u = mx, alpha_v = my) where the lobe is wider
+  than ROUGH_GLASS_M; absorption (attenuationColor / Distance) as a `homogeneous` interior medium
+  of sigma_t = sigma_a and albedo 0, with the `volpath` integrator. So the comparison's glass is
+  a true solid with refraction, not glint's model of it.
 - Emissive materials: an `area` emitter of radiance = Material.emission (W/(m^2 sr), the
   loader's emissiveFactor x strength, as the bake reads it) on each such object; Mitsuba's
   area lights emit from the front, as the bake's one-sided emitters. A double-sided emitter
@@ -32,7 +38,7 @@ against it. What maps to what:
 - Cameras: `perspective` from eye / forward / up with the vertical field of view
   (`fov_axis` "y", as viewer/camera.py), box pixel filter (the pixel's area, as the viewer's
   supersampling), linear RGB `hdrfilm`.
-- Integrator: `path` with unlimited depth.
+- Integrator: `path` with unlimited depth (`volpath` where glass absorbs).
 """
 from __future__ import annotations
 
@@ -47,6 +53,7 @@ from glint.viewer.gpu_scene import axis_tangents, tangents
 # Mitsuba and drjit are optional (glint[test]): imported by the functions that need them, so the rest works without.
 
 SPOT_PLUGIN = "glint_spot"
+ROUGH_GLASS_M = 1e-3  # Beckmann m below which glass is Mitsuba's smooth `dielectric`
 _spot_registered: set[str] = set()
 
 
@@ -69,7 +76,19 @@ def _vector(v) -> list[float]:
     return [float(x) for x in np.asarray(v, np.float64).reshape(3)]
 
 
+def glass_dict(material) -> dict:
+    """A glass solid as Mitsuba's dielectric or roughdielectric (module docstring)."""
+    lobe = material.transmit_lobes[0]
+    out = {"type": "dielectric", "int_ior": float(material.ior), "ext_ior": 1.0,
+           "specular_transmittance": _rgb(np.clip(lobe.ks, 0.0, 1.0))}
+    if max(lobe.mx, lobe.my) > ROUGH_GLASS_M:
+        out.update(type="roughdielectric", distribution="beckmann", alpha_u=float(lobe.mx), alpha_v=float(lobe.my))
+    return out
+
+
 def bsdf_dict(material) -> dict:
+    if material.has_volume:
+        return glass_dict(material)
     kd = np.clip(np.nan_to_num(np.asarray(material.kd, np.float64).reshape(3)), 0.0, 1.0)
     if material.kd_texture is not None:
         import mitsuba as mi
@@ -96,8 +115,8 @@ def _bitmap(texture, material) -> dict:
             "filter_type": "nearest" if material.kd_nearest else "bilinear", "wrap_mode": "repeat"}
 
 
-def mesh(obj, bsdf, emitter=None):
-    """One object as an `mi.Mesh` with its BSDF (and area emitter), world space."""
+def mesh(obj, bsdf, emitter=None, interior=None):
+    """One object as an `mi.Mesh` with its BSDF (and area emitter, interior medium), world space."""
     import mitsuba as mi
 
     positions = np.asarray(obj.positions, np.float64).reshape(-1, 3)
@@ -107,6 +126,8 @@ def mesh(obj, bsdf, emitter=None):
     props["bsdf"] = bsdf
     if emitter is not None:
         props["emitter"] = emitter
+    if interior is not None:
+        props["interior"] = interior
     has_uv = obj.uvs is not None
     m = mi.Mesh(obj.name or "object", len(positions), len(faces), props=props, has_vertex_normals=True,
                 has_vertex_texcoords=has_uv)
@@ -166,6 +187,10 @@ def convert(scene: Scene, sensors: list[dict] = ()) -> tuple[dict, list[str]]:
     warnings = []
     out = {"type": "scene", "integrator": {"type": "path", "max_depth": -1}}
     bsdfs = [mi.load_dict(bsdf_dict(m)) for m in scene.materials]
+    media = [mi.load_dict({"type": "homogeneous", "sigma_t": _rgb(m.absorption), "albedo": 0.0})
+             if m.has_volume and np.any(m.absorption > 0) else None for m in scene.materials]
+    if any(medium is not None for medium in media):
+        out["integrator"] = {"type": "volpath", "max_depth": -1}
     for i, obj in enumerate(scene.objects):
         if not len(obj.indices):
             continue
@@ -176,7 +201,7 @@ def convert(scene: Scene, sensors: list[dict] = ()) -> tuple[dict, list[str]]:
             emitter = mi.load_dict({"type": "area", "radiance": _rgb(emission)})
             if material.double_sided:
                 warnings.append(f"'{obj.name}': double-sided emitter emits from its front side only in Mitsuba")
-        out[f"object_{i:04d}"] = mesh(obj, bsdfs[obj.material], emitter)
+        out[f"object_{i:04d}"] = mesh(obj, bsdfs[obj.material], emitter, media[obj.material])
     for i, light in enumerate(scene.point_lights):
         out[f"point_{i}"] = {"type": "point", "position": _vector(light.position), "intensity": _rgb(light.intensity)}
     for i, light in enumerate(scene.spot_lights):

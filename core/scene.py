@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.core.volume import absorption_coefficient
+
 ROLES = ("diffuse", "curved", "planar", "transmissive")
 
 
@@ -66,6 +68,13 @@ class Material:
     (H, W) float32, linear, same uv as kd_texture; None = 1). MASK: the surface exists where
     alpha >= alpha_cutoff and not at all elsewhere; BLEND: it covers the fraction alpha.
     OPAQUE ignores the alpha.
+
+    Volume (KHR_materials_volume, with transmit lobes): `thickness` > 0 makes the object a closed
+    solid of refractive index `ior` (KHR_materials_ior) whose surface is two interfaces of one
+    body, not a thin sheet (core/volume.py): light refracts in and out, with Fresnel at both, and is
+    absorbed inside by Beer-Lambert with `attenuation_color` reached after `attenuation_distance`
+    metres. thickness is glTF's thicknessFactor (the wall under the surface, metres; 0 = thin-walled:
+    Eq. 3.5's thin surface, the ior and attenuation unused).
     """
 
     name: str
@@ -82,6 +91,20 @@ class Material:
     alpha_cutoff: float = 0.5
     alpha: float = 1.0
     alpha_texture: np.ndarray | None = None
+    ior: float = 1.5
+    thickness: float = 0.0
+    attenuation_distance: float = float("inf")
+    attenuation_color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+    @property
+    def has_volume(self) -> bool:
+        """A closed transmissive solid (two interfaces, refraction), not a thin sheet."""
+        return self.thickness > 0 and bool(self.transmit_lobes)
+
+    @property
+    def absorption(self) -> np.ndarray:
+        """Beer-Lambert coefficient sigma_a (1/m, RGB): exp(-sigma_a x) = attenuation_color^(x / distance)."""
+        return absorption_coefficient(self.attenuation_color, self.attenuation_distance)
 
     @property
     def has_coverage(self) -> bool:

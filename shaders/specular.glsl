@@ -48,6 +48,7 @@
 #include "gbuffer_read.glsl"
 #include "lobe_sampling.glsl"
 #include "cubemaps.glsl"
+#include "volume.glsl"
 #include "mirror_buffer.glsl"
 
 // The regular patterns in (xi1, xi2) space (viewer/lobe_patterns.py), all lobes' in one buffer;
@@ -105,6 +106,16 @@ struct SpecularPoint {
     vec4 plane_sum_p;     // still camera: sum of the planes' positions so far, w: their count
     vec3 plane_sum_n;     // ... and of their normals
 };
+
+// Where sample wi (local frame) reads the object's cube map and what of that reaches the eye:
+// through a glass solid's volume for its transmission lobes (volume.glsl), else straight from the
+// point through the bounding planes (section 4.4.1) at full weight.
+CubeLook cube_look(SpecularPoint sp, vec3 wi, Lobe lobe) {
+    vec3 d = sp.frame * wi;
+    if (lobe_is_transmit(lobe) && has_volume(sp.cube))
+        return volume_transmit(sp.cube, sp.position, sp.frame[2], d);
+    return CubeLook(bounding_plane_direction(sp.cube, sp.position, d), vec3(1.0));
+}
 
 // Any orthonormal (t, b) for a unit n (Duff et al. 2017, branchless and continuous except at n.z = 0).
 mat3 any_frame(vec3 n) {
@@ -177,8 +188,8 @@ vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
         vec3 wi = pattern_direction(sp.wo, pattern_xi[pattern.x + k], lobe);
         if (!on_lobe_side(wi, lobe))
             continue;  // below the horizon: cannot contribute (section 4.4.3)
-        vec3 look = bounding_plane_direction(sp.cube, sp.position, sp.frame * wi);
-        vec3 L = cube_radiance(sp.cube, look, cube_mip_level(sample_area, look, face));
+        CubeLook look = cube_look(sp, wi, lobe);
+        vec3 L = look.weight * cube_radiance(sp.cube, look.dir, cube_mip_level(sample_area, look.dir, face));
         specular_lookups += 1;
         add_pattern_sample(sum, L, lobe_value(wi, sp.wo, lobe), lobe_pdf(wi, sp.wo, lobe), abs(wi.z));
     }
@@ -210,9 +221,9 @@ vec3 lobe_importance_estimate(SpecularPoint sp, Lobe lobe, uint first, int count
         float pdf, weight;
         if (!importance_sample(sp, lobe, first + uint(k), rotation, wi, pdf, weight))
             continue;
-        vec3 look = bounding_plane_direction(sp.cube, sp.position, sp.frame * wi);
+        CubeLook look = cube_look(sp, wi, lobe);
         float lod = filtered ? importance_mip_level(pdf, count, face) : 0.0;  // unfiltered: unbiased
-        sum += weight * cube_radiance(sp.cube, look, lod);
+        sum += weight * look.weight * cube_radiance(sp.cube, look.dir, lod);
         specular_lookups += 1;
     }
     return sum / float(max(count, 1));

@@ -189,7 +189,7 @@ def test_summary_line_counts_subjects_and_sums(capsys):
 def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
     """What glint does not support, and used to ignore silently, warns and is counted in
     Scene.ignored_features (-> the end-of-bake line): skins, morph targets
-    with weights, animations, light range, a volume's thickness, a textured
+    with weights, animations, light range, a volume's thickness texture, a textured
     material on an object without the texture coordinates it names. Deliberate bug this catches (tried): the
     morph targets' warning without `ignored=` (morph targets missing from the counts)."""
     from glint.bake.gltf_loader import load_scene
@@ -197,7 +197,8 @@ def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
     w, wall = room_writer()
     texture = w.add_texture(np.full((2, 2, 3), 128, np.uint8))
     w.materials[wall]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": texture}
-    w.materials[wall]["extensions"] = {"KHR_materials_volume": {"thicknessFactor": 0.1}}
+    w.materials[wall]["extensions"] = {"KHR_materials_volume": {"thicknessFactor": 0.1,
+                                                                "thicknessTexture": {"index": texture}}}
     w.extensions_used.add("KHR_materials_volume")
     node = {n["name"]: n for n in w.nodes}
     back = w.meshes[node["Back"]["mesh"]]
@@ -214,10 +215,10 @@ def test_every_ignored_feature_is_warned_about_and_counted(tmp_path, capsys):
 
     scene = load_scene(path)
     assert scene.ignored_features == {
-        "animations": 1, "KHR_materials_volume": 1, "skins": 1,
+        "animations": 1, "thicknessTexture": 1, "skins": 1,
         "morph targets": 1, "light range": 1}
     err = capsys.readouterr().err
-    for words in ("animation(s) not played", "KHR_materials_volume thickness",
+    for words in ("animation(s) not played", "thicknessTexture not supported",
                   "'Left' is skinned", "'Back' has morph target weights",
                   "light 'Bulb': range", "objects have a textured material but not the texture coordinates"):
         assert words in err, words

@@ -47,8 +47,10 @@ from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")  # GL's face order (GL_TEXTURE_CUBE_MAP_POSITIVE_X + k)
 MAX_PLANES = 16  # per object; more are ignored (each is a ray-plane test per sample)
 
-# Per object (std430): xyz projection centre, w unused; class (-1: none), layer, first plane, plane count.
-CUBE_OBJECT_DTYPE = np.dtype([("centre", "<f4", 4), ("info", "<i4", 4)])
+# Per object (std430): xyz projection centre, w unused; class (-1: none), layer, first plane, plane count;
+# a glass solid's (shaders/volume.glsl) half extents of its bounding box and thickness (w), and its
+# absorption sigma_a (rgb, 1/m) and ior (a; 0: not a solid).
+CUBE_OBJECT_DTYPE = np.dtype([("centre", "<f4", 4), ("info", "<i4", 4), ("extent", "<f4", 4), ("volume", "<f4", 4)])
 PLANE_DTYPE = np.dtype([("point", "<f4", 4), ("normal", "<f4", 4)])
 
 
@@ -95,6 +97,13 @@ class CubeMaps:
                 continue
             faces[i] = read_cubemap(Path(bake.path) / cube["file"])
             table[i]["centre"][:3] = _finite(cube.get("centre", np.mean(entry["bounds"], axis=0)))
+            volume = _material_volume(bake.manifest, entry)
+            if volume:  # a glass solid: bake/pipeline.py's `volume` entry of its material
+                lo, hi = (_finite(b) for b in entry["bounds"])
+                table[i]["extent"][:3] = np.abs(hi - lo) / 2
+                table[i]["extent"][3] = max(_finite_scalar(volume.get("thickness", 0.0)), 0.0)
+                table[i]["volume"][:3] = np.clip(_finite(volume.get("absorption", (0, 0, 0))), 0.0, HALF_MAX)
+                table[i]["volume"][3] = max(_finite_scalar(volume.get("ior", 1.5)), 1.0)
             rows = _planes(cube.get("bounding_planes") or [])
             table[i]["info"][2:] = (len(planes), len(rows))
             planes.extend(rows)
@@ -166,8 +175,18 @@ class CubeMaps:
         self.plane_buffer.release()
 
 
+def _material_volume(manifest: dict, entry: dict) -> dict | None:
+    materials = manifest.get("materials") or []
+    k = int(entry.get("material", -1))
+    return materials[k].get("volume") if 0 <= k < len(materials) else None
+
+
 def _finite(v) -> np.ndarray:
     return np.nan_to_num(np.asarray(v, np.float64).reshape(3), nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def _finite_scalar(v) -> float:
+    return float(np.nan_to_num(np.float64(v), nan=0.0, posinf=0.0, neginf=0.0))
 
 
 def _planes(entries: list) -> list:
