@@ -101,8 +101,8 @@ SKINNED = WarningKind("{n} objects are skinned; skins are not supported, shown a
                       "(the bind pose)")
 MORPHED = WarningKind("{n} objects have morph target weights, not supported; shown without "
                       "their morph targets")
-EMISSIVE_UVS = WarningKind("{n} materials' emissive textures use another texture coordinate set "
-                           "than their base colour textures; the base colour's is used")
+EMISSIVE_UVS = WarningKind("{n} materials' emissive, normal or anisotropy textures use another texture "
+                           "coordinate set than their base colour textures; the base colour's is used")
 NO_UVS = WarningKind("{n} objects have a textured material but not the texture coordinates "
                      "it names; the texel at (0, 0) is used everywhere")
 LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
@@ -562,12 +562,19 @@ class _SceneBuilder:
             name = gm.get("name") or f"material{i}"
             names.add(name)
             rgba = self._base_color_texture(gm, name, i)
-            emissive = self._emissive_texture(gm, name, i)
+            emissive = self._shared_uv_texture(gm.get("emissiveTexture"), "emissiveTexture", name, i)
+            # Normal and anisotropy textures are linear (glTF 3.9.3, KHR_materials_anisotropy).
+            normal = self._shared_uv_texture(gm.get("normalTexture"), "normalTexture", name, i, srgb=False)
+            anisotropy = self._shared_uv_texture(
+                gm.get("extensions", {}).get("KHR_materials_anisotropy", {}).get("anisotropyTexture"),
+                "anisotropyTexture", name, i, srgb=False)
             wrap, nearest = self._samplers.get(i, (("REPEAT", "REPEAT"), False))
             out.append(material_from_gltf(
                 gm, name, kd_texture=None if rgba is None else np.ascontiguousarray(rgba[..., :3]),
                 emission_texture=None if emissive is None else np.ascontiguousarray(emissive[..., :3]),
                 alpha_texture=None if rgba is None else np.ascontiguousarray(rgba[..., 3]),
+                normal_texture=None if normal is None else np.ascontiguousarray(normal[..., :3]),
+                anisotropy_texture=None if anisotropy is None else np.ascontiguousarray(anisotropy[..., :3]),
                 diffuse_roughness=side.diffuse_roughness, override=side.materials.get(name),
                 warnings=self.warnings, source=self.source))
             # The base colour's sampler; not in material_from_gltf, which sees no textures' JSON.
@@ -601,17 +608,19 @@ class _SceneBuilder:
         self._samplers[index] = self._sampler(tex)
         return self._texture_image(tex, "base colour", name, where)
 
-    def _emissive_texture(self, gm: dict, name: str, index: int) -> np.ndarray | None:
-        """(H, W, 4) float32 of the emissiveTexture (glTF 3.9.3: sRGB, multiplies emissiveFactor),
-        or None. It is looked up with the base colour's uv set and sampler, the one set an object
-        keeps; when it names another set (or transform), that is warned and the base colour's is
-        used. Without a base colour texture its own set and sampler are the object's."""
-        info = gm.get("emissiveTexture")
+    def _shared_uv_texture(self, info, key: str, name: str, index: int,
+                           srgb: bool = True) -> np.ndarray | None:
+        """(H, W, 4) float32 of a material texture that shares the object's one uv set: the
+        emissiveTexture (glTF 3.9.3: sRGB, multiplies emissiveFactor), the normalTexture and the
+        anisotropyTexture (linear: `srgb` False), or None. It is looked up with the base colour's
+        uv set and sampler, the one set an object keeps; when it names another set (or
+        transform), that is warned and the base colour's is used. Without a base colour texture
+        the first of these textures gives the object its set and sampler."""
         if not isinstance(info, dict):
             return None
         where = f"{self.source}: material '{name}'"
         texcoord, matrix = _uv_set(info, where)
-        tex = self.item("textures", info.get("index"), f"material '{name}' emissiveTexture")
+        tex = self.item("textures", info.get("index"), f"material '{name}' {key}")
         if index not in self._uv_sets:
             self._uv_sets[index] = (texcoord, matrix)
             self._samplers[index] = self._sampler(tex)
@@ -620,13 +629,15 @@ class _SceneBuilder:
             if base_set != texcoord or not np.array_equal(
                     np.eye(3) if base_matrix is None else base_matrix,
                     np.eye(3) if matrix is None else matrix):
-                self.warn(f"{where}: emissiveTexture uses another texture coordinate set or "
+                self.warn(f"{where}: {key} uses another texture coordinate set or "
                           "transform than the base colour texture; the base colour's is used",
                           EMISSIVE_UVS, name)
-        return self._texture_image(tex, "emissive", name, where)
+        return self._texture_image(tex, key, name, where, srgb)
 
-    def _texture_image(self, tex: dict, what: str, name: str, where: str) -> np.ndarray | None:
-        """The decoded image of a glTF texture (each image decoded once), or None with a warning."""
+    def _texture_image(self, tex: dict, what: str, name: str, where: str,
+                       srgb: bool = True) -> np.ndarray | None:
+        """The decoded image of a glTF texture (each image decoded once), or None with a warning;
+        `srgb`: the colour is sRGB-encoded and decoded to linear (alpha is always linear)."""
         source = tex.get("source")
         if source is None:
             self.warn(f"{where}: {what} texture has no PNG/JPEG source; ignored",
@@ -634,7 +645,11 @@ class _SceneBuilder:
             return None
         if source not in self._images:
             self._images[source] = self._decode_image(source, where)
-        return self._images[source]
+        rgba = self._images[source]
+        if rgba is None or not srgb:
+            return rgba
+        # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
+        return np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
 
     def _sampler(self, tex: dict) -> tuple[tuple[str, str], bool]:
         """The texture's glTF sampler: ((wrapS, wrapT), magFilter is NEAREST). glTF 5.26: without
@@ -671,8 +686,7 @@ class _SceneBuilder:
                       UNREADABLE, _image_name(image, index),
                       ignored=["unreadable base colour images"])
             return None
-        # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
-        return np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
+        return rgba
 
     # ---- geometry
 
@@ -774,6 +788,7 @@ class _SceneBuilder:
                 raise self.bad(f"object '{node_name}' NORMAL count differs from POSITION")
             # Inverse transpose up to a positive factor: cofactor * sign(det).
             normals = normals @ (_cofactor(linear) * np.sign(np.linalg.det(linear) or 1.0)).T
+        tangents = self._tangents(attrs, linear, n, node_name, name) if normals is not None else None
         # The base colour's texture coordinate set (glTF textureInfo.texCoord), with its
         # KHR_texture_transform applied, so the bake and the viewer read `uvs` as they are.
         material = prim.get("material")
@@ -819,6 +834,7 @@ class _SceneBuilder:
             # Keep only referenced vertices (primitives may share one big vertex buffer).
             used, inverse = np.unique(indices, return_inverse=True)
             positions, normals = positions[used], normals[used]
+            tangents = None if tangents is None else tangents[used]
             uvs = None if uvs is None else uvs[used]
             colors = None if colors is None else colors[used]
             indices = inverse.reshape(-1, 3).astype(np.int64)
@@ -834,15 +850,36 @@ class _SceneBuilder:
             material = self._index(material, len(_list(self.tree, "materials", self.source)),
                                    f"object '{node_name}' {what}", "material")
             textured = scene.materials[material]
-            if uvs is None and (textured.kd_texture is not None
-                                or textured.emission_texture is not None):
+            if uvs is None and any(t is not None for t in (
+                    textured.kd_texture, textured.emission_texture, textured.normal_texture,
+                    textured.anisotropy_texture)):
                 self.warn(f"{self.source}: object '{name}' has a textured material but no "
                           f"{uv_name}; its texel at (0, 0) is used everywhere", NO_UVS, name,
                           detail=uv_name)
         return Object(name=name, positions=positions, normals=np.asarray(normals, np.float32),
                       indices=indices, material=material,
                       uvs=None if uvs is None else uvs.astype(np.float32),
-                      colors=None if colors is None else colors.astype(np.float32))
+                      colors=None if colors is None else colors.astype(np.float32),
+                      tangents=None if tangents is None else tangents.astype(np.float32))
+
+    def _tangents(self, attrs: dict, linear: np.ndarray, n: int, node_name: str,
+                  name: str) -> np.ndarray | None:
+        """glTF TANGENT (VEC4: xyz tangent, w = +-1 bitangent sign) in world space, or None: xyz
+        is a direction in the surface, so it takes the node's matrix; a mirroring matrix
+        (negative determinant) reverses the bitangent against the transformed normal, so w flips.
+        Unusable tangents (zero length, non-finite) are set to 0, which the viewer replaces by
+        its own (viewer/gpu_scene.py `tangents`)."""
+        if "TANGENT" not in attrs:
+            return None
+        raw = self.accessor(attrs["TANGENT"], f"'{node_name}' TANGENT")
+        if len(raw) != n or raw.shape[1] != 4:
+            raise self.bad(f"object '{node_name}' TANGENT is not VEC4 of one per POSITION")
+        raw = np.nan_to_num(raw.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+        xyz = raw[:, :3] @ linear.T
+        length = np.linalg.norm(xyz, axis=1, keepdims=True)
+        xyz = np.where(length > 1e-12, xyz / np.maximum(length, 1e-12), 0.0)
+        w = np.where(raw[:, 3] < 0, -1.0, 1.0) * (-1.0 if np.linalg.det(linear) < 0 else 1.0)
+        return np.concatenate([xyz, w[:, None]], axis=1)
 
     # ---- lights and cameras
 

@@ -22,8 +22,15 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
 - Clearcoat (c > 0): one more reflect lobe, ks = c, r0 = 0.04, m = max(r_c^2, 1e-4).
 - Anisotropy a: the tangent width widens, mx = m + (1 - m) * a^2, my = m (the
   KHR_materials_anisotropy definition, applied to Beckmann m); tangent = the
-  mesh's TEXCOORD_0 u direction. anisotropyRotation and anisotropyTexture are
-  not supported (warning).
+  mesh's tangent (TANGENT, else MikkTSpace from the object's uvs), rotated by
+  anisotropyRotation (`Material.anisotropy_rotation`) and, per texel, towards the
+  anisotropyTexture's RG direction; its B channel s scales a, so the viewer
+  narrows mx per pixel to my + (mx - my) s^2 (`Material.anisotropy_texture`,
+  read by the loader).
+- Normal map: normalTexture (linear) and its scale go to `Material.normal_texture`
+  and `normal_scale` unchanged (read by the loader); the viewer perturbs the
+  shading normal of the lobes with it. The light maps keep irradiance around the
+  unperturbed normal (docs/SCENES.md).
 - Rough dielectrics are diffuse: a dielectric reflect lobe (base or clearcoat)
   whose roughness r >= `diffuse_roughness` (0.5; sidecar `[bake] diffuse_roughness`)
   is dropped when the material does not transmit. Its highlight is too broad to be
@@ -37,8 +44,7 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   `alpha_cutoff`, `alpha` and `alpha_texture` unchanged; OPAQUE drops the alpha (the
   spec: "the rendered output is fully opaque and any alpha value is ignored"). An
   unknown mode warns and is opaque.
-- Ignored, with a warning: metallicRoughness and normal textures
-  (the factors are used), a KHR_materials_volume thickness (a thin surface). Occlusion
+- Ignored, with a warning: metallicRoughness textures (the factors are used), a KHR_materials_volume thickness (a thin surface). Occlusion
   textures are not read (the bake computes occlusion itself). Warnings repeated over materials
   are summarised per kind.
 
@@ -71,8 +77,6 @@ MATERIAL_EXTENSIONS = (
 )
 OVERRIDE_KEYS = ("kd", "emission", "lobes")
 # Warnings that repeat per material: one summary line each (glint.core.errors.WarningKind).
-ANISOTROPY_ROTATION = WarningKind("{n} materials have an anisotropyRotation, not supported yet; "
-                                  "the anisotropy runs along the texture u direction")
 IGNORED_TEXTURES = WarningKind("{n} materials have textures glint does not read; "
                                "the constant factors are used")
 VOLUME = WarningKind("{n} materials have a volume (KHR_materials_volume thickness), not supported; "
@@ -92,6 +96,7 @@ class GltfPbr:
     specular: float = 1.0
     specular_color: tuple = (1.0, 1.0, 1.0)
     anisotropy: float = 0.0
+    anisotropy_rotation: float = 0.0
     clearcoat: float = 0.0
     clearcoat_roughness: float = 0.0
     emissive: tuple = (0.0, 0.0, 0.0)
@@ -160,10 +165,7 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
                                      "specularColorFactor"))
     e = ext.get("KHR_materials_anisotropy", {})
     p.anisotropy = _float(e.get("anisotropyStrength", 0.0), where, "anisotropyStrength")
-    if _float(e.get("anisotropyRotation", 0.0), where, "anisotropyRotation") != 0.0:
-        add_warning(warnings, f"{where}: anisotropyRotation is not supported yet; "
-                              "the anisotropy runs along the texture u direction",
-                    ANISOTROPY_ROTATION, name, ignored=["anisotropyRotation"])
+    p.anisotropy_rotation = _float(e.get("anisotropyRotation", 0.0), where, "anisotropyRotation")
     e = ext.get("KHR_materials_clearcoat", {})
     p.clearcoat = _float(e.get("clearcoatFactor", 0.0), where, "clearcoatFactor")
     p.clearcoat_roughness = _float(e.get("clearcoatRoughnessFactor", 0.0), where,
@@ -175,11 +177,10 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
                     VOLUME, name, ignored=["KHR_materials_volume"])
 
     ignored = [key for key, table in (
-        ("metallicRoughnessTexture", pmr), ("normalTexture", gm),
+        ("metallicRoughnessTexture", pmr),
         ("transmissionTexture", ext.get("KHR_materials_transmission", {})),
         ("specularTexture", ext.get("KHR_materials_specular", {})),
         ("specularColorTexture", ext.get("KHR_materials_specular", {})),
-        ("anisotropyTexture", ext.get("KHR_materials_anisotropy", {})),
         ("clearcoatTexture", ext.get("KHR_materials_clearcoat", {})),
         ("clearcoatRoughnessTexture", ext.get("KHR_materials_clearcoat", {})),
         ("clearcoatNormalTexture", ext.get("KHR_materials_clearcoat", {}))) if key in table]
@@ -216,15 +217,19 @@ def coverage_from_gltf(gm: dict, alpha_texture: np.ndarray | None, where: str,
 def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = None,
                        emission_texture: np.ndarray | None = None,
                        alpha_texture: np.ndarray | None = None,
+                       normal_texture: np.ndarray | None = None,
+                       anisotropy_texture: np.ndarray | None = None,
                        diffuse_roughness: float = DIFFUSE_ROUGHNESS,
                        override: dict | None = None, warnings: list[str] | None = None,
                        source: str = "") -> Material:
     """One glTF material -> Material: the rule, then `extras.glint`, then the sidecar override."""
     warnings = [] if warnings is None else warnings
     where = f"{source}: material '{name}'" if source else f"material '{name}'"
-    kd, lobes, emission = map_pbr(pbr_from_gltf(gm, where, warnings, name), diffuse_roughness)
+    pbr = pbr_from_gltf(gm, where, warnings, name)
+    kd, lobes, emission = map_pbr(pbr, diffuse_roughness)
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
-                   emission_texture=emission_texture,
+                   emission_texture=emission_texture, **_surface_detail(gm, pbr, normal_texture,
+                                                                        anisotropy_texture, where),
                    double_sided=bool(gm.get("doubleSided", False)),
                    **coverage_from_gltf(gm, alpha_texture, where, warnings))
     extras = gm.get("extras")
@@ -234,6 +239,17 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     if override:
         apply_override(mat, override)
     return mat
+
+
+def _surface_detail(gm: dict, p: GltfPbr, normal_texture, anisotropy_texture, where: str) -> dict:
+    """The normal map (glTF normalTexture and its scale) and the anisotropy direction
+    (KHR_materials_anisotropy rotation and texture) -> Material's fields; an anisotropy
+    texture only where there is anisotropy for it to shape."""
+    info = gm.get("normalTexture")
+    scale = _float(info.get("scale", 1.0), where, "normalTexture.scale") if isinstance(info, dict) else 1.0
+    return {"normal_texture": normal_texture, "normal_scale": scale,
+            "anisotropy_rotation": p.anisotropy_rotation if p.anisotropy > 0 else 0.0,
+            "anisotropy_texture": anisotropy_texture if p.anisotropy > 0 else None}
 
 
 def apply_override(mat: Material, override: dict) -> Material:

@@ -55,6 +55,13 @@ class Material:
     (H, W) float32, linear, same uv as kd_texture; None = 1). MASK: the surface exists where
     alpha >= alpha_cutoff and not at all elsewhere; BLEND: it covers the fraction alpha.
     OPAQUE ignores the alpha.
+
+    normal_texture, when present, is an (H, W, 3) float32 array of the glTF normalTexture as
+    stored (linear, 0..1: the tangent-space normal is 2 x value - 1), looked up like kd_texture;
+    normal_scale multiplies its x and y (glTF normalTexture.scale). anisotropy_rotation (radians,
+    counter-clockwise from the tangent towards the bitangent) and anisotropy_texture ((H, W, 3),
+    linear: RG the direction in tangent space as 2 x value - 1, B a factor on the strength) are
+    KHR_materials_anisotropy's; the lobes' mx, my carry the strength itself.
     """
 
     name: str
@@ -70,6 +77,10 @@ class Material:
     alpha_cutoff: float = 0.5
     alpha: float = 1.0
     alpha_texture: np.ndarray | None = None
+    normal_texture: np.ndarray | None = None
+    normal_scale: float = 1.0
+    anisotropy_rotation: float = 0.0
+    anisotropy_texture: np.ndarray | None = None
 
     @property
     def has_coverage(self) -> bool:
@@ -108,6 +119,9 @@ class Object:
     uvs: np.ndarray | None = None
     # glTF COLOR_0 (N, 3) linear RGB in 0..1: multiplies the material's base colour (None = 1)
     colors: np.ndarray | None = None
+    # glTF TANGENT (N, 4) in world space: xyz unit tangent, w = +-1, the bitangent being
+    # w x (normal x tangent) (glTF 3.7.2.1); None = computed by the viewer (MikkTSpace)
+    tangents: np.ndarray | None = None
     role: str = "diffuse"
     role_overridden: bool = False
     options: dict = field(default_factory=dict)  # sidecar [objects."NAME"]: cubemap_size, bounding_planes

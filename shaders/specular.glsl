@@ -375,9 +375,25 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
 // made planar by the sidecar -- the mirror image is not the light it receives: -1 there, as for
 // objects whose plane got no pass this frame.
 
+// Normal-mapped pixels ask it of their position (within MIRROR_PLANE_DISTANCE x the distance to
+// the eye of the plane), since their normal is not the surface's.
 int mirror_slot_at(Surface s) {
     int slot = mirror_slot_of(s.object);
-    return slot >= 0 && dot(s.normal, mirror_slots[slot].plane.xyz) >= MIRROR_PLANE_COS ? slot : -1;
+    if (slot < 0)
+        return -1;
+    vec4 plane = mirror_slots[slot].plane;
+    if (s.normal_mapped)
+        return abs(dot(plane.xyz, s.position) + plane.w) <= MIRROR_PLANE_DISTANCE * distance(s.position, eye) ? slot : -1;
+    return dot(s.normal, plane.xyz) >= MIRROR_PLANE_COS ? slot : -1;
+}
+
+// A lobe as it is at this pixel. KHR_materials_anisotropy's texture scales the strength a by s
+// (the G-buffer tangent's length): mx = m + (1 - m) a^2, my = m (bake/material_mapping.py) become
+// mx' = my + (mx - my) s^2. The lobe keeps its sampling pattern (chosen for mx, my).
+Lobe lobe_at_pixel(Lobe lobe, Surface s, Material m) {
+    if (has_flag(m, MAT_ANISOTROPY_TEXTURE))
+        lobe.shape.x = lobe.shape.y + (lobe.shape.x - lobe.shape.y) * s.anisotropy * s.anisotropy;
+    return lobe;
 }
 
 // Whether the point gets specular light at all: a lobe, a lit side, and incident light to read --
@@ -409,7 +425,7 @@ vec3 specular_radiance(Surface s, Material m, ivec2 pixel) {
     }
     vec3 sum = vec3(0.0);
     for (int i = 0; i < m.info.w; ++i)
-        sum += lobe_radiance(sp, lobes[m.info.z + i], m.info.z + i);
+        sum += lobe_radiance(sp, lobe_at_pixel(lobes[m.info.z + i], s, m), m.info.z + i);
     if (planes) {
         imageStore(mirror_plane_positions, pixel, sp.plane_sum_p);
         imageStore(mirror_plane_normals, pixel, vec4(sp.plane_sum_n, 0.0));
