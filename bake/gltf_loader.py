@@ -16,10 +16,11 @@ Conventions:
 - Missing normals are computed flat (one normal per face, vertices split), as
   the glTF spec requires of clients; zero-length or non-finite normals are
   replaced by the (area-weighted) face normal. Degenerate triangles are dropped.
-- Object.uvs is the base colour texture's set (textureInfo.texCoord, default TEXCOORD_0; the
-  emissiveTexture's when there is no base colour texture)
+- Object.uvs is the base colour texture's set (textureInfo.texCoord, default TEXCOORD_0; else
+  the first of the emissive, normal and anisotropy textures')
   with its KHR_texture_transform applied: (0, 0) is the top-left of the image, and
   Material.kd_texture row 0 is the image's top row, so texel = (v * H, u * W).
+- Object.tangents: glTF TANGENT in world space (w flipped under a mirroring matrix), or None.
 - Primitives without a material get "default": a grey (kd 0.8) diffuse material.
 - KHR_lights_punctual: intensity is candela (point, spot) or lux (directional);
   with `[lights] units = "photometric"` (default) it is divided by 683 lm/W to
