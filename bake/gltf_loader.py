@@ -16,10 +16,11 @@ Conventions:
 - Missing normals are computed flat (one normal per face, vertices split), as
   the glTF spec requires of clients; zero-length or non-finite normals are
   replaced by the (area-weighted) face normal. Degenerate triangles are dropped.
-- Object.uvs is the base colour texture's set (textureInfo.texCoord, default TEXCOORD_0; the
-  emissiveTexture's or metallicRoughnessTexture's when there is no base colour texture)
+- Object.uvs is the base colour texture's set (textureInfo.texCoord, default TEXCOORD_0; else
+  the first of the emissive, metallic-roughness, normal and anisotropy textures')
   with its KHR_texture_transform applied: (0, 0) is the top-left of the image, and
   Material.kd_texture row 0 is the image's top row, so texel = (v * H, u * W).
+- Object.tangents: glTF TANGENT in world space (w flipped under a mirroring matrix), or None.
 - Primitives without a material get "default": a grey (kd 0.8) diffuse material.
 - KHR_lights_punctual: intensity is candela (point, spot) or lux (directional);
   with `[lights] units = "photometric"` (default) it is divided by 683 lm/W to
@@ -101,10 +102,9 @@ SKINNED = WarningKind("{n} objects are skinned; skins are not supported, shown a
                       "(the bind pose)")
 MORPHED = WarningKind("{n} objects have morph target weights, not supported; shown without "
                       "their morph targets")
-EMISSIVE_UVS = WarningKind("{n} materials' emissive textures use another texture coordinate set "
-                           "than their base colour textures; the base colour's is used")
-METALLIC_ROUGHNESS_UVS = WarningKind("{n} materials' metallic-roughness textures use another texture "
-                                     "coordinate set than their base colour textures; the base colour's is used")
+SHARED_UVS = WarningKind("{n} materials' emissive, metallic-roughness, normal or anisotropy textures "
+                         "use another texture coordinate set than their base colour textures; the base "
+                         "colour's is used")
 NO_UVS = WarningKind("{n} objects have a textured material but not the texture coordinates "
                      "it names; the texel at (0, 0) is used everywhere")
 LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
@@ -333,7 +333,7 @@ class _SceneBuilder:
         self.warnings: list[str] = []
         self._accessors: dict[int, np.ndarray] = {}
         self._decoded: dict[int, bytes] = {}  # meshopt-compressed bufferViews, decoded
-        self._images: dict[tuple[int, bool], np.ndarray | None] = {}  # (image, linear) -> pixels
+        self._images: dict[int, np.ndarray | None] = {}  # image -> pixels as stored (sRGB not decoded)
         self._names: set[str] = set()
 
     def build(self) -> Scene:
@@ -564,14 +564,23 @@ class _SceneBuilder:
             name = gm.get("name") or f"material{i}"
             names.add(name)
             rgba = self._base_color_texture(gm, name, i)
-            emissive = self._emissive_texture(gm, name, i)
-            metallic_roughness = self._metallic_roughness_texture(gm, name, i)
+            emissive = self._shared_uv_texture(gm.get("emissiveTexture"), "emissiveTexture", name, i)
+            # Metallic-roughness (glTF 3.9.2), normal (3.9.3) and anisotropy textures are linear data.
+            metallic_roughness = self._shared_uv_texture(
+                gm.get("pbrMetallicRoughness", {}).get("metallicRoughnessTexture"),
+                "metallicRoughnessTexture", name, i, srgb=False)
+            normal = self._shared_uv_texture(gm.get("normalTexture"), "normalTexture", name, i, srgb=False)
+            anisotropy = self._shared_uv_texture(
+                gm.get("extensions", {}).get("KHR_materials_anisotropy", {}).get("anisotropyTexture"),
+                "anisotropyTexture", name, i, srgb=False)
             wrap, nearest = self._samplers.get(i, (("REPEAT", "REPEAT"), False))
             out.append(material_from_gltf(
                 gm, name, kd_texture=None if rgba is None else np.ascontiguousarray(rgba[..., :3]),
                 emission_texture=None if emissive is None else np.ascontiguousarray(emissive[..., :3]),
                 alpha_texture=None if rgba is None else np.ascontiguousarray(rgba[..., 3]),
                 metallic_roughness_texture=metallic_roughness,
+                normal_texture=None if normal is None else np.ascontiguousarray(normal[..., :3]),
+                anisotropy_texture=None if anisotropy is None else np.ascontiguousarray(anisotropy[..., :3]),
                 diffuse_roughness=side.diffuse_roughness, override=side.materials.get(name),
                 warnings=self.warnings, source=self.source))
             # The base colour's sampler; not in material_from_gltf, which sees no textures' JSON.
@@ -605,26 +614,14 @@ class _SceneBuilder:
         self._samplers[index] = self._sampler(tex)
         return self._texture_image(tex, "base colour", name, where)
 
-    def _emissive_texture(self, gm: dict, name: str, index: int) -> np.ndarray | None:
-        """(H, W, 4) float32 of the emissiveTexture (glTF 3.9.3: sRGB, multiplies emissiveFactor),
-        or None; on the object's one uv set (`_shared_uv_texture`)."""
-        return self._shared_uv_texture(gm.get("emissiveTexture"), "emissiveTexture", name, index,
-                                       EMISSIVE_UVS)
-
-    def _metallic_roughness_texture(self, gm: dict, name: str, index: int) -> np.ndarray | None:
-        """(H, W, 4) float32 of the metallicRoughnessTexture (glTF 3.9.2: linear, G roughness, B
-        metallic), or None; on the object's one uv set (`_shared_uv_texture`)."""
-        info = gm.get("pbrMetallicRoughness", {}).get("metallicRoughnessTexture")
-        return self._shared_uv_texture(info, "metallicRoughnessTexture", name, index,
-                                       METALLIC_ROUGHNESS_UVS, linear=True)
-
-    def _shared_uv_texture(self, info, key: str, name: str, index: int, kind: WarningKind,
-                           linear: bool = False) -> np.ndarray | None:
-        """The image of a material texture other than the base colour (textureInfo `info` under
-        `key`), or None. It is looked up with the base colour's uv set and sampler, the one set an
-        object keeps; when it names another set (or transform), that is warned and the base
-        colour's is used. Without a base colour texture the first such texture's set and sampler
-        are the object's."""
+    def _shared_uv_texture(self, info, key: str, name: str, index: int,
+                           srgb: bool = True) -> np.ndarray | None:
+        """(H, W, 4) float32 of a material texture that shares the object's one uv set: the
+        emissiveTexture (glTF 3.9.3: sRGB, multiplies emissiveFactor), the metallicRoughnessTexture,
+        the normalTexture and the anisotropyTexture (linear: `srgb` False), or None. It is looked
+        up with the base colour's uv set and sampler, the one set an object keeps; when it names
+        another set (or transform), that is warned and the base colour's is used. Without a base colour texture
+        the first of these textures gives the object its set and sampler."""
         if not isinstance(info, dict):
             return None
         where = f"{self.source}: material '{name}'"
@@ -640,21 +637,25 @@ class _SceneBuilder:
                     np.eye(3) if matrix is None else matrix):
                 self.warn(f"{where}: {key} uses another texture coordinate set or "
                           "transform than the base colour texture; the base colour's is used",
-                          kind, name)
-        return self._texture_image(tex, key, name, where, linear)
+                          SHARED_UVS, name)
+        return self._texture_image(tex, key, name, where, srgb)
 
     def _texture_image(self, tex: dict, what: str, name: str, where: str,
-                       linear: bool = False) -> np.ndarray | None:
-        """The decoded image of a glTF texture (each image decoded once per encoding: colour is
-        sRGB, `linear` data textures are not), or None with a warning."""
+                       srgb: bool = True) -> np.ndarray | None:
+        """The decoded image of a glTF texture (each image decoded once), or None with a warning;
+        `srgb`: the colour is sRGB-encoded and decoded to linear (alpha is always linear)."""
         source = tex.get("source")
         if source is None:
             self.warn(f"{where}: {what} texture has no PNG/JPEG source; ignored",
                       NO_IMAGE, name, ignored=["textures without a PNG/JPEG source"])
             return None
-        if (source, linear) not in self._images:
-            self._images[source, linear] = self._decode_image(source, where, linear)
-        return self._images[source, linear]
+        if source not in self._images:
+            self._images[source] = self._decode_image(source, where)
+        rgba = self._images[source]
+        if rgba is None or not srgb:
+            return rgba
+        # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
+        return np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
 
     def _sampler(self, tex: dict) -> tuple[tuple[str, str], bool]:
         """The texture's glTF sampler: ((wrapS, wrapT), magFilter is NEAREST). glTF 5.26: without
@@ -668,7 +669,7 @@ class _SceneBuilder:
         wrap = tuple(_WRAP_MODES.get(sampler.get(k), "REPEAT") for k in ("wrapS", "wrapT"))
         return wrap, sampler.get("magFilter") == _NEAREST
 
-    def _decode_image(self, index: int, where: str, linear: bool = False) -> np.ndarray | None:
+    def _decode_image(self, index: int, where: str) -> np.ndarray | None:
         image = self.item("images", index, f"{where} texture")
         try:
             if "bufferView" in image:
@@ -691,10 +692,7 @@ class _SceneBuilder:
                       UNREADABLE, _image_name(image, index),
                       ignored=["unreadable base colour images"])
             return None
-        if linear:  # data, not colour (glTF 3.9.2 metallicRoughnessTexture)
-            return rgba
-        # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
-        return np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
+        return rgba
 
     # ---- geometry
 
@@ -796,6 +794,7 @@ class _SceneBuilder:
                 raise self.bad(f"object '{node_name}' NORMAL count differs from POSITION")
             # Inverse transpose up to a positive factor: cofactor * sign(det).
             normals = normals @ (_cofactor(linear) * np.sign(np.linalg.det(linear) or 1.0)).T
+        tangents = self._tangents(attrs, linear, n, node_name, name) if normals is not None else None
         # The base colour's texture coordinate set (glTF textureInfo.texCoord), with its
         # KHR_texture_transform applied, so the bake and the viewer read `uvs` as they are.
         material = prim.get("material")
@@ -841,6 +840,7 @@ class _SceneBuilder:
             # Keep only referenced vertices (primitives may share one big vertex buffer).
             used, inverse = np.unique(indices, return_inverse=True)
             positions, normals = positions[used], normals[used]
+            tangents = None if tangents is None else tangents[used]
             uvs = None if uvs is None else uvs[used]
             colors = None if colors is None else colors[used]
             indices = inverse.reshape(-1, 3).astype(np.int64)
@@ -856,15 +856,37 @@ class _SceneBuilder:
             material = self._index(material, len(_list(self.tree, "materials", self.source)),
                                    f"object '{node_name}' {what}", "material")
             textured = scene.materials[material]
-            if uvs is None and (textured.kd_texture is not None or textured.emission_texture is not None
-                                or textured.metallic_roughness_texture is not None):
+            if uvs is None and any(t is not None for t in (
+                    textured.kd_texture, textured.emission_texture, textured.metallic_roughness_texture,
+                    textured.normal_texture,
+                    textured.anisotropy_texture)):
                 self.warn(f"{self.source}: object '{name}' has a textured material but no "
                           f"{uv_name}; its texel at (0, 0) is used everywhere", NO_UVS, name,
                           detail=uv_name)
         return Object(name=name, positions=positions, normals=np.asarray(normals, np.float32),
                       indices=indices, material=material,
                       uvs=None if uvs is None else uvs.astype(np.float32),
-                      colors=None if colors is None else colors.astype(np.float32))
+                      colors=None if colors is None else colors.astype(np.float32),
+                      tangents=None if tangents is None else tangents.astype(np.float32))
+
+    def _tangents(self, attrs: dict, linear: np.ndarray, n: int, node_name: str,
+                  name: str) -> np.ndarray | None:
+        """glTF TANGENT (VEC4: xyz tangent, w = +-1 bitangent sign) in world space, or None: xyz
+        is a direction in the surface, so it takes the node's matrix; a mirroring matrix
+        (negative determinant) reverses the bitangent against the transformed normal, so w flips.
+        Unusable tangents (zero length, non-finite) are set to 0, which the viewer replaces by
+        its own (viewer/gpu_scene.py `tangents`)."""
+        if "TANGENT" not in attrs:
+            return None
+        raw = self.accessor(attrs["TANGENT"], f"'{node_name}' TANGENT")
+        if len(raw) != n or raw.shape[1] != 4:
+            raise self.bad(f"object '{node_name}' TANGENT is not VEC4 of one per POSITION")
+        raw = np.nan_to_num(raw.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+        xyz = raw[:, :3] @ linear.T
+        length = np.linalg.norm(xyz, axis=1, keepdims=True)
+        xyz = np.where(length > 1e-12, xyz / np.maximum(length, 1e-12), 0.0)
+        w = np.where(raw[:, 3] < 0, -1.0, 1.0) * (-1.0 if np.linalg.det(linear) < 0 else 1.0)
+        return np.concatenate([xyz, w[:, None]], axis=1)
 
     # ---- lights and cameras
 

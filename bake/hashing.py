@@ -56,6 +56,8 @@ def geometry_hash(scene: Scene, settings) -> str:
     h.value([settings.texels_per_metre, settings.padding, settings.max_page_size])
     for obj in scene.objects:
         h.value(obj.name).array(obj.positions).array(obj.normals).array(obj.indices)
+        if obj.tangents is not None:  # only then: objects without keep the hashes of existing bakes
+            h.array(obj.tangents)
     return h.hexdigest()
 
 

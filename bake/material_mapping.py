@@ -22,8 +22,15 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
 - Clearcoat (c > 0): one more reflect lobe, ks = c, r0 = 0.04, m = max(r_c^2, 1e-4).
 - Anisotropy a: the tangent width widens, mx = m + (1 - m) * a^2, my = m (the
   KHR_materials_anisotropy definition, applied to Beckmann m); tangent = the
-  mesh's TEXCOORD_0 u direction. anisotropyRotation and anisotropyTexture are
-  not supported (warning).
+  mesh's tangent (TANGENT, else MikkTSpace from the object's uvs), rotated by
+  anisotropyRotation (`Material.anisotropy_rotation`) and, per texel, towards the
+  anisotropyTexture's RG direction; its B channel s scales a, so the viewer
+  narrows mx per pixel to my + (mx - my) s^2 (`Material.anisotropy_texture`,
+  read by the loader).
+- Normal map: normalTexture (linear) and its scale go to `Material.normal_texture`
+  and `normal_scale` unchanged (read by the loader); the viewer perturbs the
+  shading normal of the lobes with it. The light maps keep irradiance around the
+  unperturbed normal (docs/SCENES.md).
 - Rough dielectrics are diffuse: a dielectric reflect lobe (base or clearcoat)
   whose roughness r >= `diffuse_roughness` (0.5; sidecar `[bake] diffuse_roughness`)
   is dropped when the material does not transmit. Its highlight is too broad to be
@@ -56,8 +63,7 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   node's scale is not applied: one material may serve nodes of several scales). thicknessFactor
   0 (the default) is thin-walled: Eq. 3.5 alone. On a material without transmission the volume
   changes nothing (no light enters it) and is not read.
-- Ignored, with a warning: normal and thickness textures
-  (the factors are used). Occlusion
+- Ignored, with a warning: thickness textures (the factor is used). Occlusion
   textures are not read (the bake computes occlusion itself). Warnings repeated over materials
   are summarised per kind.
 
@@ -90,8 +96,6 @@ MATERIAL_EXTENSIONS = (
 )
 OVERRIDE_KEYS = ("kd", "emission", "lobes")
 # Warnings that repeat per material: one summary line each (glint.core.errors.WarningKind).
-ANISOTROPY_ROTATION = WarningKind("{n} materials have an anisotropyRotation, not supported yet; "
-                                  "the anisotropy runs along the texture u direction")
 IGNORED_TEXTURES = WarningKind("{n} materials have textures glint does not read; "
                                "the constant factors are used")
 LOBE_KEYS = ("kind", "ks", "mx", "my", "m", "r0", "alpha")
@@ -109,6 +113,7 @@ class GltfPbr:
     specular: float = 1.0
     specular_color: tuple = (1.0, 1.0, 1.0)
     anisotropy: float = 0.0
+    anisotropy_rotation: float = 0.0
     clearcoat: float = 0.0
     clearcoat_roughness: float = 0.0
     emissive: tuple = (0.0, 0.0, 0.0)
@@ -202,10 +207,7 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
                                      "specularColorFactor"))
     e = ext.get("KHR_materials_anisotropy", {})
     p.anisotropy = _float(e.get("anisotropyStrength", 0.0), where, "anisotropyStrength")
-    if _float(e.get("anisotropyRotation", 0.0), where, "anisotropyRotation") != 0.0:
-        add_warning(warnings, f"{where}: anisotropyRotation is not supported yet; "
-                              "the anisotropy runs along the texture u direction",
-                    ANISOTROPY_ROTATION, name, ignored=["anisotropyRotation"])
+    p.anisotropy_rotation = _float(e.get("anisotropyRotation", 0.0), where, "anisotropyRotation")
     e = ext.get("KHR_materials_clearcoat", {})
     p.clearcoat = _float(e.get("clearcoatFactor", 0.0), where, "clearcoatFactor")
     p.clearcoat_roughness = _float(e.get("clearcoatRoughnessFactor", 0.0), where,
@@ -220,11 +222,9 @@ def pbr_from_gltf(gm: dict, where: str, warnings: list[str], name: str | None = 
     p.attenuation_color = tuple(_floats(e.get("attenuationColor", [1, 1, 1]), 3, where, "attenuationColor"))
 
     ignored = [key for key, table in (
-        ("normalTexture", gm),
         ("transmissionTexture", ext.get("KHR_materials_transmission", {})),
         ("specularTexture", ext.get("KHR_materials_specular", {})),
         ("specularColorTexture", ext.get("KHR_materials_specular", {})),
-        ("anisotropyTexture", ext.get("KHR_materials_anisotropy", {})),
         ("clearcoatTexture", ext.get("KHR_materials_clearcoat", {})),
         ("clearcoatRoughnessTexture", ext.get("KHR_materials_clearcoat", {})),
         ("clearcoatNormalTexture", ext.get("KHR_materials_clearcoat", {})),
@@ -263,6 +263,8 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
                        emission_texture: np.ndarray | None = None,
                        alpha_texture: np.ndarray | None = None,
                        metallic_roughness_texture: np.ndarray | None = None,
+                       normal_texture: np.ndarray | None = None,
+                       anisotropy_texture: np.ndarray | None = None,
                        diffuse_roughness: float = DIFFUSE_ROUGHNESS,
                        override: dict | None = None, warnings: list[str] | None = None,
                        source: str = "") -> Material:
@@ -279,6 +281,7 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
                    emission_texture=emission_texture, metallic_roughness_texture=mr,
                    **volume_fields(pbr),
+                   **_surface_detail(gm, pbr, normal_texture, anisotropy_texture, where),
                    double_sided=bool(gm.get("doubleSided", False)),
                    **coverage_from_gltf(gm, alpha_texture, where, warnings))
     extras = gm.get("extras")
@@ -288,6 +291,17 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     if override:
         apply_override(mat, override)
     return mat
+
+
+def _surface_detail(gm: dict, p: GltfPbr, normal_texture, anisotropy_texture, where: str) -> dict:
+    """The normal map (glTF normalTexture and its scale) and the anisotropy direction
+    (KHR_materials_anisotropy rotation and texture) -> Material's fields; an anisotropy
+    texture only where there is anisotropy for it to shape."""
+    info = gm.get("normalTexture")
+    scale = _float(info.get("scale", 1.0), where, "normalTexture.scale") if isinstance(info, dict) else 1.0
+    return {"normal_texture": normal_texture, "normal_scale": scale,
+            "anisotropy_rotation": p.anisotropy_rotation if p.anisotropy > 0 else 0.0,
+            "anisotropy_texture": anisotropy_texture if p.anisotropy > 0 else None}
 
 
 def apply_override(mat: Material, override: dict) -> Material:

@@ -85,7 +85,8 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     materials = [{"name": m.name, "kd": vec(m.kd), "emission": vec(m.emission),
                   "double_sided": bool(m.double_sided), "lobes": [lobe.to_dict() for lobe in m.lobes],
                   "kd_texture": f"textures/material_{i}.exr" if m.kd_texture is not None else None,
-                  **_emission_entry(m, i), **_metallic_roughness_entry(m, i), **_sampler_entry(m), **_coverage_entry(m), **_volume_entry(m)}
+                  **_emission_entry(m, i), **_metallic_roughness_entry(m, i), **_sampler_entry(m),
+                  **_coverage_entry(m), **_volume_entry(m), **_surface_detail_entry(m, i)}
                  for i, m in enumerate(scene.materials)]
     lights = {
         "point": [{"name": l.name, "position": vec(l.position), "intensity": vec(l.intensity)}
@@ -123,10 +124,25 @@ def _metallic_roughness_entry(m, i: int) -> dict:
     return {"metallic_roughness_texture": f"textures/metallic_roughness_{i}.exr"}
 
 
+def _surface_detail_entry(m, i: int) -> dict:
+    """The normal map (`normal_texture`, `normal_scale`) and the anisotropy direction
+    (`anisotropy_rotation`, `anisotropy_texture`) where a material has them; nothing otherwise,
+    so other manifests stay as they were."""
+    out = {}
+    if m.normal_texture is not None:
+        out.update(normal_texture=f"textures/normal_{i}.exr", normal_scale=float(m.normal_scale))
+    if m.anisotropy_rotation:
+        out["anisotropy_rotation"] = float(m.anisotropy_rotation)
+    if m.anisotropy_texture is not None:
+        out["anisotropy_texture"] = f"textures/anisotropy_{i}.exr"
+    return out
+
+
 def _sampler_entry(m) -> dict:
     """A textured material's glTF sampler as `kd_sampler` {wrap_s, wrap_t, mag_filter}, where it is
     not the default (REPEAT, LINEAR); nothing otherwise, so other manifests stay as they were."""
-    if (m.kd_texture is None and m.emission_texture is None and m.metallic_roughness_texture is None) or (
+    if all(t is None for t in (m.kd_texture, m.emission_texture, m.metallic_roughness_texture,
+                               m.normal_texture, m.anisotropy_texture)) or (
             tuple(m.kd_wrap) == ("REPEAT", "REPEAT") and not m.kd_nearest):
         return {}
     return {"kd_sampler": {"wrap_s": m.kd_wrap[0], "wrap_t": m.kd_wrap[1],
@@ -252,8 +268,10 @@ def _write_textures(scene: Scene, path: Path) -> None:
             write_image(path / "textures" / f"material_{i}.exr", m.kd_texture)
         if m.emission_texture is not None:
             write_image(path / "textures" / f"emission_{i}.exr", m.emission_texture)
-        if m.metallic_roughness_texture is not None:
-            write_image(path / "textures" / f"metallic_roughness_{i}.exr", m.metallic_roughness_texture)
+        for kind, texture in (("metallic_roughness", m.metallic_roughness_texture),
+                              ("normal", m.normal_texture), ("anisotropy", m.anisotropy_texture)):
+            if texture is not None:
+                write_image(path / "textures" / f"{kind}_{i}.exr", texture)
     if scene.sky is not None and scene.sky.map is not None:
         write_image(path / "sky.exr", scene.sky.map, half=False)
 
@@ -325,6 +343,7 @@ def _atlas(scene: Scene, settings: BakeSettings, path: Path, old_dir: Path | Non
         meshes.append({"positions": obj.positions[v].astype(np.float32), "normals": obj.normals[v].astype(np.float32),
                        "uvs": None if obj.uvs is None else obj.uvs[v].astype(np.float32),
                        "colors": None if obj.colors is None else obj.colors[v].astype(np.float32),
+                       "tangents": None if obj.tangents is None else obj.tangents[v].astype(np.float32),
                        "lm_uv": charts.uv.astype(np.float32), "lm_page": charts.page.astype(np.int32),
                        "indices": charts.indices.astype(np.uint32), "vmapping": v.astype(np.int64)})
     save_meshes(path / "meshes.npz", meshes)

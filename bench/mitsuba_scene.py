@@ -8,7 +8,14 @@ against it. What maps to what:
   counter-clockwise faces (Mitsuba's front side too), the vertex normals (Mitsuba's shading
   frame, as the viewer interpolates them) and TEXCOORD_0 as Mitsuba's uv. Per-vertex tangents
   for anisotropic lobes (mesh attributes read by bench/mitsuba_bsdf.py), from the viewer's own
-  functions (viewer/gpu_scene.py `tangents`, `axis_tangents`).
+  function (viewer/gpu_scene.py `surface_tangents`: TANGENT, MikkTSpace, or a world axis; its
+  vertex splits are the mesh's).
+- Normal maps: Mitsuba's `normalmap` BSDF around the material's, with the map as a linear
+  `bitmap` (glTF's scale applied to x and y, renormalised and re-encoded as 0..1). Mitsuba
+  reads the map in its shading frame (s = dp/du made orthogonal to the interpolated normal,
+  t = n x s), which is the viewer's (t, b = w n x t) wherever the uv layout is not mirrored
+  (w = +1); on mirrored uv islands its y runs the other way. Anisotropy rotation and textures
+  are not converted.
 - Materials: bench/mitsuba_bsdf.py's plugin (the section 3.3 BSDF) with kd, the lobes and the
   side rule. A base-colour texture becomes a `bitmap` of kd x texture, linear (`raw`: the loader
   already decoded sRGB), bilinear and repeating like the viewer's sampler; glTF's uv (0, 0) is
@@ -48,7 +55,7 @@ import numpy as np
 
 from glint.bench import mitsuba_bsdf
 from glint.core.scene import Scene
-from glint.viewer.gpu_scene import axis_tangents, tangents
+from glint.viewer.gpu_scene import surface_tangents
 
 # Mitsuba and drjit are optional (glint[test]): imported by the functions that need them, so the rest works without.
 
@@ -98,11 +105,23 @@ def bsdf_dict(material) -> dict:
                       "raw": True, "filter_type": "bilinear", "wrap_mode": "repeat"}
     else:
         kd_texture = _rgb(kd)
-    out = {"type": mitsuba_bsdf.PLUGIN, "kd": kd_texture, "lobes": mitsuba_bsdf.lobes_json(material.lobes),
-           "two_sided": bool(material.double_sided)}
+    bsdf = {"type": mitsuba_bsdf.PLUGIN, "kd": kd_texture, "lobes": mitsuba_bsdf.lobes_json(material.lobes),
+            "two_sided": bool(material.double_sided)}
     if material.metallic_roughness_texture is not None:
-        out["mr"] = _bitmap(material.metallic_roughness_texture, material)
-    return out
+        bsdf["mr"] = _bitmap(material.metallic_roughness_texture, material)
+    if material.normal_texture is None:
+        return bsdf
+    return {"type": "normalmap", "bsdf": bsdf,
+            "normalmap": _bitmap(normal_map_encoding(material.normal_texture, material.normal_scale), material)}
+
+
+def normal_map_encoding(texture, scale: float) -> np.ndarray:
+    """A glTF normal map with its scale applied (x, y times scale, renormalised: what the viewer's
+    normalize(t x + b y + n z) does) and encoded again as 0..1, float32 (H, W, 3)."""
+    n = np.nan_to_num(np.asarray(texture, np.float64)[..., :3]) * 2.0 - 1.0
+    n[..., :2] *= scale
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12)
+    return np.ascontiguousarray((n * 0.5 + 0.5).astype(np.float32))
 
 
 def _bitmap(texture, material) -> dict:
@@ -119,16 +138,17 @@ def mesh(obj, bsdf, emitter=None, interior=None):
     """One object as an `mi.Mesh` with its BSDF (and area emitter, interior medium), world space."""
     import mitsuba as mi
 
-    positions = np.asarray(obj.positions, np.float64).reshape(-1, 3)
-    normals = np.asarray(obj.normals, np.float32).reshape(-1, 3)
-    faces = np.asarray(obj.indices, np.int64).reshape(-1, 3)
+    has_uv = obj.uvs is not None
+    uvs = np.asarray(obj.uvs, np.float32).reshape(-1, 2) if has_uv else None
+    source, faces, frame = surface_tangents(obj.positions, obj.normals, uvs, obj.indices, obj.tangents)
+    positions = np.asarray(obj.positions, np.float64).reshape(-1, 3)[source]
+    normals = np.asarray(obj.normals, np.float32).reshape(-1, 3)[source]
     props = mi.Properties()
     props["bsdf"] = bsdf
     if emitter is not None:
         props["emitter"] = emitter
     if interior is not None:
         props["interior"] = interior
-    has_uv = obj.uvs is not None
     m = mi.Mesh(obj.name or "object", len(positions), len(faces), props=props, has_vertex_normals=True,
                 has_vertex_texcoords=has_uv)
     params = mi.traverse(m)
@@ -139,14 +159,9 @@ def mesh(obj, bsdf, emitter=None, interior=None):
     put("vertex_positions", positions.astype(np.float32))
     put("faces", faces.astype(np.uint32))
     put("vertex_normals", normals)
-    frame = np.zeros((len(positions), 4), np.float32)
     if has_uv:
-        uvs = np.asarray(obj.uvs, np.float32).reshape(-1, 2)
-        put("vertex_texcoords", uvs)
-        frame = tangents(positions, normals, uvs, faces, np.arange(len(positions)))
+        put("vertex_texcoords", uvs[source])
     params.update()
-    none = ~np.any(frame[:, :3] != 0, axis=1)  # as viewer/gpu_scene.py GpuScene._object
-    frame[none] = axis_tangents(normals[none])
     m.add_attribute(mitsuba_bsdf.TANGENT, 3, type(params["vertex_normals"])(frame[:, :3].ravel()))
     m.add_attribute(mitsuba_bsdf.BITANGENT_SIGN, 1, type(params["vertex_normals"])(frame[:, 3].copy()))
     return m

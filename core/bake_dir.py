@@ -8,7 +8,7 @@
                            {glTF feature: count} the loader ignored (Scene.ignored_features),
                            and `statistics.lightmaps.invalid_texels` of `texels` inside geometry
     meshes.npz             per object o<i>_*: positions, normals, uvs (texture), colors
-                           (COLOR_0, optional), lm_uv, lm_page, indices -- vertices already split along light-map chart seams
+                           (COLOR_0, optional), tangents (glTF TANGENT in world space, optional), lm_uv, lm_page, indices -- vertices already split along light-map chart seams
     lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;
                            half float unless a value does not fit
     lightmaps/back_<k>.exr the back sides of two-sided objects (the manifest's object entries say
@@ -22,6 +22,10 @@
                                 roughness of the material's `mr` lobes, B is the metallic M' per
                                 texel: kd x (1 - M'), lobes' ks x M' or 1 - M'), manifest
                                 `metallic_roughness_texture`; lobes carry `mr` ("metal", "dielectric")
+    textures/normal_<i>.exr     normal maps (glTF normalTexture as stored, linear RGB in 0..1),
+                                manifest `normal_texture` with `normal_scale`
+    textures/anisotropy_<i>.exr anisotropy textures (KHR_materials_anisotropy, linear RGB),
+                                manifest `anisotropy_texture`; `anisotropy_rotation` in radians
     textures/material_<i>.exr   base-colour textures (linear); RGBA, A the base colour alpha
                            (linear), for materials whose manifest entry has `alpha_mode` MASK or
                            BLEND (with `alpha_cutoff` and `alpha` = baseColorFactor[3]; entries

@@ -17,4 +17,9 @@ MIRROR_PLANE_COS = 0.985
 # light), else 0; the integer target holds the material index in its low GB_ID_BITS bits and the
 # object index above them.
 GB_DARK_BACK_FACE = 1.0
+# ... and GB_NORMAL_MAPPED where a normal map perturbed the normal: its pixels cannot tell by the
+# normal whether they lie in their planar object's plane, so mirror_slot_at asks their position to
+# lie within MIRROR_PLANE_DISTANCE x (the distance to the eye) of the plane instead.
+GB_NORMAL_MAPPED = -1.0
+MIRROR_PLANE_DISTANCE = 0.002
 GB_ID_BITS = 16

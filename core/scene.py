@@ -75,6 +75,13 @@ class Material:
     absorbed inside by Beer-Lambert with `attenuation_color` reached after `attenuation_distance`
     metres. thickness is glTF's thicknessFactor (the wall under the surface, metres; 0 = thin-walled:
     Eq. 3.5's thin surface, the ior and attenuation unused).
+
+    normal_texture, when present, is an (H, W, 3) float32 array of the glTF normalTexture as
+    stored (linear, 0..1: the tangent-space normal is 2 x value - 1), looked up like kd_texture;
+    normal_scale multiplies its x and y (glTF normalTexture.scale). anisotropy_rotation (radians,
+    counter-clockwise from the tangent towards the bitangent) and anisotropy_texture ((H, W, 3),
+    linear: RG the direction in tangent space as 2 x value - 1, B a factor on the strength) are
+    KHR_materials_anisotropy's; the lobes' mx, my carry the strength itself.
     """
 
     name: str
@@ -91,6 +98,10 @@ class Material:
     alpha_cutoff: float = 0.5
     alpha: float = 1.0
     alpha_texture: np.ndarray | None = None
+    normal_texture: np.ndarray | None = None
+    normal_scale: float = 1.0
+    anisotropy_rotation: float = 0.0
+    anisotropy_texture: np.ndarray | None = None
     ior: float = 1.5
     thickness: float = 0.0
     attenuation_distance: float = float("inf")
@@ -143,6 +154,9 @@ class Object:
     uvs: np.ndarray | None = None
     # glTF COLOR_0 (N, 3) linear RGB in 0..1: multiplies the material's base colour (None = 1)
     colors: np.ndarray | None = None
+    # glTF TANGENT (N, 4) in world space: xyz unit tangent, w = +-1, the bitangent being
+    # w x (normal x tangent) (glTF 3.7.2.1); None = computed by the viewer (MikkTSpace)
+    tangents: np.ndarray | None = None
     role: str = "diffuse"
     role_overridden: bool = False
     options: dict = field(default_factory=dict)  # sidecar [objects."NAME"]: cubemap_size, bounding_planes

@@ -17,6 +17,8 @@ struct Surface {
     vec3 normal;         // unit, on the side facing the viewer
     vec3 tangent;        // unit or zero (no tangent frame)
     float bitangent_sign;
+    float anisotropy;    // the strength factor s of an anisotropy texture (the tangent's length)
+    bool normal_mapped;  // the normal is a normal map's (gbuffer_layout.glsl)
     vec3 to_eye;         // unit direction from the point to the eye (-ray)
     vec3 diffuse;        // light-mapped diffuse radiance kd/pi * E
     int material;
@@ -36,6 +38,8 @@ Surface gbuffer_surface(ivec2 p, vec3 ray) {
     vec4 t = texelFetch(gb_tangent, p, 0);
     s.normal = safe_normalize(n.xyz, -ray);
     s.tangent = safe_normalize(t.xyz, vec3(0.0));
+    s.anisotropy = clamp(length(t.xyz), 0.0, 1.0);
+    s.normal_mapped = n.w < 0.5 * GB_NORMAL_MAPPED;
     s.bitangent_sign = t.w < 0.0 ? -1.0 : 1.0;
     s.dark = n.w > 0.5 * GB_DARK_BACK_FACE;
     s.diffuse = texelFetch(gb_diffuse, p, 0).rgb;

@@ -6,6 +6,7 @@ struct Material {
     vec4 kd;        // rgb: diffuse reflectance kd; a: base colour alpha factor (MAT_ALPHA_* only)
     vec4 emission;  // rgb: emitted radiance, W/(m^2 sr); a: alphaCutoff (MAT_ALPHA_MASK only)
     ivec4 info;     // x: MAT_* flags, y: kd texture index (-1: none), z: first lobe, w: lobe count
+    vec4 surface;   // x: normalTexture scale; y, z: cos, sin of anisotropyRotation
 };
 
 struct Lobe {

@@ -9,6 +9,8 @@ uniform int material_index;
 layout(binding = KD_TEXTURE_UNIT) uniform sampler2D kd_texture;   // the material's base colour (1x1 white: none)
 layout(binding = EMISSION_TEXTURE_UNIT) uniform sampler2D emission_texture;  // its emissiveTexture (same)
 layout(binding = METALLIC_ROUGHNESS_TEXTURE_UNIT) uniform sampler2D metallic_roughness_texture;  // G, B (same)
+layout(binding = NORMAL_TEXTURE_UNIT) uniform sampler2D normal_texture;  // its normalTexture (linear)
+layout(binding = ANISOTROPY_TEXTURE_UNIT) uniform sampler2D anisotropy_texture;  // KHR_materials_anisotropy's
 layout(binding = LIGHTMAP_UNIT) uniform sampler2DArray lightmaps;  // irradiance E (rgb), one layer per page
 uniform vec3 eye;                   // the eye the pass looks from (a mirror pass: the mirrored eye)
 // Layers a back face adds to its light-map page: the object's back-side pages (E around -n, baked
@@ -25,8 +27,11 @@ flat in int v_lm_page;
 flat in int v_object;
 
 struct RasterSurface {
-    vec3 normal;          // unit, on the side the eye sees
-    vec3 tangent;         // unit, orthogonal to the normal, or 0 (no tangent frame)
+    vec3 normal;          // unit shading normal (the normal map's, if any), on the side the eye sees
+    vec3 mesh_normal;     // unit interpolated vertex normal, on the side the eye sees
+    bool normal_mapped;   // normal != mesh_normal
+    vec3 tangent;         // orthogonal to the normal, length = the anisotropy strength factor
+                          // (1 without an anisotropy texture), or 0 (no tangent frame)
     float bitangent_sign;
     vec3 diffuse;         // kd/pi * E; 0 on dark back faces
     bool dark;            // back face of a single-sided material: sends no light
@@ -83,6 +88,31 @@ bool coverage_discards(Material m) {
     return (bayer[p.y * 4 + p.x] + 0.5) / 16.0 >= alpha;
 }
 
+// glTF 3.9.3 normalTexture: the tangent-space normal (2 x texel - 1, x and y times the scale) in the
+// frame (t, b, n) of the front face, b = w n x t (glTF 3.7.2.1: +Y of the map is the bitangent,
+// which points up the image, towards -v, for a texture not mirrored).
+vec3 normal_mapped(Material m, vec3 n, vec3 t, vec3 b) {
+    vec3 tn = sample_material_texture(normal_texture, m).xyz * 2.0 - 1.0;
+    tn.xy *= m.surface.x;
+    return safe_normalize(t * tn.x + b * tn.y + n * tn.z, n);
+}
+
+// KHR_materials_anisotropy: the direction in tangent space, (cos, sin) of anisotropyRotation, turned
+// by the anisotropyTexture's RG direction (2 x texel - 1; default (1, 0.5): along t) where there is one;
+// -> xy: direction, z: the texture's B, the factor on the anisotropy strength (1 without).
+vec3 anisotropy_direction(Material m) {
+    vec2 rotation = m.surface.yz;
+    if (!has_flag(m, MAT_ANISOTROPY_TEXTURE))
+        return vec3(rotation, 1.0);
+    vec3 a = sample_material_texture(anisotropy_texture, m).rgb;
+    vec2 d = a.rg * 2.0 - 1.0;
+    d = dot(d, d) > 1e-8 ? normalize(d) : vec2(1.0, 0.0);
+    return vec3(mat2(rotation.x, rotation.y, -rotation.y, rotation.x) * d, clamp(a.b, 0.0, 1.0));
+}
+
+// Below this cosine to the eye a normal-mapped normal is bent towards the eye (raster_surface).
+const float NORMAL_MAP_MIN_COS = 0.02;
+
 RasterSurface raster_surface() {
     RasterSurface s;
     Material m = materials[material_index];
@@ -100,9 +130,31 @@ RasterSurface raster_surface() {
     // double-sided material flips.
     bool back = !gl_FrontFacing;
     s.dark = back && !has_flag(m, MAT_TWO_SIDED);
-    if (back)
+
+    // The mesh's tangent frame on the front side: t Gram-Schmidt against n, b = w n x t.
+    vec3 t = safe_normalize(v_tangent.xyz - n * dot(v_tangent.xyz, n), vec3(0.0));
+    float sign_b = v_tangent.w < 0.0 ? -1.0 : 1.0;
+    vec3 b = sign_b * cross(n, t);
+    vec3 ns = n;
+    s.normal_mapped = has_flag(m, MAT_NORMAL_TEXTURE) && t != vec3(0.0);
+    if (s.normal_mapped)
+        ns = normal_mapped(m, n, t, b);
+    vec3 aniso = anisotropy_direction(m);
+    vec3 ta = t * aniso.x + b * aniso.y;
+    // Seen from the back, the whole frame flips with the normal (a point reflection of the
+    // front's normal field: a bump stays a bump from either side); t and b keep their axes.
+    if (back) {
         n = -n;
-    s.normal = n;
+        ns = -ns;
+    }
+    // A normal map can tilt the normal away from the eye (grazing views): there it is bent towards
+    // the eye until its cosine is NORMAL_MAP_MIN_COS (or the mesh normal's, if lower), adding a
+    // multiple of to_eye, so the lobes see a view just above their horizon instead of none.
+    float cos_eye = dot(ns, to_eye), lowest = min(dot(n, to_eye), NORMAL_MAP_MIN_COS);
+    if (s.normal_mapped && cos_eye < lowest)
+        ns = safe_normalize(ns + to_eye * (lowest - cos_eye), n);
+    s.normal = ns;
+    s.mesh_normal = n;
 
     // Light-mapped diffuse radiance, Eq. 4.1: L = kd / pi * E (times the base-colour texture).
     vec3 kd = m.kd.rgb;
@@ -129,9 +181,9 @@ RasterSurface raster_surface() {
     if (has_flag(m, MAT_EMISSION_TEXTURE) && !s.dark)
         s.diffuse = clean_radiance(s.diffuse + m.emission.rgb * max(sample_material_texture(emission_texture, m).rgb, 0.0));
 
-    // Tangent frame for anisotropic lobes: Gram-Schmidt against n; zero if none.
-    s.tangent = safe_normalize(v_tangent.xyz - n * dot(v_tangent.xyz, n), vec3(0.0));
-    float sign_b = v_tangent.w < 0.0 ? -1.0 : 1.0;
+    // Tangent for anisotropic lobes: the anisotropy direction re-orthogonalised against the shading
+    // normal; zero if none; its length carries the strength factor (gbuffer_layout.glsl).
+    s.tangent = safe_normalize(ta - ns * dot(ta, ns), vec3(0.0)) * aniso.z;
     s.bitangent_sign = back ? -sign_b : sign_b;
     // Last, so the derivatives and implicit-LOD look-ups above run in uniform control flow.
     if (coverage_discards(m))

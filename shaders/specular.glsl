@@ -356,14 +356,19 @@ vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, i
 //   m' = max(m g^2, M_MIN)  (glTF: alpha = (r g)^2 and m = max(r^2, 1e-4)),
 //   anisotropic: a^2 = (mx - my) / (1 - my) kept, mx' = m' + (1 - m') a^2 (KHR_materials_anisotropy),
 //   ks' = ks M' (metal) or ks (1 - M') (dielectric and transmit lobes).
-Lobe lobe_at_pixel(Lobe lobe, int mr, Surface s) {
-    if (mr == LOBE_MR_NONE)
-        return lobe;
-    float my = lobe.shape.y;
-    float a2 = my < 1.0 ? clamp((lobe.shape.x - my) / (1.0 - my), 0.0, 1.0) : 0.0;
-    float m = max(my * s.mr.x * s.mr.x, M_MIN);
-    lobe.shape.xy = vec2(m + (1.0 - m) * a2, m);
-    lobe.ks.rgb *= mr == LOBE_MR_METAL ? s.mr.y : 1.0 - s.mr.y;
+// Then KHR_materials_anisotropy's texture scales the strength a by s (the G-buffer tangent's
+// length): mx = m + (1 - m) a^2, my = m become mx' = my + (mx - my) s^2.
+// The lobe keeps its sampling pattern (chosen for the material's mx, my).
+Lobe lobe_at_pixel(Lobe lobe, int mr, Surface s, Material mat) {
+    if (mr != LOBE_MR_NONE) {
+        float my = lobe.shape.y;
+        float a2 = my < 1.0 ? clamp((lobe.shape.x - my) / (1.0 - my), 0.0, 1.0) : 0.0;
+        float m = max(my * s.mr.x * s.mr.x, M_MIN);
+        lobe.shape.xy = vec2(m + (1.0 - m) * a2, m);
+        lobe.ks.rgb *= mr == LOBE_MR_METAL ? s.mr.y : 1.0 - s.mr.y;
+    }
+    if (has_flag(mat, MAT_ANISOTROPY_TEXTURE))
+        lobe.shape.x = lobe.shape.y + (lobe.shape.x - lobe.shape.y) * s.anisotropy * s.anisotropy;
     return lobe;
 }
 
@@ -404,9 +409,16 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
 // made planar by the sidecar -- the mirror image is not the light it receives: -1 there, as for
 // objects whose plane got no pass this frame.
 
+// Normal-mapped pixels ask it of their position (within MIRROR_PLANE_DISTANCE x the distance to
+// the eye of the plane), since their normal is not the surface's.
 int mirror_slot_at(Surface s) {
     int slot = mirror_slot_of(s.object);
-    return slot >= 0 && dot(s.normal, mirror_slots[slot].plane.xyz) >= MIRROR_PLANE_COS ? slot : -1;
+    if (slot < 0)
+        return -1;
+    vec4 plane = mirror_slots[slot].plane;
+    if (s.normal_mapped)
+        return abs(dot(plane.xyz, s.position) + plane.w) <= MIRROR_PLANE_DISTANCE * distance(s.position, eye) ? slot : -1;
+    return dot(s.normal, plane.xyz) >= MIRROR_PLANE_COS ? slot : -1;
 }
 
 // Whether the point gets specular light at all: a lobe, a lit side, and incident light to read --
@@ -439,7 +451,7 @@ vec3 specular_radiance(Surface s, Material m, ivec2 pixel) {
     vec3 sum = vec3(0.0);
     for (int i = 0; i < m.info.w; ++i) {
         int k = m.info.z + i;
-        sum += lobe_radiance(sp, lobe_at_pixel(lobes[k], lobe_mr[k], s), k);
+        sum += lobe_radiance(sp, lobe_at_pixel(lobes[k], lobe_mr[k], s, m), k);
     }
     if (planes) {
         imageStore(mirror_plane_positions, pixel, sp.plane_sum_p);

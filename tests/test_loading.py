@@ -386,7 +386,8 @@ def test_material_extensions_read_from_gltf(tmp_path):
     assert trans.ks == pytest.approx((0.8, 0.8, 0.8)) and trans.kind == "transmit"
     assert refl.mx == pytest.approx(1.0) and refl.my == pytest.approx(0.01)
     assert scene.objects[0].role == "transmissive"
-    assert any("anisotropyRotation" in m for m in scene.warnings)
+    assert mat.anisotropy_rotation == pytest.approx(0.3)  # read, not warned about
+    assert not any("anisotropyRotation" in m for m in scene.warnings)
 
 
 def test_extras_override_mapping_and_sidecar_overrides_extras(tmp_path):

@@ -87,17 +87,19 @@ def test_many_objects_with_zero_area_triangles_give_one_line_and_verbose_each(tm
 
 
 def test_ignored_features_named_at_the_end_of_a_bake(tmp_path, capsys):
-    """A normal map on two materials and EXT_texture_webp on their texture are named in the last
+    """A clearcoat texture on two materials and EXT_texture_webp on their texture are named in the last
     line of `glint bake` and of a bake that capture/view/bench start (glint.services.run_bake),
     and kept in the manifest. Deliberate bugs this catches (tried): the textures' warning in
-    bake/material_mapping.py without `ignored=` (no normalTexture in the line); the pipeline
+    bake/material_mapping.py without `ignored=` (no clearcoatTexture in the line); the pipeline
     not writing `statistics.ignored_features` (no "ignored:" at all); `cmd_bake` not printing
     the line; `run_bake` not printing it; unsupported extensions of extensionsUsed not
     counted (no EXT_texture_webp)."""
     w, wall = room_writer()
     texture = w.add_texture(np.full((2, 2, 3), 128, np.uint8))
-    w.materials[wall]["normalTexture"] = {"index": texture}
-    w.materials[1]["normalTexture"] = {"index": texture}  # the floor
+    for m in (wall, 1):  # a wall and the floor
+        w.materials[m]["extensions"] = {"KHR_materials_clearcoat": {"clearcoatFactor": 0.0,
+                                                                   "clearcoatTexture": {"index": texture}}}
+    w.extensions_used.add("KHR_materials_clearcoat")
     w.materials[1]["pbrMetallicRoughness"]["baseColorTexture"] = {"index": texture}
     w.textures[texture]["extensions"] = {"EXT_texture_webp": {"source": 0}}
     w.extensions_used.add("EXT_texture_webp")
@@ -109,10 +111,10 @@ def test_ignored_features_named_at_the_end_of_a_bake(tmp_path, capsys):
     add_bake_options(parser)
     run_bake(parser.parse_args([str(scene), "-o", str(bake_dir), *FAST]), progress=False)
     manifest = json.loads((bake_dir / "manifest.json").read_text())
-    assert manifest["statistics"]["ignored_features"] == {"EXT_texture_webp": 1, "normalTexture": 2}
+    assert manifest["statistics"]["ignored_features"] == {"EXT_texture_webp": 1, "clearcoatTexture": 2}
     last = capsys.readouterr().err.splitlines()[-1]
     assert last.startswith("glint: the scene will look wrong where: ")
-    assert last.endswith("ignored: EXT_texture_webp (1), normalTexture (2)")
+    assert last.endswith("ignored: EXT_texture_webp (1), clearcoatTexture (2)")
 
     assert main(["bake", str(scene), "-o", str(bake_dir), *FAST]) == 0  # up to date: still said, last
     out, err = capsys.readouterr()

@@ -4,10 +4,11 @@ Everything here is read-only after upload; passes bind what they need.
 
 - Meshes: one vertex/index buffer per object, interleaved as `VERTEX_DTYPE`, and
   one vertex array per (object, program) on demand (`GpuObject.vertex_array`).
-  Tangents are not in the bake: they are derived from the texture coordinates
-  (per original vertex, summed over its triangles, so light-map seams do not
-  split them). Where there are none (no texture coordinates, or degenerate
-  ones) the tangent is a fixed world axis projected onto the tangent plane
+  Tangents (`surface_tangents`): the file's TANGENT where the bake has it, else
+  MikkTSpace's from the texture coordinates (`tangents`; vertices equal in position,
+  normal and uv share one, so light-map seams do not split them, and a vertex whose
+  triangles differ in handedness is split in two). Where there are none (no texture
+  coordinates, or degenerate ones) the tangent is a fixed world axis projected onto the tangent plane
   (`axis_tangents`: world X, or world Z where the normal is within ~25 degrees
   of X), so anisotropic lobes keep one orientation across such objects. Each
   vertex also carries its object's index, which the G-buffer stores beside the
@@ -94,13 +95,18 @@ MATERIAL_FLAGS = {
     # glTF metallicRoughnessTexture: the raster passes write the texel's roughness multiplier and
     # metallic to the G-buffer (GB_SURFACE) and scale kd by 1 - metallic (shaders/raster_surface.glsl)
     "MAT_MR_TEXTURE": 8192,
+    # glTF normalTexture: the raster passes perturb the shading normal (shaders/raster_surface.glsl)
+    "MAT_NORMAL_TEXTURE": 16384,
+    # KHR_materials_anisotropy's texture: direction per texel, and the strength factor the G-buffer
+    # tangent's length carries to the lobes (shaders/gbuffer_layout.glsl, specular.glsl)
+    "MAT_ANISOTROPY_TEXTURE": 32768,
 }
 LOBE_KINDS = {"LOBE_REFLECT": 0, "LOBE_TRANSMIT": 1}
 # How a metallic-roughness texture changes a lobe (core/scene.py Lobe.mr; specular.glsl lobe_at_pixel)
 LOBE_MR = {"LOBE_MR_NONE": 0, "LOBE_MR_DIELECTRIC": 1, "LOBE_MR_METAL": 2}
 SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
 
-MATERIAL_DTYPE = np.dtype([("kd", "<f4", 4), ("emission", "<f4", 4), ("info", "<i4", 4)])
+MATERIAL_DTYPE = np.dtype([("kd", "<f4", 4), ("emission", "<f4", 4), ("info", "<i4", 4), ("surface", "<f4", 4)])
 LOBE_DTYPE = np.dtype([("ks", "<f4", 4), ("shape", "<f4", 4)])
 # Per lobe: first pattern sample, sample count, pattern kind (PATTERN_KINDS), row of the lobe's
 # pattern for planar reflectors (ivec4, std430). Rows 0 .. L-1 are the lobes' patterns for cube
@@ -196,21 +202,26 @@ class GpuScene:
         if len(indices) and (not np.all(np.isfinite(positions)) or int(indices.max()) >= n):
             raise GlintError(f"bake: object '{entry['name']}' has invalid positions or indices; run "
                              "`glint bake --force`")
-        v = np.zeros(n, VERTEX_DTYPE)
-        v["position"] = positions
-        v["normal"] = _clean(mesh["normals"], None).reshape(-1, 3)  # zero-length is guarded in GLSL
+        normals = _clean(mesh["normals"], None).reshape(-1, 3)  # zero-length is guarded in GLSL
         uvs = mesh.get("uvs")
+        uvs = None if uvs is None else _clean(uvs, None).reshape(-1, 2)
+        supplied = mesh.get("tangents")  # glTF TANGENT
+        # Tangents may split vertices (MikkTSpace's handedness): the other attributes follow `source`.
+        source, indices, frame = surface_tangents(positions, normals, uvs, indices,
+                                                  None if supplied is None else _clean(supplied, None).reshape(-1, 4))
+        indices = indices.astype(np.uint32)
+        positions = positions[source]
+        v = np.zeros(len(source), VERTEX_DTYPE)
+        v["position"] = positions
+        v["normal"] = normals[source]
+        v["tangent"] = frame
         if uvs is not None:
-            v["uv"] = _clean(uvs, None).reshape(-1, 2)
-            v["tangent"] = tangents(positions, v["normal"], v["uv"], indices,
-                                    mesh.get("vmapping", np.arange(n)))
-        none = ~np.any(v["tangent"][:, :3] != 0, axis=1)  # no texture coordinates, or degenerate ones
-        v["tangent"][none] = axis_tangents(v["normal"][none])
+            v["uv"] = uvs[source]
         v["object"] = index
         colors = mesh.get("colors")  # glTF COLOR_0; -1 without (shaders/raster_surface.glsl)
-        v["color"] = -1.0 if colors is None else np.clip(_clean(colors), 0.0, 1.0).reshape(-1, 3)
-        v["lm_uv"] = _clean(mesh["lm_uv"], None).reshape(-1, 2)
-        v["lm_page"] = np.asarray(mesh["lm_page"], np.int32).reshape(-1)
+        v["color"] = -1.0 if colors is None else np.clip(_clean(colors), 0.0, 1.0).reshape(-1, 3)[source]
+        v["lm_uv"] = _clean(mesh["lm_uv"], None).reshape(-1, 2)[source]
+        v["lm_page"] = np.asarray(mesh["lm_page"], np.int32).reshape(-1)[source]
         bounds = (np.stack([positions[indices.ravel()].min(axis=0), positions[indices.ravel()].max(axis=0)])
                   if len(indices) else np.zeros((2, 3)))
         if not len(indices):
@@ -227,6 +238,8 @@ class GpuScene:
         self.kd_textures: list[moderngl.Texture | None] = []
         self.emission_textures: list[moderngl.Texture | None] = []
         self.metallic_roughness_textures: list[moderngl.Texture | None] = []
+        self.normal_textures: list[moderngl.Texture | None] = []
+        self.anisotropy_textures: list[moderngl.Texture | None] = []
         lobe_mr = []
         for i, m in enumerate(entries):
             flags = 0
@@ -265,15 +278,7 @@ class GpuScene:
                                                  f"the emissive texture of material '{m['name']}'", mipmaps=True)
                 flags |= MATERIAL_FLAGS["MAT_EMISSION_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.emission_textures.append(emission_texture)
-            mr_texture = None
-            if m.get("metallic_roughness_texture"):
-                # G: roughness multiplier, B: metallic M' (linear, in 0..1), read with the base
-                # colour's uv and sampler flags (bake/gltf_loader.py)
-                image = read_image(bake.path / m["metallic_roughness_texture"])
-                mr_texture = self._texture(np.clip(_clean(image[..., :3]), 0.0, 1.0),
-                                           f"the metallic-roughness texture of material '{m['name']}'", mipmaps=True)
-                flags |= MATERIAL_FLAGS["MAT_MR_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
-            self.metallic_roughness_textures.append(mr_texture)
+            flags |= self._surface_detail(m, mats[i], bake.path)
             mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
             mats[i]["emission"][:3] = emission
             mats[i]["info"] = (flags, i if texture is not None else -1, len(lobe_rows), len(lobes))
@@ -294,6 +299,27 @@ class GpuScene:
         self.lobe_mr_buffer = self.ctx.buffer(np.array(lobe_mr or [0], np.int32).tobytes())
         self.pattern_buffer = self.lobe_pattern_buffer = None
         self.set_lobe_samples(None)
+
+    def _surface_detail(self, m: dict, row, path) -> int:
+        """A material's metallic-roughness texture (G roughness multiplier, B metallic M'), normal map
+        and anisotropy direction (manifest `metallic_roughness_texture`, `normal_texture`,
+        `normal_scale`, `anisotropy_rotation`, `anisotropy_texture`): their textures (linear, in 0..1,
+        read with the base colour's uv and sampler flags, bake/gltf_loader.py) into
+        self.<kind>_textures, `row["surface"]` = (normal scale, cos, sin of the rotation, 0);
+        -> the MAT_* flags they set."""
+        flags = 0
+        for kind, flag in (("metallic_roughness", "MAT_MR_TEXTURE"), ("normal", "MAT_NORMAL_TEXTURE"),
+                           ("anisotropy", "MAT_ANISOTROPY_TEXTURE")):
+            texture = None
+            if m.get(f"{kind}_texture"):
+                image = np.clip(_clean(read_image(path / m[f"{kind}_texture"])[..., :3]), 0.0, 1.0)
+                what = kind.replace("_", "-")
+                texture = self._texture(image, f"the {what} texture of material '{m['name']}'", mipmaps=True)
+                flags |= MATERIAL_FLAGS[flag] | _sampler_flags(m.get("kd_sampler") or {})
+            getattr(self, f"{kind}_textures").append(texture)
+        rotation = float(_clean(m.get("anisotropy_rotation", 0.0), None))
+        row["surface"] = (float(_clean(m.get("normal_scale", 1.0), None)), np.cos(rotation), np.sin(rotation), 0.0)
+        return flags
 
     def set_lobe_samples(self, samples: int | None) -> None:
         """Build every lobe's regular sampling pattern (section 4.4.3): the pattern kind from the
@@ -347,7 +373,16 @@ class GpuScene:
         return t if t is not None else self.white
 
     def metallic_roughness_texture(self, material: int) -> moderngl.Texture:
-        textures = self.metallic_roughness_textures
+        return self._material_texture(self.metallic_roughness_textures, material)
+
+    def normal_texture(self, material: int) -> moderngl.Texture:
+        return self._material_texture(self.normal_textures, material)
+
+    def anisotropy_texture(self, material: int) -> moderngl.Texture:
+        return self._material_texture(self.anisotropy_textures, material)
+
+    def _material_texture(self, textures: list, material: int) -> moderngl.Texture:
+        """The material's texture of one kind, or the 1x1 white one where it has none."""
         t = textures[material] if 0 <= material < len(textures) else None
         return t if t is not None else self.white
 
@@ -422,8 +457,8 @@ class GpuScene:
     def release(self) -> None:
         for o in self.objects:
             o.release()
-        for t in [*self.kd_textures, *self.emission_textures, *self.metallic_roughness_textures, self.lightmaps,
-                  self.white]:
+        for t in [*self.kd_textures, *self.emission_textures, *self.metallic_roughness_textures,
+                  *self.normal_textures, *self.anisotropy_textures, self.lightmaps, self.white]:
             if t is not None:
                 t.release()
         if self.sky_map is not self.white:
@@ -436,39 +471,91 @@ class GpuScene:
         self.cubemaps.release()
 
 
-def tangents(positions, normals, uvs, indices, vmapping) -> np.ndarray:
-    """(N, 4) unit tangents along +u of the texture coordinates, w = bitangent handedness (+-1);
-    zero where the coordinates are degenerate. Summed per original vertex (`vmapping`), so
-    vertices split along light-map seams keep one frame."""
+def surface_tangents(positions, normals, uvs, indices, supplied=None):
+    """The tangent frame of a mesh, for normal maps and anisotropic lobes: -> (source (K,) the
+    vertex each output vertex copies, indices (M, 3) into the output vertices, tangents (K, 4):
+    xyz unit, w the bitangent sign, b = w n x t as glTF defines it). The file's TANGENT where
+    given (`supplied`, non-zero rows); else MikkTSpace from the uvs (`tangents`, which splits a
+    vertex whose faces disagree in handedness); else a world axis (`axis_tangents`)."""
+    tri = np.asarray(indices, np.int64).reshape(-1, 3)
     n = len(positions)
-    out = np.zeros((n, 4), np.float32)
-    if not len(indices):
+    if supplied is not None and np.all(np.any(np.asarray(supplied)[:, :3] != 0, axis=1)):
+        source, out = np.arange(n), np.asarray(supplied, np.float32).reshape(-1, 4).copy()
+    elif uvs is not None and len(tri):
+        corner = tangents(positions, normals, uvs, tri)
+        # one output vertex per (vertex, handedness) its corners have: usually the vertex itself
+        key = tri.ravel() * 2 + (corner[..., 3].ravel() < 0)
+        keys, inverse = np.unique(key, return_inverse=True)
+        source, tri = keys // 2, inverse.reshape(-1, 3)
+        out = np.zeros((len(keys), 4), np.float32)
+        out[inverse] = corner.reshape(-1, 4)
+        if supplied is not None:  # the file's tangents where it has usable ones
+            given = np.asarray(supplied, np.float32)[source]
+            usable = np.any(given[:, :3] != 0, axis=1)
+            out[usable] = given[usable]
+    else:
+        source, out = np.arange(n), np.zeros((n, 4), np.float32)
+    nrm = np.asarray(normals, np.float64)[source]
+    none = ~np.any(out[:, :3] != 0, axis=1)  # no uvs, or degenerate ones
+    out[none] = axis_tangents(nrm[none])
+    return source, tri, out
+
+
+def tangents(positions, normals, uvs, indices) -> np.ndarray:
+    """(M, 3, 4) tangents per triangle corner by MikkTSpace's rule (Mikkelsen 2008, the
+    reference mikktspace.c that Blender's glTF exporter and glTF's sample viewer use): xyz
+    unit, w = +-1 with the bitangent b = w n x t. Per triangle the unit dp/du (Mikkelsen's vOs),
+    at each corner projected onto the vertex normal and weighted by the corner's angle (the
+    edges projected onto the normal's plane), summed over the corners of one vertex group:
+    vertices equal in position, normal and uv (so light-map seams, which split vertices, do not
+    split the frame), and of one handedness, the sign of the triangle's uv area (glTF's v runs
+    down the image, Mikkelsen's up: w = -sign of the area in glTF's uv, as three.js's
+    computeMikkTSpaceTangents(negateSign=True)). Zero where every triangle of a group is
+    degenerate in uv. Differences from the reference: it also requires the faces of a group to
+    be connected through the vertex (two fans of one vertex that touch only there get one frame
+    here); it gives degenerate triangles their neighbours' frame (here they add nothing); and
+    its per-vertex bitangent magnitudes (the 'magS/magT' outputs) are not computed."""
+    tri = np.asarray(indices, np.int64).reshape(-1, 3)
+    out = np.zeros((len(tri), 3, 4), np.float32)
+    if not len(tri):
         return out
-    tri = indices.astype(np.int64)
-    p, t = positions[tri], uvs.astype(np.float64)[tri]
-    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
-    det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
-    ok = np.abs(det) > 1e-12
-    r = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)[:, None]
-    # Solve [e1 e2] = [T B] [d1 d2]: T = (e1 dv2 - e2 dv1) / det, B = (e2 du1 - e1 du2) / det;
-    # scaled by det's magnitude the sums weight triangles by their area.
-    T = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) * r * np.abs(det)[:, None]
-    B = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) * r * np.abs(det)[:, None]
-    vmap = np.asarray(vmapping, np.int64).reshape(-1)
-    groups = vmap.max(initial=-1) + 1
-    sum_t, sum_b = np.zeros((groups, 3)), np.zeros((groups, 3))
-    for c in range(3):
-        np.add.at(sum_t, vmap[tri[:, c]], T)
-        np.add.at(sum_b, vmap[tri[:, c]], B)
+    pos = np.asarray(positions, np.float64)
     nrm = np.asarray(normals, np.float64)
-    tv, bv = sum_t[vmap], sum_b[vmap]
-    tv = tv - nrm * np.einsum("ij,ij->i", tv, nrm)[:, None]
-    length = np.linalg.norm(tv, axis=1)
-    good = length > 1e-12
-    out[good, :3] = tv[good] / length[good, None]
-    handed = np.einsum("ij,ij->i", np.cross(nrm, tv), bv)
-    out[good, 3] = np.where(handed[good] < 0, -1.0, 1.0)
+    tex = np.asarray(uvs, np.float64)
+    p, t = pos[tri], tex[tri]
+    d1, d2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    t21, t31 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    area = t21[:, 0] * t31[:, 1] - t21[:, 1] * t31[:, 0]  # twice the signed uv area
+    # [d1 d2] = [dp/du dp/dv] [t21 t31]: dp/du = (t31v d1 - t21v d2) / area
+    os = (t31[:, 1:2] * d1 - t21[:, 1:2] * d2) * np.sign(area)[:, None]
+    length = np.linalg.norm(os, axis=1, keepdims=True)
+    ok = (np.abs(area) > 1e-20) & (length[:, 0] > 1e-20)
+    os = np.where(ok[:, None], os / np.maximum(length, 1e-300), 0.0)
+    w = np.where(area < 0, 1.0, -1.0)  # handedness in glTF's v-down uv (docstring)
+    # per corner: the face tangent projected onto the vertex normal, weighted by the corner angle
+    n = nrm[tri]  # (M, 3, 3)
+    vs = os[:, None, :] - n * np.einsum("fcj,fj->fc", n, os)[..., None]
+    vs /= np.maximum(np.linalg.norm(vs, axis=2, keepdims=True), 1e-300)
+    e1 = np.roll(p, -1, axis=1) - p
+    e2 = np.roll(p, 1, axis=1) - p
+
+    def in_plane(e):
+        e = e - n * np.einsum("fcj,fcj->fc", n, e)[..., None]
+        return e / np.maximum(np.linalg.norm(e, axis=2, keepdims=True), 1e-300)
+
+    angle = np.arccos(np.clip(np.einsum("fcj,fcj->fc", in_plane(e1), in_plane(e2)), -1.0, 1.0))
+    contribution = vs * (angle * ok[:, None])[..., None]
+    # vertex groups: equal position, normal and uv, and one handedness
+    weld = np.unique(np.concatenate([pos, nrm, tex], axis=1), axis=0, return_inverse=True)[1].reshape(-1)
+    group = np.unique(weld[tri] * 2 + (w[:, None] < 0), return_inverse=True)[1].reshape(-1)
+    sums = np.zeros((group.max() + 1, 3))
+    np.add.at(sums, group, contribution.reshape(-1, 3))
+    corner = sums[group]
+    length = np.linalg.norm(corner, axis=1, keepdims=True)
+    good = length[:, 0] > 1e-12
+    flat = out.reshape(-1, 4)
+    flat[good, :3] = corner[good] / length[good]
+    flat[good, 3] = np.repeat(w, 3)[good]
     return out
 
 

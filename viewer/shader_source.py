@@ -50,6 +50,7 @@ def glsl_constants() -> dict:
     the fixed texture units and buffer bindings (viewer/gl_bindings.py)."""
     return {"HALF_MAX": constants.HALF_MAX, "XI1_BORDER": constants.XI1_BORDER, "LOBE_TAN_MAX": constants.LOBE_TAN_MAX,
             "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "GB_DARK_BACK_FACE": constants.GB_DARK_BACK_FACE,
+            "GB_NORMAL_MAPPED": constants.GB_NORMAL_MAPPED, "MIRROR_PLANE_DISTANCE": constants.MIRROR_PLANE_DISTANCE,
             "GB_ID_BITS": constants.GB_ID_BITS, "M_MIN": bsdf.M_MIN, "HZ_MIN": bsdf.HZ_MIN,
             "DOT_MIN": bsdf.DOT_MIN, "COS_MIN": bsdf.COS_MIN, "HALF_MIN": bsdf.HALF_MIN, "XI_MIN": bsdf.XI_MIN,
             **gl_bindings.glsl_defines()}

@@ -10,6 +10,7 @@ import moderngl
 
 from glint.viewer.camera import ViewCamera, gl_bytes, in_frustum
 from glint.viewer.gl_bindings import (
+    ANISOTROPY_TEXTURE_UNIT,
     EMISSION_TEXTURE_UNIT,
     GB_DIFFUSE_LOCATION,
     GB_MATERIAL_LOCATION,
@@ -19,6 +20,7 @@ from glint.viewer.gl_bindings import (
     KD_TEXTURE_UNIT,
     LIGHTMAP_UNIT,
     METALLIC_ROUGHNESS_TEXTURE_UNIT,
+    NORMAL_TEXTURE_UNIT,
 )
 from glint.viewer.shader_source import raster_program, set_uniforms
 
@@ -28,13 +30,16 @@ COLOUR_TARGETS = {GB_DIFFUSE_LOCATION: "diffuse", GB_NORMAL_LOCATION: "normal", 
 
 
 def draw_object(program, scene, obj) -> None:
-    """One object with its material index, base-colour, emissive and metallic-roughness textures and back-side
-    light-map layer: the G-buffer's and the mirror passes' surface shaders (raster_surface.glsl) read them."""
+    """One object with its material index, its base-colour, emissive, metallic-roughness, normal and
+    anisotropy textures and its back-side light-map layer: the G-buffer's and the mirror passes'
+    surface shaders (raster_surface.glsl) read them."""
     program["material_index"] = obj.material
     program["lightmap_back_layer"] = obj.back_layer
     scene.kd_texture(obj.material).use(KD_TEXTURE_UNIT)
     scene.emission_texture(obj.material).use(EMISSION_TEXTURE_UNIT)
     scene.metallic_roughness_texture(obj.material).use(METALLIC_ROUGHNESS_TEXTURE_UNIT)
+    scene.normal_texture(obj.material).use(NORMAL_TEXTURE_UNIT)
+    scene.anisotropy_texture(obj.material).use(ANISOTROPY_TEXTURE_UNIT)
     obj.vertex_array(program).render(moderngl.TRIANGLES)
 
 
