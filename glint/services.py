@@ -93,7 +93,7 @@ def fidelity_line(manifest: dict) -> str | None:
     light-map texels inside geometry (invalid: lit by dilation from their neighbours, not path
     traced) and the glTF features the loader ignored, e.g. "the scene will look wrong where:
     31.2 % of light-map texels lie inside geometry (filled from their neighbours); 12.0 % of
-    the surface gets no light (black where seen); ignored: normalTexture (12),
+    the surface gets no light (black where seen); ignored: clearcoatTexture (12),
     EXT_texture_webp (3)". None when there is nothing to say (or nothing recorded)."""
     stats = manifest.get("statistics", {})
     parts = []

@@ -289,7 +289,8 @@ class GpuScene:
                 row["shape"] = (lobe.get("mx", 0.1), lobe.get("my", 0.1), lobe.get("r0", 0.04),
                                 lobe.get("alpha", 0.0))
                 lobe_rows.append(row)
-                lobe_mr.append(LOBE_MR[f"LOBE_MR_{lobe.get('mr') or 'none'}".upper()] if mr_texture is not None else 0)
+                textured = self.metallic_roughness_textures[i] is not None
+                lobe_mr.append(LOBE_MR[f"LOBE_MR_{lobe.get('mr') or 'none'}".upper()] if textured else 0)
         lobes = np.array(lobe_rows, LOBE_DTYPE) if lobe_rows else np.zeros(1, LOBE_DTYPE)
         self.material_table = mats
         self.lobe_table = lobes
