@@ -151,3 +151,32 @@ def test_roughness_striped_metal_floor_matches_mitsuba(tmp_path):
     print(f"walkthrough mean {walk.mean():.3f}, still median {np.median(still):.3f}")
     assert walk.mean() <= 0.35
     assert np.median(still) <= 0.25
+
+
+def test_uniform_texture_captures_as_the_factors_it_multiplies(tmp_path):
+    """A uniform metallic-roughness texture (G = 153, B = 128) on roughnessFactor 1, metallicFactor 1
+    must render as the texture-less material with roughnessFactor 0.6 and metallicFactor 128/255:
+    the per-pixel path (G-buffer GB_SURFACE, `lobe_at_pixel`, kd x (1 - M') in the raster pass and
+    the bake) against the factor path that the Mitsuba comparisons of the other tests hold. Mean
+    |difference| over the floor (lower half) of the walkthrough image, at most 1 % of its mean.
+    Measured: 0.03 %. Deliberate bugs this catches (tried): m' = m g instead of m g^2: 33 %;
+    roughness and metallic channels swapped: 42 %; kd not scaled by 1 - M' in the raster pass: 46 %."""
+    from glint.cli import main
+    from glint.core.image_io import read_image
+
+    images = {}
+    for name, texture, roughness, metallic in (("texture", stripes(g=(G_HIGH, G_HIGH), b=(128, 128)), 1.0, 1.0),
+                                               ("factors", None, G_HIGH / 255, 128 / 255)):
+        path = write_bar_scene(tmp_path / f"{name}.glb", texture, metallic=metallic, roughness=roughness)
+        out = tmp_path / f"{name}.exr"
+        assert main(["capture", str(path), "-o", str(out), "--size", f"{SIZE}x{SIZE}",
+                     "--eye", ",".join(map(str, EYE)), "--target", ",".join(map(str, TARGET)), "--fov", str(FOV),
+                     "-q", "draft", "--samples", "32", "--texels-per-metre", "8", "--no-denoise",
+                     "--bake-dir", str(tmp_path / f"{name}.bake")]) == 0
+        images[name] = read_image(out)[SIZE // 2:, :, :3].astype(np.float64)
+    a, b = images["texture"], images["factors"]
+    assert np.isfinite(a).all()
+    assert b.mean() > 0.01
+    difference = float(np.abs(a - b).mean() / b.mean())
+    print(f"uniform texture vs factors: {difference:.4f}")
+    assert difference <= 0.01
