@@ -124,6 +124,9 @@ def beckmann_m(roughness: float) -> float:
     return max(r * r, MIN_M)
 
 
+INTERFACE_ALPHA = 0.5
+
+
 def fresnel_r0(ior: float) -> float:
     """Schlick's reflectance at normal incidence for a dielectric of index `ior` in air."""
     return ((ior - 1.0) / (ior + 1.0)) ** 2
@@ -150,15 +153,16 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
         dielectric = 1.0 if np.min(texel_metal, initial=1.0) < 1 else 0.0
         mr = "dielectric"
     rough = roughness >= diffuse_roughness and t == 0.0
+    interface = INTERFACE_ALPHA if p.thickness > 0 and t > 0 else 0.0
 
     kd = base * (1.0 - metal if mr == "" else 1.0) * (1.0 - t)
     r0 = float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
     lobes = []
     if not rough:
-        lobes.append(Lobe("reflect", _rgb3(dielectric * p.specular), mx, my, r0, 0.0, mr))
+        lobes.append(Lobe("reflect", _rgb3(dielectric * p.specular), mx, my, r0, interface, mr))
     lobes.append(Lobe("reflect", _rgb3(base * metal_ks), mx, my, 1.0, 0.0, mr and "metal"))
     if t > 0:
-        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), mx, my, r0, 0.0, mr))
+        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), mx, my, r0, interface, mr))
     if p.clearcoat > 0 and not (p.clearcoat_roughness >= diffuse_roughness and t == 0.0):
         mc = beckmann_m(p.clearcoat_roughness)
         lobes.append(Lobe("reflect", _rgb3(p.clearcoat), mc, mc, CLEARCOAT_R0, 0.0))
