@@ -59,7 +59,10 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
 - Volume (KHR_materials_volume, t > 0): thicknessFactor > 0 makes the material a closed glass
   solid (`Material.thickness`, `ior`, `attenuation_distance`, `attenuation_color`; core/volume.py):
   the transmit lobe is then the entry interface, the bake and the viewer add the exit interface,
-  the refraction and the Beer-Lambert absorption inside. thicknessFactor is taken in metres (the
+  the refraction and the Beer-Lambert absorption inside. Its dielectric reflect and transmit
+  lobes get Kurt's alpha = 1/2 (`INTERFACE_ALPHA`): a narrow Eq. 3.4 lobe then reflects F and
+  transmits 1 - F at every view angle, as a smooth interface does, instead of alpha = 0's
+  F cos theta_o (a clear bottle's edges went dark). thicknessFactor is taken in metres (the
   node's scale is not applied: one material may serve nodes of several scales). thicknessFactor
   0 (the default) is thin-walled: Eq. 3.5 alone. On a material without transmission the volume
   changes nothing (no light enters it) and is not read.
@@ -129,6 +132,9 @@ def beckmann_m(roughness: float) -> float:
     return max(r * r, MIN_M)
 
 
+INTERFACE_ALPHA = 0.5  # Kurt's alpha of a glass solid's lobes: sqrt(cos_i cos_o) cancels cos_i (module docstring)
+
+
 def fresnel_r0(ior: float) -> float:
     """Schlick's reflectance at normal incidence for a dielectric of index `ior` in air."""
     return ((ior - 1.0) / (ior + 1.0)) ** 2
@@ -155,15 +161,16 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
         dielectric = 1.0 if np.min(texel_metal, initial=1.0) < 1 else 0.0
         mr = "dielectric"
     rough = roughness >= diffuse_roughness and t == 0.0
+    interface = INTERFACE_ALPHA if p.thickness > 0 and t > 0 else 0.0
 
     kd = base * (1.0 - metal if mr == "" else 1.0) * (1.0 - t)
     r0 = float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
     lobes = []
     if not rough:
-        lobes.append(Lobe("reflect", _rgb3(dielectric * p.specular), mx, my, r0, 0.0, mr))
+        lobes.append(Lobe("reflect", _rgb3(dielectric * p.specular), mx, my, r0, interface, mr))
     lobes.append(Lobe("reflect", _rgb3(base * metal_ks), mx, my, 1.0, 0.0, mr and "metal"))
     if t > 0:
-        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), mx, my, r0, 0.0, mr))
+        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), mx, my, r0, interface, mr))
     if p.clearcoat > 0 and not (p.clearcoat_roughness >= diffuse_roughness and t == 0.0):
         mc = beckmann_m(p.clearcoat_roughness)
         lobes.append(Lobe("reflect", _rgb3(p.clearcoat), mc, mc, CLEARCOAT_R0, 0.0))

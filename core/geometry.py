@@ -47,6 +47,26 @@ def fit_plane(positions: np.ndarray, indices: np.ndarray) -> tuple[np.ndarray, n
     return centroid, normal / np.linalg.norm(normal)
 
 
+def oriented_box(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A tight box around points -> (centre (3,), axes (3, 3) unit rows, half extents (3,)): the
+    box along the points' principal axes, or the axis-aligned one where that is smaller (a cube's
+    principal axes are arbitrary). A turned pane gets its own flat box, not a fat axis-aligned one."""
+    p = np.asarray(positions, np.float64).reshape(-1, 3)
+    if len(p) == 0:
+        return np.zeros(3), np.eye(3), np.zeros(3)
+    boxes = [np.eye(3)]
+    if len(p) > 3:
+        _, vectors = np.linalg.eigh(np.cov((p - p.mean(axis=0)).T))
+        boxes.append(vectors.T)
+    best = None
+    for axes in boxes:
+        q = p @ axes.T
+        lo, hi = q.min(axis=0), q.max(axis=0)
+        if best is None or np.prod(hi - lo) < np.prod(best[2] * 2) * (1 - 1e-6):
+            best = (((lo + hi) / 2) @ axes, axes, (hi - lo) / 2)
+    return best
+
+
 def plane_of(obj: Object) -> tuple[np.ndarray, np.ndarray]:
     """The mirror plane of an object -> (point, unit normal), for the planar passes.
 

@@ -7,8 +7,9 @@
 struct CubeObject {
     vec4 centre;    // xyz: the cube map's projection centre (the object's bounding-box centre)
     ivec4 info;     // x: size class (-1: no cube map), y: layer, z: first bounding plane, w: plane count
-    vec4 extent;    // glass solids (volume.glsl): xyz half extents of the bounding box, w: thickness (m)
+    vec4 extent;    // glass solids (volume.glsl): xyz half extents of the oriented box, w: thickness (m)
     vec4 volume;    // glass solids: rgb absorption sigma_a (1/m), a: ior; a = 0: not a solid
+    vec4 box[3];    // glass solids: xyz the oriented box's axes (unit), w their centre's coordinates
 };
 
 struct BoundingPlane {

@@ -112,9 +112,20 @@ struct SpecularPoint {
 // point through the bounding planes (section 4.4.1) at full weight.
 CubeLook cube_look(SpecularPoint sp, vec3 wi, Lobe lobe) {
     vec3 d = sp.frame * wi;
-    if (lobe_is_transmit(lobe) && has_volume(sp.cube))
-        return volume_transmit(sp.cube, sp.position, sp.frame[2], d);
-    return CubeLook(bounding_plane_direction(sp.cube, sp.position, d), vec3(1.0));
+    if (has_volume(sp.cube))
+        return lobe_is_transmit(lobe) ? volume_transmit(sp.cube, sp.position, sp.frame[2], d)
+                                      : volume_reflect(sp.cube, sp.position, sp.frame[2], d);
+    return single_look(bounding_plane_direction(sp.cube, sp.position, d), vec3(1.0));
+}
+
+// The radiance a look brings, both of its look-ups at MIP level `lod`.
+vec3 look_radiance(SpecularPoint sp, CubeLook look, float lod) {
+    vec3 L = look.weight * cube_radiance(sp.cube, look.dir, lod);
+    if (look.weight2 != vec3(0.0)) {
+        L += look.weight2 * cube_radiance(sp.cube, look.dir2, lod);
+        specular_lookups += 1;
+    }
+    return L;
 }
 
 // Any orthonormal (t, b) for a unit n (Duff et al. 2017, branchless and continuous except at n.z = 0).
@@ -189,7 +200,7 @@ vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
         if (!on_lobe_side(wi, lobe))
             continue;  // below the horizon: cannot contribute (section 4.4.3)
         CubeLook look = cube_look(sp, wi, lobe);
-        vec3 L = look.weight * cube_radiance(sp.cube, look.dir, cube_mip_level(sample_area, look.dir, face));
+        vec3 L = look_radiance(sp, look, cube_mip_level(sample_area, look.dir, face));
         specular_lookups += 1;
         add_pattern_sample(sum, L, lobe_value(wi, sp.wo, lobe), lobe_pdf(wi, sp.wo, lobe), abs(wi.z));
     }
@@ -223,7 +234,7 @@ vec3 lobe_importance_estimate(SpecularPoint sp, Lobe lobe, uint first, int count
             continue;
         CubeLook look = cube_look(sp, wi, lobe);
         float lod = filtered ? importance_mip_level(pdf, count, face) : 0.0;  // unfiltered: unbiased
-        sum += weight * look.weight * cube_radiance(sp.cube, look.dir, lod);
+        sum += weight * look_radiance(sp, look, lod);
         specular_lookups += 1;
     }
     return sum / float(max(count, 1));

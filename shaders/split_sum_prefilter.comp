@@ -45,7 +45,8 @@ void main() {
     // A frame (t, b, r): the lobe is isotropic, any orientation about r will do.
     vec3 t = normalize(cross(abs(r.z) < 0.999 ? vec3(0.0, 0.0, 1.0) : vec3(1.0, 0.0, 0.0), r));
     mat3 frame = mat3(t, cross(r, t), r);
-    CubeObject source = CubeObject(vec4(0.0), ivec4(source_class, layer, 0, 0), vec4(0.0), vec4(0.0));
+    CubeObject source = CubeObject(vec4(0.0), ivec4(source_class, layer, 0, 0), vec4(0.0), vec4(0.0),
+                                         vec4[3](vec4(0.0), vec4(0.0), vec4(0.0)));
     float source_face = cube_map_face_size(source);
     Lobe lobe = Lobe(vec4(1.0, 1.0, 1.0, float(LOBE_REFLECT)), vec4(roughness, roughness, 1.0, 0.0));
     const vec3 wo = vec3(0.0, 0.0, 1.0);  // v = n = r

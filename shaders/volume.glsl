@@ -18,9 +18,15 @@
 const int VOLUME_BOUNCES = 3;
 
 struct CubeLook {
-    vec3 dir;     // the look-up direction in the object's cube map
-    vec3 weight;  // what the glass lets through of the radiance found there
+    vec3 dir;      // the look-up direction in the object's cube map
+    vec3 weight;   // what the glass lets through of the radiance found there
+    vec3 dir2;     // a second look-up: the light a thin-walled solid's far wall reflects to the eye
+    vec3 weight2;  // its weight; 0: no second look-up
 };
+
+CubeLook single_look(vec3 dir, vec3 weight) {
+    return CubeLook(dir, weight, dir, vec3(0.0));
+}
 
 bool has_volume(CubeObject c) {
     return c.volume.a > 0.0;
@@ -39,46 +45,103 @@ float fresnel_dielectric(float cos_i, float eta) {
     return 0.5 * (rs * rs + rp * rp);
 }
 
-// The far intersection s > 0 of p + s d with the ellipsoid of half axes h around `centre`, or -1.
-float ellipsoid_exit(vec3 p, vec3 d, vec3 centre, vec3 h) {
-    vec3 o = (p - centre) / h;
-    vec3 v = d / h;
-    float a = dot(v, v), b = dot(o, v), c = dot(o, o) - 1.0;
-    float disc = b * b - a * c;
+// The object's oriented box (viewer/cubemaps.py): world -> box coordinates, and its half extents.
+vec3 box_local(CubeObject c, vec3 v) {
+    return vec3(dot(c.box[0].xyz, v), dot(c.box[1].xyz, v), dot(c.box[2].xyz, v));
+}
+
+vec3 box_centre(CubeObject c) {
+    return vec3(c.box[0].w, c.box[1].w, c.box[2].w);
+}
+
+vec3 box_half(CubeObject c) {
+    return max(c.extent.xyz, vec3(1e-4));
+}
+
+// The far intersection s > 0 of p + s d with the ellipsoid inscribed in the box, or -1.
+float ellipsoid_exit(CubeObject c, vec3 p, vec3 d) {
+    vec3 h = box_half(c);
+    vec3 o = box_local(c, p - box_centre(c)) / h;
+    vec3 v = box_local(c, d) / h;
+    float a = dot(v, v), b = dot(o, v), k = dot(o, o) - 1.0;
+    float disc = b * b - a * k;
     if (!(disc >= 0.0) || !(a > 0.0))
         return -1.0;
     return (-b + sqrt(disc)) / a;
+}
+
+// The inscribed ellipsoid's outward unit normal at its point q (`fallback` where it has none).
+vec3 ellipsoid_normal(CubeObject c, vec3 q, vec3 fallback) {
+    vec3 h = box_half(c);
+    vec3 g = box_local(c, q - box_centre(c)) / (h * h);
+    return safe_normalize(g.x * c.box[0].xyz + g.y * c.box[1].xyz + g.z * c.box[2].xyz, fallback);
+}
+
+// Whether the wall along the refracted direction t (cos_t to the normal) is thin against the
+// object: under half the chord through the inscribed ellipsoid (a bottle, a glass), or not (a
+// solid: a paperweight, a lens, a pane, whose ellipsoid is as flat as the pane).
+bool thin_walled(CubeObject c, vec3 p, vec3 t, float cos_t) {
+    float chord = ellipsoid_exit(c, p, t);
+    return chord <= 0.0 || c.extent.w / max(cos_t, 1e-3) < 0.5 * chord;
+}
+
+// A reflection sample d (world, out of the object) at p, outward normal n: the outer surface's F is
+// the lobe's; a thin wall adds its inner surface, seen through the outer one, along the same
+// direction: (1 - F)^2 F a^2 (a the wall's absorption), so the lobe's weight F times
+// 1 + (1 - F)^2 a^2 (the first two terms of the slab's reflectance). A solid adds nothing here.
+CubeLook volume_reflect(CubeObject c, vec3 p, vec3 n, vec3 d) {
+    float ior = c.volume.a;
+    float cos_i = clamp(dot(d, n), 0.0, 1.0);
+    vec3 t = refract(reflect(d, n), n, 1.0 / ior);  // the light that entered: the refracted ray
+    vec3 look = bounding_plane_direction(c, p, d);
+    float cos_t = -dot(t, n);
+    if (!(cos_i > 0.0) || !(cos_t > 0.0) || !thin_walled(c, p, t, cos_t))
+        return single_look(look, vec3(1.0));
+    float keep = 1.0 - fresnel_dielectric(cos_i, ior);
+    vec3 a = exp(-c.volume.rgb * (c.extent.w / cos_t));
+    return single_look(look, 1.0 + keep * keep * a * a);
 }
 
 // The sample direction d (world, into the object) at the point p with the outward normal n.
 CubeLook volume_transmit(CubeObject c, vec3 p, vec3 n, vec3 d) {
     float ior = c.volume.a;
     vec3 sigma = c.volume.rgb;
-    vec3 h = max(c.extent.xyz, vec3(1e-4));
     float cos_i = clamp(-dot(d, n), 0.0, 1.0);
     vec3 t = refract(d, n, 1.0 / ior);  // from air: never total internal reflection
     if (t == vec3(0.0) || !(cos_i > 0.0))
-        return CubeLook(bounding_plane_direction(c, p, d), vec3(0.0));
+        return single_look(bounding_plane_direction(c, p, d), vec3(0.0));
     float cos_t = max(-dot(t, n), 1e-3);
-    float wall = c.extent.w / cos_t;
-    float chord = ellipsoid_exit(p, t, c.centre.xyz, h);
-    if (chord <= 0.0 || wall < 0.5 * chord) {  // thin-walled: two slabs, the direction unchanged
+    if (thin_walled(c, p, t, cos_t)) {
+        // Two slabs, the direction unchanged: the near wall's inner surface (1 - F), then the far
+        // wall, where the straight ray meets the ellipsoid, at its own angle: it transmits
+        // (1 - F_b)^2 and reflects F_b + (1 - F_b)^2 F_b a_b^2 back through the near wall
+        // ((1 - F)^2 again), towards reflect(d, far normal), looked up from the far point.
         float keep = 1.0 - fresnel_dielectric(cos_i, ior);
-        return CubeLook(bounding_plane_direction(c, p, d), keep * keep * keep * exp(-sigma * (2.0 * wall)));
+        vec3 a = exp(-sigma * (c.extent.w / cos_t));
+        vec3 q = p + max(ellipsoid_exit(c, p, d), 0.0) * d;
+        vec3 nb = ellipsoid_normal(c, q, d);  // the far wall's outward normal
+        float cos_b = clamp(dot(d, nb), 0.0, 1.0);
+        float fb = fresnel_dielectric(cos_b, ior);
+        vec3 ab = exp(-sigma * (c.extent.w / max(sqrt(max(1.0 - (1.0 - cos_b * cos_b) / (ior * ior), 0.0)), 1e-3)));
+        vec3 back = (1.0 - fb) * (1.0 - fb) * ab;
+        vec3 echo = fb + back * fb * ab;
+        vec3 r = reflect(d, nb);
+        return CubeLook(bounding_plane_direction(c, p, d), keep * a * back,
+                        bounding_plane_direction(c, q, r), keep * a * echo * keep * keep * a * a);
     }
     vec3 q = p;
     vec3 weight = vec3(1.0);
     for (int k = 0; k < VOLUME_BOUNCES; ++k) {
-        float s = max(ellipsoid_exit(q, t, c.centre.xyz, h), 0.0);
+        float s = max(ellipsoid_exit(c, q, t), 0.0);
         q += s * t;
         weight *= exp(-sigma * s);
-        vec3 ne = safe_normalize((q - c.centre.xyz) / (h * h), t);  // the ellipsoid's outward normal
+        vec3 ne = ellipsoid_normal(c, q, t);
         float cos_out = dot(t, ne);
         vec3 out_dir = refract(t, -ne, ior);
         if (cos_out > 0.0 && out_dir != vec3(0.0))
-            return CubeLook(bounding_plane_direction(c, q, out_dir),
-                            weight * (1.0 - fresnel_dielectric(cos_out, 1.0 / ior)));
+            return single_look(bounding_plane_direction(c, q, out_dir),
+                               weight * (1.0 - fresnel_dielectric(cos_out, 1.0 / ior)));
         t = reflect(t, -ne);  // total internal reflection: on to the next side
     }
-    return CubeLook(bounding_plane_direction(c, q, t), vec3(0.0));  // trapped: lost
+    return single_look(bounding_plane_direction(c, q, t), vec3(0.0));  // trapped: lost
 }

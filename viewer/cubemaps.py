@@ -40,6 +40,7 @@ import numpy as np
 
 from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
+from glint.core.geometry import oriented_box
 from glint.core.image_io import read_image
 from glint.viewer.gl import GL, GL_TEXTURE_CUBE_MAP_SEAMLESS
 from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING
@@ -48,9 +49,11 @@ FACES = ("+x", "-x", "+y", "-y", "+z", "-z")  # GL's face order (GL_TEXTURE_CUBE
 MAX_PLANES = 16  # per object; more are ignored (each is a ray-plane test per sample)
 
 # Per object (std430): xyz projection centre, w unused; class (-1: none), layer, first plane, plane count;
-# a glass solid's (shaders/volume.glsl) half extents of its bounding box and thickness (w), and its
-# absorption sigma_a (rgb, 1/m) and ior (a; 0: not a solid).
-CUBE_OBJECT_DTYPE = np.dtype([("centre", "<f4", 4), ("info", "<i4", 4), ("extent", "<f4", 4), ("volume", "<f4", 4)])
+# a glass solid's (shaders/volume.glsl) half extents of its oriented box (core/geometry.py oriented_box)
+# and thickness (w), its absorption sigma_a (rgb, 1/m) and ior (a; 0: not a solid), and the box's
+# axes (xyz of the three rows) with its centre (their w).
+CUBE_OBJECT_DTYPE = np.dtype([("centre", "<f4", 4), ("info", "<i4", 4), ("extent", "<f4", 4), ("volume", "<f4", 4),
+                              ("box", "<f4", (3, 4))])
 PLANE_DTYPE = np.dtype([("point", "<f4", 4), ("normal", "<f4", 4)])
 
 
@@ -99,8 +102,11 @@ class CubeMaps:
             table[i]["centre"][:3] = _finite(cube.get("centre", np.mean(entry["bounds"], axis=0)))
             volume = _material_volume(bake.manifest, entry)
             if volume:  # a glass solid: bake/pipeline.py's `volume` entry of its material
-                lo, hi = (_finite(b) for b in entry["bounds"])
-                table[i]["extent"][:3] = np.abs(hi - lo) / 2
+                centre, axes, half = oriented_box(
+                    np.nan_to_num(np.asarray(bake.meshes[i]["positions"], np.float64), posinf=0.0, neginf=0.0))
+                table[i]["extent"][:3] = half
+                table[i]["box"][:, :3] = axes
+                table[i]["box"][:, 3] = centre
                 table[i]["extent"][3] = max(_finite_scalar(volume.get("thickness", 0.0)), 0.0)
                 table[i]["volume"][:3] = np.clip(_finite(volume.get("absorption", (0, 0, 0))), 0.0, HALF_MAX)
                 table[i]["volume"][3] = max(_finite_scalar(volume.get("ior", 1.5)), 1.0)
