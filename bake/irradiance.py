@@ -3,20 +3,29 @@
 Estimated quantity, per texel at x with normal n:  E(x) = integral over the hemisphere of L_i(w) cos(w, n) dw
 (W/m^2, RGB), so that the viewer's diffuse radiance is kd / pi x E (Eq. 4.1).
 
-Transport (light-map transport only, no reflection lobes: the viewer adds view-dependent
-light at run time, so a specular edit needs no re-bake):
-- At the texel and at every later diffuse vertex: next-event estimation (NEE) with one
-  area-light sample, MIS against the cosine-weighted direction sample by the power heuristic;
-  every punctual and directional light by a deterministic shadow ray; one sky-map sample
-  (MIS against the cosine sample). A constant sky is reached by the cosine sample alone.
-- Then a cosine-weighted direction. At the texel the "BSDF" is 1 (E integrates L cos),
-  so the throughput is pi; at a later vertex it is kd / pi x cos / (cos / pi) = kd.
-- Emission reached by a direction sample counts with the complementary MIS weight;
-  emitters emit from the front face unless their material is double-sided.
+Transport (the light map stores irradiance; the view-dependent part of what a texel's own lobes
+reflect is the viewer's, but light that reaches the texel via other surfaces' lobes is in E):
+- At the texel: next-event estimation (NEE) with one area-light sample, MIS against the
+  cosine-weighted direction sample by the power heuristic; every punctual and directional light
+  by a deterministic shadow ray; one sky-map sample (MIS against the cosine sample). A constant
+  sky is reached by the direction samples alone. Then a cosine-weighted direction: the texel's
+  "BSDF" is 1 (E integrates L cos), so the throughput is pi.
+- At every later vertex: the whole section 3.3 BSDF (Eq. 3.6: kd / pi plus the reflection lobes,
+  bake/scatter.py): NEE as at the texel, the light sample's value f cos / p_light with f the whole
+  BSDF and its MIS weight against the one-sample mixture pdf of the direction sampling; then one
+  component (diffuse or a lobe, by luminance(kd) against luminance(ks_j) F_j) is sampled (cosine,
+  Eq. 4.5-4.8) and the throughput multiplied by f cos / p with p the mixture pdf. Lobes are widened
+  to m >= scatter.M_REGULARISE (path regularisation: every lobe vertex follows the diffuse texel;
+  bias measured in docs/BAKE.md).
+- Emission reached by a direction sample counts with the complementary MIS weight (the mixture pdf
+  of the vertex that sampled it); emitters emit from the front face unless their material is
+  double-sided.
 - Thin transmissive surfaces (materials with transmit lobes): at a hit the path either
-  scatters diffusely (weight kd) or passes straight through (weight
+  scatters by the BSDF (above) or passes straight through (weight
   T = sum of the transmit lobes' ks x (1 - Schlick F(cos))), chosen with probability
-  proportional to luminance. Shadow rays pass such surfaces multiplied by T (up to
+  proportional to luminance (luminance(kd) + sum_j luminance(ks_j) F_j against luminance(T)).
+  Passing straight through is the narrow transmit lobe's limit (bake/scatter.py); a rough one
+  (frosted glass) is approximated by it. Shadow rays pass such surfaces multiplied by T (up to
   MAX_FILTERS of them). Transmissive surfaces count as two-sided.
 - Glass solids (volume materials, core/volume.py): the same straight-through passage, with the
   exact Fresnel of their ior in place of Schlick's at each of the two interfaces, and where the
@@ -57,7 +66,6 @@ from glint.bake.alpha import MAX_CUTOUTS, Coverage
 from glint.bake.lights import LightSet, luminance
 from glint.bake.raytrace import RayTracer
 from glint.bake.scatter import LobeTable, Vertex
-from glint.core.bsdf import schlick_F
 from glint.core.image_io import sample_texture
 from glint.core.scene import Scene
 from glint.core.volume import fresnel_dielectric, refracted_cos
@@ -489,14 +497,10 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
             break
 
         kd, metallic = tp.albedo(mat, h.prim, h.b1, h.b2)
-        lobes = tp.lobes.any and tp.lobes.has[mat].any()
-        ks = tp.lobes.ks_at(mat, metallic) if lobes else None
         ok = front | tp.two_sided[mat]  # the back face of a single-sided surface ends the path
-        cos_in = np.abs(_dot(d, ngeo))
-        lum_s = luminance(kd)  # what scattering reflects (bake/scatter.py's estimate)
-        if lobes:
-            lum_s = lum_s + (luminance(ks) * schlick_F(cos_in[:, None], np.take(tp.lobes.r0, mat, axis=0))).sum(axis=1)
         if tp.any_transmissive:
+            cos_in = np.abs(_dot(d, ngeo))
+            lum_s = luminance(kd) + tp.lobes.reflectance(mat, metallic, cos_in)  # what scattering reflects
             # scatter (by the BSDF) or pass straight through (weight T), chosen by luminance
             T = np.where(tp.transmissive[mat][:, None], tp.transmittance(mat, cos_in, front, h.t), 0.0)
             lum_T = luminance(T)
@@ -513,13 +517,13 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
             p_s = 1.0 - p_t
             beta = beta * np.where(p_s > 0, 1.0 / np.where(p_s > 0, p_s, 1.0), 0.0)[:, None]
         else:
-            ok &= lum_s > 0
+            ok &= (kd.max(axis=1) > 0) | tp.lobes.has[mat]
             t_state = None
         keep = np.flatnonzero(ok)
         idx, pos, ngeo, ns, eps, front, beta, key, kd, d, mat = _take(keep, idx, pos, ngeo, h.ns, h.eps,
                                                                       front, beta, key, kd, d, mat)
-        if lobes:
-            ks = np.take(ks, keep, axis=0)
+        if metallic is not None:
+            metallic = np.take(metallic, keep)
 
         # scattering, normals turned to the side the path arrived from
         flip = np.where(front, 1.0, -1.0)[:, None]
@@ -529,7 +533,7 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
         if len(bad):
             ns[bad] = ngeo[bad]
         x_up = pos + eps[:, None] * ngeo
-        vertex = Vertex(kd, ns, -d, tp.lobes, mat, ks) if lobes else Vertex(kd, ns, None)
+        vertex = Vertex(kd, ns, -d, tp.lobes, mat, metallic)
         for rows, c in tp.next_event(pos, x_up, eps, ngeo, ns, beta, vertex,
                                      _uniform2(key, 8 * (depth + 1)), _uniform2(key, 8 * (depth + 1) + 1)):
             _add_rows(L, idx[rows], c)

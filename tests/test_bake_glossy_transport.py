@@ -11,33 +11,16 @@ walls has bounced off the floor (the lamp faces down), so a bake whose paths end
 """
 from __future__ import annotations
 
-import math
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from glint.bake.gltf_loader import load_scene
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
+from glint.bench.measure_regularisation import write_metal_floor_room
 from glint.bench.mitsuba_reference import scene_irradiance
-from glint.scenes.gltf_writer import GltfWriter, room_faces
 
 M = 0.05  # the floor's Beckmann m (glTF roughness sqrt(m))
-
-
-def write_metal_floor_room(path: Path) -> Path:
-    """The 2 x 2 x 2 m room of conftest's `write_room` (no box): grey walls and ceiling, a metal floor,
-    a 1.2 x 1.2 m lamp of radiance 1.5 under the ceiling facing down (a large lamp: its caustic
-    off the floor is smooth enough for a few thousand samples per point)."""
-    w = GltfWriter()
-    wall = w.add_material("Wall", base_color=(0.7, 0.6, 0.5), roughness=1.0)
-    floor = w.add_material("Floor", base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=math.sqrt(M))
-    lamp = w.add_material("Lamp", base_color=(0.0, 0.0, 0.0), emissive=(1, 1, 1), emissive_strength=1.5)
-    w.add_quads({**room_faces(1.0, 2.0, wall, floor), "Lamp": ((0, 1.99, 0), (0.6, 0, 0), (0, 0, 0.6), lamp)},
-                normals=True)
-    w.write(path)
-    return path
 
 
 def wall_points():
@@ -69,7 +52,7 @@ def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path):
     a path vertex with only kd / pi (the lobes left out of the light sample, its MIS weight still
     against the mixture) gives signed mean -2.8 %. (The lobe pdf without Eq. 4.9's cos(theta_h)
     passes here: cos(theta_h) ~ 1 for m = 0.05.)"""
-    scene = load_scene(write_metal_floor_room(tmp_path / "room.glb"))
+    scene = load_scene(write_metal_floor_room(tmp_path / "room.glb", M))
     floor = next(m for m in scene.materials if m.name == "Floor")
     assert float(np.max(floor.kd)) == 0 and [(lobe.kind, lobe.r0) for lobe in floor.lobes] == [("reflect", 1.0)]
     assert floor.lobes[0].mx == pytest.approx(M)
