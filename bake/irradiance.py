@@ -65,7 +65,7 @@ import numpy as np
 from glint.bake.alpha import MAX_CUTOUTS, Coverage
 from glint.bake.lights import LightSet, luminance
 from glint.bake.raytrace import RayTracer
-from glint.bake.scatter import LobeTable, Vertex
+from glint.bake.scatter import LobeTable, Vertex, frame
 from glint.core.image_io import sample_texture
 from glint.core.scene import Scene
 from glint.core.volume import fresnel_dielectric, refracted_cos
@@ -141,16 +141,8 @@ def _cosine_sample(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> tuple[np.nd
     phi = np.where(r == 0, 0.0, phi)
     x, y = r * np.cos(phi), r * np.sin(phi)
     z = np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))
-    # orthonormal basis around n (Duff et al. 2017, branchless)
-    nx, ny, nz = n[:, 0], n[:, 1], n[:, 2]
-    sign = np.where(nz >= 0, 1.0, -1.0)
-    aa = -1.0 / (sign + nz)
-    bb = nx * ny * aa
-    d = np.empty_like(n)
-    d[:, 0] = x * (1.0 + sign * nx * nx * aa) + y * bb + z * nx
-    d[:, 1] = x * (sign * bb) + y * (sign + ny * ny * aa) + z * ny
-    d[:, 2] = x * (-sign * nx) + y * (-ny) + z * nz
-    return d, z
+    t, b = frame(n)
+    return x[:, None] * t + y[:, None] * b + z[:, None] * n, z
 
 
 def _power_weight(p_this, p_other):
