@@ -1,10 +1,10 @@
 """Content hashes of each bake stage's inputs: a re-bake redoes only what a change touches.
 
 geometry   -> unwrap + texel positions (meshes.npz)
-lightmaps  -> geometry + everything diffuse transport reads: kd (and textures),
-              alpha coverage (MASK, BLEND), emission, transmission lobes (glass lets light through), lights, sky,
-              transport settings. Reflection lobes, roles and cameras are not in it:
-              they only change the manifest, never a light map.
+lightmaps  -> geometry + everything the transport reads: kd (and textures), every lobe (the bake's
+              paths scatter by the whole BSDF, bake/scatter.py; glass lets light through),
+              alpha coverage (MASK, BLEND), emission, lights, sky, transport settings.
+              Roles and cameras are not in it: they only change the manifest, never a light map.
 cubemaps   -> one hash per cube map: lightmaps + its object, face size, projection centre,
               the objects hidden in it and how it is rendered (bake/cubemap.py), so editing
               one object's lobes re-renders at most its own cube map (when its size changes).
@@ -21,7 +21,7 @@ from glint.core.scene import Scene
 
 # Bump when the integrator or the unwrap changes what they produce.
 GEOMETRY_VERSION = 1
-TRANSPORT_VERSION = 2  # 2: back sides of two-sided objects baked; back-face rule spares them
+TRANSPORT_VERSION = 3  # 2: back sides of two-sided objects baked; back-face rule spares them; 3: paths scatter by the lobes
 CUBEMAP_VERSION = 1  # bump when the renderer changes what a cube map's pixels are
 
 
@@ -70,7 +70,7 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
         if obj.colors is not None:  # only then: objects without keep the hashes of existing bakes
             h.array(obj.colors)
     for m in scene.materials:
-        h.value([m.kd, m.emission, m.double_sided, [lobe.to_dict() for lobe in m.transmit_lobes]])
+        h.value([m.kd, m.emission, m.double_sided, [lobe.to_dict() for lobe in m.lobes]])
         if m.emission_texture is not None:  # only then: existing bakes keep their hashes
             h.array(m.emission_texture)
         if m.metallic_roughness_texture is not None:  # its metallic scales kd per texel

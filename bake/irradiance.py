@@ -3,20 +3,29 @@
 Estimated quantity, per texel at x with normal n:  E(x) = integral over the hemisphere of L_i(w) cos(w, n) dw
 (W/m^2, RGB), so that the viewer's diffuse radiance is kd / pi x E (Eq. 4.1).
 
-Transport (light-map transport only, no reflection lobes: the viewer adds view-dependent
-light at run time, so a specular edit needs no re-bake):
-- At the texel and at every later diffuse vertex: next-event estimation (NEE) with one
-  area-light sample, MIS against the cosine-weighted direction sample by the power heuristic;
-  every punctual and directional light by a deterministic shadow ray; one sky-map sample
-  (MIS against the cosine sample). A constant sky is reached by the cosine sample alone.
-- Then a cosine-weighted direction. At the texel the "BSDF" is 1 (E integrates L cos),
-  so the throughput is pi; at a later vertex it is kd / pi x cos / (cos / pi) = kd.
-- Emission reached by a direction sample counts with the complementary MIS weight;
-  emitters emit from the front face unless their material is double-sided.
+Transport (the light map stores irradiance; the view-dependent part of what a texel's own lobes
+reflect is the viewer's, but light that reaches the texel via other surfaces' lobes is in E):
+- At the texel: next-event estimation (NEE) with one area-light sample, MIS against the
+  cosine-weighted direction sample by the power heuristic; every punctual and directional light
+  by a deterministic shadow ray; one sky-map sample (MIS against the cosine sample). A constant
+  sky is reached by the direction samples alone. Then a cosine-weighted direction: the texel's
+  "BSDF" is 1 (E integrates L cos), so the throughput is pi.
+- At every later vertex: the whole section 3.3 BSDF (Eq. 3.6: kd / pi plus the reflection lobes,
+  bake/scatter.py): NEE as at the texel, the light sample's value f cos / p_light with f the whole
+  BSDF and its MIS weight against the one-sample mixture pdf of the direction sampling; then one
+  component (diffuse or a lobe, by luminance(kd) against luminance(ks_j) F_j) is sampled (cosine,
+  Eq. 4.5-4.8) and the throughput multiplied by f cos / p with p the mixture pdf. Lobes are widened
+  to m >= scatter.M_REGULARISE (path regularisation: every lobe vertex follows the diffuse texel;
+  bias measured in docs/BAKE.md).
+- Emission reached by a direction sample counts with the complementary MIS weight (the mixture pdf
+  of the vertex that sampled it); emitters emit from the front face unless their material is
+  double-sided.
 - Thin transmissive surfaces (materials with transmit lobes): at a hit the path either
-  scatters diffusely (weight kd) or passes straight through (weight
+  scatters by the BSDF (above) or passes straight through (weight
   T = sum of the transmit lobes' ks x (1 - Schlick F(cos))), chosen with probability
-  proportional to luminance. Shadow rays pass such surfaces multiplied by T (up to
+  proportional to luminance (luminance(kd) + sum_j luminance(ks_j) F_j against luminance(T)).
+  Passing straight through is the narrow transmit lobe's limit (bake/scatter.py); a rough one
+  (frosted glass) is approximated by it. Shadow rays pass such surfaces multiplied by T (up to
   MAX_FILTERS of them). Transmissive surfaces count as two-sided.
 - Glass solids (volume materials, core/volume.py): the same straight-through passage, with the
   exact Fresnel of their ior in place of Schlick's at each of the two interfaces, and where the
@@ -56,6 +65,7 @@ import numpy as np
 from glint.bake.alpha import MAX_CUTOUTS, Coverage
 from glint.bake.lights import LightSet, luminance
 from glint.bake.raytrace import RayTracer
+from glint.bake.scatter import LobeTable, Vertex, frame
 from glint.core.image_io import sample_texture
 from glint.core.scene import Scene
 from glint.core.volume import fresnel_dielectric, refracted_cos
@@ -131,16 +141,8 @@ def _cosine_sample(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> tuple[np.nd
     phi = np.where(r == 0, 0.0, phi)
     x, y = r * np.cos(phi), r * np.sin(phi)
     z = np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))
-    # orthonormal basis around n (Duff et al. 2017, branchless)
-    nx, ny, nz = n[:, 0], n[:, 1], n[:, 2]
-    sign = np.where(nz >= 0, 1.0, -1.0)
-    aa = -1.0 / (sign + nz)
-    bb = nx * ny * aa
-    d = np.empty_like(n)
-    d[:, 0] = x * (1.0 + sign * nx * nx * aa) + y * bb + z * nx
-    d[:, 1] = x * (sign * bb) + y * (sign + ny * ny * aa) + z * ny
-    d[:, 2] = x * (-sign * nx) + y * (-ny) + z * nz
-    return d, z
+    t, b = frame(n)
+    return x[:, None] * t + y[:, None] * b + z[:, None] * n, z
 
 
 def _power_weight(p_this, p_other):
@@ -194,6 +196,7 @@ class _Transport:
         self.emissive = self.emission.max(axis=1) > 0 if len(mats) else np.zeros(1, bool)
         self.emitter_pdf_area = self.lights.area.tri_pdf_area  # by prim (per triangle: textures)
         self.coverage = Coverage(scene, tracer)
+        self.lobes = LobeTable(mats)
 
     def transmittance(self, mat: np.ndarray, cos: np.ndarray, front: np.ndarray | None = None,
                       length: np.ndarray | None = None) -> np.ndarray:
@@ -216,21 +219,26 @@ class _Transport:
                 T[out] *= np.exp(-self.sigma[m] * inside[:, None])
         return T
 
-    def albedo(self, mat: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray) -> np.ndarray:
-        """kd x base-colour texture x (1 - M') of a metallic-roughness texture x vertex colour (glTF
-        COLOR_0); the textures through the material's glTF sampler (wrap per axis, bilinear or
+    def albedo(self, mat: np.ndarray, prim: np.ndarray, b1: np.ndarray, b2: np.ndarray):
+        """(kd, M'): kd x base-colour texture x (1 - M') x vertex colour (glTF COLOR_0), and M' (N,), the
+        metallic of a metallic-roughness texture (None when no material has one; 0 for materials
+        without); the textures through the material's glTF sampler (wrap per axis, bilinear or
         nearest; uv (0, 0) = the image's top-left)."""
         kd = np.take(self.kd, mat, axis=0)
-        for table, scale in ((self.textures, lambda c: c), (self.metallic, lambda c: 1.0 - c)):
-            for m, tex in table.items():
-                sel = np.nonzero(mat == m)[0]
-                if not len(sel):
-                    continue
-                uv = self.tracer.texcoords(prim[sel], b1[sel], b2[sel])
-                kd[sel] = kd[sel] * scale(sample_texture(tex, uv, *self.samplers[m]))
+        metallic = np.zeros(len(mat)) if self.metallic else None
+        for m, tex in self.textures.items():
+            sel = np.nonzero(mat == m)[0]
+            if len(sel):
+                kd[sel] *= sample_texture(tex, self.tracer.texcoords(prim[sel], b1[sel], b2[sel]), *self.samplers[m])
+        for m, tex in self.metallic.items():
+            sel = np.nonzero(mat == m)[0]
+            if len(sel):
+                mm = sample_texture(tex, self.tracer.texcoords(prim[sel], b1[sel], b2[sel]), *self.samplers[m])
+                kd[sel] *= 1.0 - mm
+                metallic[sel] = mm[:, 0]
         if self.tracer.has_vertex_colors:  # glTF: COLOR_0 x baseColorFactor x texture
             kd = kd * self.tracer.colors(prim, b1, b2)
-        return kd
+        return kd, metallic
 
     # -- shadow rays -------------------------------------------------------------------------
     def visibility(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray):
@@ -279,9 +287,10 @@ class _Transport:
             live = live[tmax[live] > 0]
         return clear, T
 
-    def next_event(self, x, x_up, eps, ng, ns, fbeta, u_light, u_sky) -> list[tuple[np.ndarray, np.ndarray]]:
+    def next_event(self, x, x_up, eps, ng, ns, beta, vertex: Vertex, u_light, u_sky) -> list[tuple[np.ndarray, np.ndarray]]:
         """Direct light at vertices x (x_up: x lifted eps along ng; ng, ns: geometric and shading
-        normals on the path's side; fbeta: throughput x BSDF value).
+        normals on the path's side; beta: throughput; vertex: the BSDF there, bake/scatter.py, whose
+        f and mixture pdf give the light sample's value and MIS weight).
 
         Returns [(rows, contributions)] with rows unique within each pair (one pair per light kind)."""
         lights = self.lights
@@ -299,10 +308,12 @@ class _Transport:
             ok = (cos_x > 0) & (_dot(ng, l) > 0) & ((cos_l > 0) | (two & (cos_l < 0)))
             sel = np.flatnonzero(ok)
             if len(sel):
-                y, nl, Le, xu, fb = _take(sel, y, nl, Le, x_up, fbeta)
+                y, nl, Le, xu, b, ls = _take(sel, y, nl, Le, x_up, beta, l)
                 cx, cl, d2 = cos_x[sel], cos_l[sel], d2[sel]
+                f, pdf_b = vertex.evaluate(sel, ls)
+                fb = b * f
                 pdf_l = pdf_a[sel] * d2 / np.abs(cl)  # area -> solid angle
-                w = _power_weight(pdf_l, cx * INV_PI)
+                w = _power_weight(pdf_l, pdf_b)
                 # the shadow ray runs from x_up to the light point lifted eps off its own triangle towards x
                 seg = y + (eps_l[sel] * np.sign(cl))[:, None] * nl - xu
                 length = np.sqrt(_dot(seg, seg))
@@ -316,7 +327,8 @@ class _Transport:
                 cos_x = _dot(ns, l)
                 sel = np.flatnonzero((cos_x > 0) & (_dot(ng, l) > 0) & (E.max(axis=1) > 0))
                 if len(sel):
-                    ls, Es, fb = _take(sel, l, E, fbeta)
+                    ls, Es, b = _take(sel, l, E, beta)
+                    fb = b * vertex.evaluate(sel, ls)[0]
                     rows.append(sel)
                     dirs.append(ls)
                     tmaxs.append(dist[sel] - eps[sel])
@@ -329,8 +341,10 @@ class _Transport:
             sel = np.flatnonzero((cos_x > 0) & (_dot(ng, l) > 0) & (pdf_s > 0))
             if len(sel):
                 cx, ps = cos_x[sel], pdf_s[sel]
-                w = _power_weight(ps, cx * INV_PI)
-                ls, fb = _take(sel, l, fbeta)
+                ls, b = _take(sel, l, beta)
+                f, pdf_b = vertex.evaluate(sel, ls)
+                fb = b * f
+                w = _power_weight(ps, pdf_b)
                 rows.append(sel)
                 dirs.append(ls)
                 tmaxs.append(np.full(len(sel), np.inf))
@@ -432,7 +446,8 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
     x_up = x + eps[:, None] * n
     u_light = [u[a] for u in _texel_qmc(texel_key, samples, 1, True)]
     u_sky = [u[a] for u in _texel_qmc(texel_key, samples, 2, True)]
-    for rows, c in tp.next_event(x, x_up, eps, n, n, np.ones((len(a), 3)), u_light, u_sky):
+    texel_bsdf = Vertex(np.full((len(a), 3), np.pi), n, None)  # f = pi / pi = 1, pdf = cos / pi
+    for rows, c in tp.next_event(x, x_up, eps, n, n, np.ones((len(a), 3)), texel_bsdf, u_light, u_sky):
         _add_rows(L, a[rows], c)
     d, cos = _cosine_sample(n, *[u[a] for u in _texel_qmc(texel_key, samples, 0, False)])
     s = np.flatnonzero(cos > 0)
@@ -473,14 +488,15 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
         if depth + 1 >= max_depth:
             break
 
-        kd = tp.albedo(mat, h.prim, h.b1, h.b2)
+        kd, metallic = tp.albedo(mat, h.prim, h.b1, h.b2)
         ok = front | tp.two_sided[mat]  # the back face of a single-sided surface ends the path
         if tp.any_transmissive:
-            # scatter (weight kd) or pass straight through (weight T), chosen by luminance
             cos_in = np.abs(_dot(d, ngeo))
+            lum_s = luminance(kd) + tp.lobes.reflectance(mat, metallic, cos_in)  # what scattering reflects
+            # scatter (by the BSDF) or pass straight through (weight T), chosen by luminance
             T = np.where(tp.transmissive[mat][:, None], tp.transmittance(mat, cos_in, front, h.t), 0.0)
-            lum_kd, lum_T = luminance(kd), luminance(T)
-            total = lum_kd + lum_T
+            lum_T = luminance(T)
+            total = lum_s + lum_T
             ok &= total > 0
             p_t = np.where(total > 0, lum_T / np.where(total > 0, total, 1.0), 0.0)
             through = ok & (_uniform2(key, 8 * (depth + 1) + 6)[0] < p_t)
@@ -493,12 +509,15 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
             p_s = 1.0 - p_t
             beta = beta * np.where(p_s > 0, 1.0 / np.where(p_s > 0, p_s, 1.0), 0.0)[:, None]
         else:
-            ok &= kd.max(axis=1) > 0
+            ok &= (kd.max(axis=1) > 0) | tp.lobes.has[mat]
             t_state = None
-        idx, pos, ngeo, ns, eps, front, beta, key, kd = _take(np.flatnonzero(ok), idx, pos, ngeo, h.ns, h.eps,
-                                                              front, beta, key, kd)
+        keep = np.flatnonzero(ok)
+        idx, pos, ngeo, ns, eps, front, beta, key, kd, d, mat = _take(keep, idx, pos, ngeo, h.ns, h.eps,
+                                                                      front, beta, key, kd, d, mat)
+        if metallic is not None:
+            metallic = np.take(metallic, keep)
 
-        # diffuse scattering, normals turned to the side the path arrived from
+        # scattering, normals turned to the side the path arrived from
         flip = np.where(front, 1.0, -1.0)[:, None]
         ngeo = ngeo * flip
         ns = ns * flip
@@ -506,18 +525,20 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
         if len(bad):
             ns[bad] = ngeo[bad]
         x_up = pos + eps[:, None] * ngeo
-        for rows, c in tp.next_event(pos, x_up, eps, ngeo, ns, beta * (kd * INV_PI),
+        vertex = Vertex(kd, ns, -d, tp.lobes, mat, metallic)
+        for rows, c in tp.next_event(pos, x_up, eps, ngeo, ns, beta, vertex,
                                      _uniform2(key, 8 * (depth + 1)), _uniform2(key, 8 * (depth + 1) + 1)):
             _add_rows(L, idx[rows], c)
-        d, cos = _cosine_sample(ns, *_uniform2(key, 8 * (depth + 1) + 2))
-        beta *= kd  # kd/pi x cos / (cos/pi)
-        go = (cos > 0) & (_dot(d, ngeo) > 0)
+        d, f, pdf = vertex.sample(_uniform2(key, 8 * (depth + 1) + 4)[0], *_uniform2(key, 8 * (depth + 1) + 2),
+                                  _cosine_sample)
+        cos = _dot(d, ns)
+        go = (pdf > 0) & (cos > 0) & (_dot(d, ngeo) > 0)
+        beta = beta * np.where(go[:, None], f * (cos / np.where(go, pdf, 1.0))[:, None], 0.0)  # f cos / p
         if depth + 1 >= RR_DEPTH:  # Russian roulette on the throughput (relative to the texel's pi)
             q = np.minimum(beta.max(axis=1) * INV_PI, RR_MAX)
             go &= _uniform2(key, 8 * (depth + 1) + 3)[0] < q
             beta /= np.where(go, q, 1.0)[:, None]
-        idx, o, d, beta, prev_pos, prev_pdf, key = _take(np.flatnonzero(go), idx, x_up, d, beta, pos,
-                                                         cos * INV_PI, key)
+        idx, o, d, beta, prev_pos, prev_pdf, key = _take(np.flatnonzero(go), idx, x_up, d, beta, pos, pdf, key)
         if t_state is not None:
             idx, o, d, beta, prev_pos, prev_pdf, key = (np.concatenate(pair) for pair in
                                                         zip(t_state, (idx, o, d, beta, prev_pos, prev_pdf, key)))

@@ -54,8 +54,9 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   r * G is above); the transmit lobe as without the texture (times 1 - M'). Their m is the
   factor's, and per texel m' = max((r G)^2, 1e-4) = max(m G^2, 1e-4) (an anisotropic lobe keeps
   a^2 = (mx - my) / (1 - my): mx' = m' + (1 - m') a^2); `Lobe.mr` marks them ("metal",
-  "dielectric"). Clearcoat and override lobes do not follow the texture. Roles follow from the kept
-  lobes, so a texture that can reach a narrow lobe makes the object curved or planar.
+  "dielectric"). Clearcoat and override lobes do not follow the texture. The bake's paths, which
+  scatter by the lobes (bake/scatter.py), take their per-texel ks but the factor's m. Roles
+  follow from the kept lobes, so a texture that can reach a narrow lobe makes the object curved or planar.
 - Volume (KHR_materials_volume, t > 0): thicknessFactor > 0 makes the material a closed glass
   solid (`Material.thickness`, `ior`, `attenuation_distance`, `attenuation_color`; core/volume.py):
   the transmit lobe is then the entry interface, the bake and the viewer add the exit interface,

@@ -2,9 +2,9 @@
 
 Stages and what invalidates them (bake/hashing.py):
     unwrap + texels   geometry, texel density, padding
-    light maps        the above + diffuse transport (kd, emission, glass, lights, sky, samples)
+    light maps        the above + transport (kd, lobes, emission, glass, lights, sky, samples)
     cube maps         one hash each: the light maps + its object, face size, centre, hidden objects
-    manifest          everything else (reflection lobes, roles, cameras, bounding planes): rewritten
+    manifest          everything else (roles, cameras, bounding planes): rewritten
 """
 from __future__ import annotations
 

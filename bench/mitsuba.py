@@ -17,7 +17,8 @@ also every image as PNG in DIR/images.
 Same scene: bench/mitsuba_scene.py converts the Scene that the bake loaded (bake/gltf_loader.py
 with the sidecar: the same materials), with the section 3.3 BSDF as a Mitsuba plugin
 (bench/mitsuba_bsdf.py). The viewer's error against it is everything the viewer approximates:
-light maps (diffuse transport only, no glossy bounces), cube maps and mirror buffers in place
+light maps (irradiance: no view-dependent light at a texel; lobes widened to m >= 0.02 in the bake's
+paths, bake/scatter.py), cube maps and mirror buffers in place
 of the scene, the lobe integration.
 
 Pixels: both sides integrate over the pixel's area (Mitsuba: box filter; the viewer:

@@ -79,8 +79,8 @@ def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
                 out["light maps"].append(f"{what} of {name}")
         if _lobes(o, True) != _lobes(m, True):
             out["light maps"].append(f"glass lobes of {name}")
-        if _lobes(o, False) != _lobes(m, False):
-            out["manifest"].append(f"lobes of {name}")
+        if _lobes(o, False) != _lobes(m, False):  # the bake's paths scatter by them (bake/scatter.py)
+            out["light maps"].append(f"lobes of {name}")
     old_objects, old_names = _by_name(old.get("objects")), [m["name"] for m in old.get("materials") or []]
     for name, obj in _by_name(new["objects"]).items():
         o = old_objects.get(name)
@@ -149,7 +149,7 @@ def last_bake(manifest: dict) -> dict | None:
 def summary_line(manifest: dict, status: str) -> str | None:
     """One line of what a bake skipped, e.g. "skipped: 34 of 39 objects need no cube map
     (30 no view-dependent lobe, 4 planar: mirror pass instead); light maps and unwrap reused
-    (only lobes of Floor changed); cube maps: 0 rendered, 5 reused". None for an up-to-date
+    (only cameras changed); cube maps: 0 rendered, 5 reused". None for an up-to-date
     bake (its summary says it did nothing)."""
     if status == "up-to-date":
         return None

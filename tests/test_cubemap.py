@@ -252,17 +252,18 @@ def test_rebake_renders_only_the_cube_maps_whose_inputs_changed(tmp_path, monkey
     monkeypatch.setattr(pipeline, "_bake_geometry_and_lightmaps", no_lightmaps)
     assert bake(path, out).status == "up-to-date" and rendered == []
 
-    # A's lobe gets sharper: its face size grows (m = 0.002: 256, its size limits it), A only is rendered
-    write_box_room(path, lobes={"A": {**LOBE, "mx": 0.002, "my": 0.002}})
+    # A's face size is set to 256 (sidecar; a lobe edit would re-bake the light maps, whose light the
+    # bake's paths now carry off the lobes, and so every cube map): A only is rendered
+    write_box_room(path, sidecar='[objects."A"]\ncubemap_size = 256\n')
     report = bake(path, out)
     assert report.status == "cubemaps" and rendered == ["A"]
     assert next(o for o in report.manifest["objects"] if o["name"] == "A")["cubemap"]["size"] == 256
     assert (files["B"].read_bytes(), files["B"].stat().st_mtime_ns) == before["B"]
     assert files["A"].read_bytes() != before["A"][0]
 
-    # B's lobe changes but its size does not (m = 0.06: pi / 0.128 = 24.5 -> 32): manifest only
+    # B's bounding planes change (not an input of its pixels): manifest only
     rendered.clear()
-    write_box_room(path, lobes={"A": {**LOBE, "mx": 0.002, "my": 0.002}, "B": {**LOBE, "mx": 0.06, "my": 0.06}})
+    write_box_room(path, sidecar='[objects."A"]\ncubemap_size = 256\n[objects."B"]\nbounding_planes = false\n')
     assert bake(path, out).status == "manifest" and rendered == []
     assert (files["B"].read_bytes(), files["B"].stat().st_mtime_ns) == before["B"]
 

@@ -26,10 +26,12 @@ def glass_extensions(thickness: float, attenuation_distance: float | None = None
 
 
 def write_pane(path: Path, *, thickness: float, sun_deg: float, color) -> Path:
-    """A 1.6 x 1.6 m glass slab `thickness` thick, 1 m above a grey floor, under a sun `sun_deg`
-    from the zenith (towards +x) of 1 W/m^2 (683 lux); attenuationDistance = thickness."""
+    """A 1.6 x 1.6 m glass slab `thickness` thick, 1 m above a black floor, under a sun `sun_deg`
+    from the zenith (towards +x) of 1 W/m^2 (683 lux); attenuationDistance = thickness. The floor is
+    black so that no light it reflects comes back off the pane's reflection lobe (the bake's paths
+    scatter by it): the floor's irradiance is then the sun's through the slab alone."""
     w = GltfWriter()
-    floor = w.add_material("Floor", base_color=(0.5, 0.5, 0.5), roughness=1.0)
+    floor = w.add_material("Floor", base_color=(0.0, 0.0, 0.0), roughness=1.0)
     glass = w.add_material("Glass", base_color=(1, 1, 1), roughness=0.0,
                            extensions=glass_extensions(thickness, thickness, color))
     w.add_quads({"Floor": ((0, 0, 0), (2, 0, 0), (0, 0, -2), floor)}, normals=True)

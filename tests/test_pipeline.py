@@ -71,14 +71,13 @@ def test_second_bake_is_up_to_date(room, tmp_path):
     assert lightmap_bytes(out) == before
 
 
-def test_specular_or_camera_change_keeps_lightmaps(tmp_path, monkeypatch):
+def test_camera_change_keeps_lightmaps(tmp_path, monkeypatch):
     out = tmp_path / "room.bake"
     path = write_room(tmp_path / "room.glb")
     bake(path, out)
     before = lightmap_bytes(out)
-    # a new reflection lobe on the floor and a new camera: no light map is re-baked
-    write_room(path, floor_lobes=[{"kind": "reflect", "ks": [1, 1, 1], "mx": 0.1, "my": 0.1, "r0": 0.04}],
-               sidecar='[cameras.extra]\neye = [0, 1, 0]\ntarget = [0, 0, -1]\nyfov = 40\n')
+    # a new camera: no light map is re-baked
+    write_room(path, sidecar='[cameras.extra]\neye = [0, 1, 0]\ntarget = [0, 0, -1]\nyfov = 40\n')
 
     def no_bake(*a, **k):
         raise AssertionError("light maps were re-baked")
@@ -88,9 +87,29 @@ def test_specular_or_camera_change_keeps_lightmaps(tmp_path, monkeypatch):
     assert report.status == "manifest"
     assert lightmap_bytes(out) == before
     manifest = json.loads((out / "manifest.json").read_text())
+    assert "extra" in [c["name"] for c in manifest["cameras"]]
+
+
+def test_lobe_change_rebakes_lightmaps_and_reuses_the_unwrap(tmp_path, monkeypatch):
+    """The bake's paths scatter by the lobes (bake/scatter.py): a new reflection lobe on the floor
+    changes the light maps (the walls receive what the floor reflects); the charts are reused."""
+    out = tmp_path / "room.bake"
+    path = write_room(tmp_path / "room.glb")
+    bake(path, out)
+    before = lightmap_bytes(out)
+    write_room(path, floor_lobes=[{"kind": "reflect", "ks": [1, 1, 1], "mx": 0.1, "my": 0.1, "r0": 0.04}])
+    import glint.bake.unwrap as unwrap_module
+
+    def no_unwrap(*a, **k):
+        raise AssertionError("geometry did not change, the unwrap must be reused")
+
+    monkeypatch.setattr(unwrap_module, "unwrap", no_unwrap)
+    report = bake(path, out)
+    assert report.status == "lightmaps"
+    assert lightmap_bytes(out) != before
+    manifest = json.loads((out / "manifest.json").read_text())
     floor = next(m for m in manifest["materials"] if m["name"] == "Floor")
     assert floor["lobes"] and floor["lobes"][0]["mx"] == pytest.approx(0.1)
-    assert "extra" in [c["name"] for c in manifest["cameras"]]
 
 
 def test_diffuse_change_rebakes_lightmaps_only(tmp_path, monkeypatch):

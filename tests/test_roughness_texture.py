@@ -87,9 +87,10 @@ def test_bake_albedo_is_kd_times_one_minus_metallic_per_texel(tmp_path):
     x = -1 + (np.arange(STRIPES) + 0.5) * 2 / STRIPES
     o = np.stack([x, np.full(STRIPES, 0.5), np.full(STRIPES, 0.3)], 1)
     hit = tracer.intersect(o, np.tile([0.0, -1.0, 0.0], (STRIPES, 1)))
-    albedo = _transport(scene, tracer).albedo(np.zeros(STRIPES, np.int64), hit.prim, hit.b1, hit.b2)
+    albedo, metallic = _transport(scene, tracer).albedo(np.zeros(STRIPES, np.int64), hit.prim, hit.b1, hit.b2)
     expected = np.array(BASE)[None] * (1 - np.array([0.0, 1.0] * 2))[:, None]
     np.testing.assert_allclose(albedo, expected, atol=1e-6)
+    np.testing.assert_allclose(metallic, [0.0, 1.0] * 2, atol=1e-6)  # M', which scales the `mr` lobes' ks
 
 
 SIZE, EYE, TARGET, FOV = 48, (0.0, 0.6, 1.1), (0.0, 0.0, -0.5), 60.0

@@ -181,7 +181,9 @@ def snapshot(out: Path) -> dict:
             for p in sorted(out.rglob("*")) if p.is_file()}
 
 
-def test_rebake_reuses_light_maps_unless_kd_changed(tmp_path, capsys):
+def test_rebake_reuses_charts_and_redoes_light_maps_for_kd_and_lobes(tmp_path, capsys):
+    """A lobe edit re-bakes the light maps (the bake's paths scatter by the lobes) and reuses the
+    charts, and the summary line says so; a kd edit likewise; no edit touches nothing."""
     path, out = write_room(tmp_path / "room.glb"), tmp_path / "room.bake"
     args = ["bake", str(path), *BAKE_ARGS, "-o", str(out)]
     assert main(args) == 0
@@ -193,14 +195,13 @@ def test_rebake_reuses_light_maps_unless_kd_changed(tmp_path, capsys):
     write_room(path, floor_lobes=GLOSSY)  # a lobe only
     assert main(args) == 0
     line = capsys.readouterr().out.splitlines()[-1]
-    assert line.startswith("skipped: ") and "light maps and unwrap reused (only lobes of Floor" in line
+    assert line.startswith("skipped: ") and "unwrap reused; light maps re-baked (changed: lobes of Floor" in line
     assert "7 no view-dependent lobe, 1 planar: mirror pass instead" in line
     second = snapshot(out)
-    for page in pages + ["meshes.npz"]:  # the very same files (hard links): neither rewritten nor touched
-        assert second[page] == first[page], page
-    assert second["manifest.json"][2] != first["manifest.json"][2]
+    assert second["meshes.npz"][2] == first["meshes.npz"][2]  # the charts: the same content (unwrap reused)
+    assert all(second[page][2] != first[page][2] for page in pages)  # the floor now reflects light onto the walls
     record = last_bake(Bake(out).manifest)
-    assert record["light_maps"] == "reused" and record["unwrap"] == "reused" and "lobes of Floor" in record["changed"]
+    assert record["light_maps"] == "re-baked" and record["unwrap"] == "reused" and "lobes of Floor" in record["changed"]
 
     write_room(path, floor_lobes=GLOSSY, kd=(0.3, 0.3, 0.3))  # a diffuse colour
     assert main(args) == 0

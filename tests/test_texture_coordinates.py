@@ -97,7 +97,7 @@ def test_bake_reads_the_texcoord_set_and_the_texture_transform(tmp_path):
         prim, b1, b2, _ = tracer.intersect_raw(o, d)
         assert (prim >= 0).all()
         mat = tracer.tri_material[prim]
-        kd = transport.albedo(mat, prim, b1, b2)
+        kd = transport.albedo(mat, prim, b1, b2)[0]
         np.testing.assert_allclose(kd, np.array([c for *_, c in points]), atol=1e-3, err_msg=name)
 
 
@@ -192,7 +192,7 @@ def test_bake_samples_through_the_glTF_sampler(tmp_path):
         o = np.array([[x, y, 1.0] for x, y, _ in points])
         prim, b1, b2, _ = tracer.intersect_raw(o, np.tile([0.0, 0.0, -1.0], (len(o), 1)))
         assert (prim >= 0).all()
-        kd = transport.albedo(tracer.tri_material[prim], prim, b1, b2)
+        kd = transport.albedo(tracer.tri_material[prim], prim, b1, b2)[0]
         np.testing.assert_allclose(kd, np.array([c for *_, c in points]), atol=1e-3, err_msg=name)
 
 
@@ -267,7 +267,7 @@ def test_bake_multiplies_the_vertex_colours(tmp_path):
     o = np.array([[x, y, 1.0] for x, y, _ in points])
     prim, b1, b2, _ = tracer.intersect_raw(o, np.tile([0.0, 0.0, -1.0], (len(o), 1)))
     assert (prim >= 0).all()
-    kd = transport.albedo(tracer.tri_material[prim], prim, b1, b2)
+    kd = transport.albedo(tracer.tri_material[prim], prim, b1, b2)[0]
     np.testing.assert_allclose(kd, np.array([c for *_, c in points]), atol=1e-3)
 
 
