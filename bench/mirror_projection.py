@@ -39,8 +39,11 @@ image). Images are numpy (H, W, C) arrays indexed [row, column] in that same ord
 Texel (col, row) has its centre at ((col + 0.5) / W, (row + 0.5) / H). Look-ups of
 position and normal are nearest-texel (`texelFetch(ivec2(floor(uv * size)))`)
 with clamp-to-edge. A background texel (nothing drawn) has normal (0, 0, 0): any
-normal shorter than 0.5 counts as background, and a ray meeting background is
-taken to go to infinity (its direction is projected, w = 0).
+normal shorter than 0.5 counts as background. Step 2 meeting background takes the
+ray to infinity (its direction is projected, w = 0) where step 1 hit no plane or the
+direction's own uv is background too (the sky along w); else step 1's look-up (the
+background there) stands, so the ray does not pick up what its direction meets beyond the
+plane it already passed.
 
 Failure handling (what the GLSL must mirror, no NaN/Inf anywhere):
 * the ray parallel to a tangent plane (|w . n| <= 1e-8) or the plane behind P
@@ -200,6 +203,10 @@ def project_sample(P, w, mirror_view_proj, positions: np.ndarray, normals: np.nd
         p2, n2 = fetch(positions, uv1), fetch(normals, uv1)
         uv2, ok2, x2, hit2, t2 = _step(P, w, p2, n2, vp)
         background = np.linalg.norm(n2, axis=-1) < BACKGROUND_NORMAL
+        # Background at step 1's point: the ray passes that plane where nothing was drawn; step 1's
+        # look-up (the sky there) stands unless the direction at infinity is background too.
+        inf_background = np.linalg.norm(fetch(normals, uv2), axis=-1) < BACKGROUND_NORMAL
+        background = background & (~hit1 | hit2 | inf_background)
         take = hit2 | background  # a missed (parallel / behind) plane keeps step 1
         uv = np.where(take[..., None], uv2, uv1)
         ok = np.where(take, ok2, ok1)

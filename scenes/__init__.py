@@ -13,6 +13,10 @@ BUILTIN = {
                                                  "chrome, brushed aluminium, frosted glass) in a small lit room"),
     "planar-classes": ("planar-classes.glb", "one planar reflector per planar material class (polished stone, "
                                              "varnished wood, glossy tiles, blurry aluminium), each its own plane"),
+    "metal-floor-room": ("metal-floor-room.glb", "a closed room with a polished-metal floor (metallic 1, roughness "
+                                                 "0.05), one ceiling light, coloured walls, a pedestal with a ball"),
+    "glossy-floor-room": ("glossy-floor-room.glb", "metal-floor-room with a glossy dielectric floor (roughness 0.1, "
+                                                   "r0 0.04, kd 0.4)"),
 }
 
 

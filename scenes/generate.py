@@ -1,6 +1,7 @@
 """Generate the built-in scenes: `python3 -m glint.scenes.generate [OUTDIR]` (default: this package).
 
-Writes cornell-box.glb, living-room.glb, material-classes.glb and planar-classes.glb. Their
+Writes cornell-box.glb, living-room.glb, material-classes.glb, planar-classes.glb,
+metal-floor-room.glb and glossy-floor-room.glb. Their
 sidecars (NAME.glint.toml beside them: exact lobes, roles, sky, camera paths) are written by hand. The output
 is deterministic (vertex data rounded to 1e-6 before it becomes float32, PNGs
 stored uncompressed), and tests/test_scenes.py checks that the committed files
@@ -778,6 +779,46 @@ def planar_classes() -> GltfWriter:
     return w
 
 
+# -- metal-floor-room, glossy-floor-room -------------------------------------------------------
+# A closed 4 m x 2.6 m x 4 m room (x, z in [-2, 2]) lit by one ceiling light, red west and green
+# east walls, a pedestal with a ball, and a glossy floor: polished metal (glTF metallic 1,
+# roughness 0.05, base 0.9: m = 0.0025, ks 0.9, kd 0) or a glossy dielectric (metallic 0,
+# roughness 0.1, base 0.4: m = 0.01, r0 0.04, kd 0.4). Made to be compared with Mitsuba 3 end to
+# end (bench/measure_glossy_floors.py): everything the floor reflects is diffuse or the light.
+GF_X, GF_Z, GF_H = 2.0, 2.0, 2.6
+GF_FLOORS = {"metal": dict(base_color=(0.9, 0.9, 0.9, 1), metallic=1.0, roughness=0.05),
+             "dielectric": dict(base_color=(0.4, 0.4, 0.4, 1), metallic=0.0, roughness=0.1)}
+GF_CAMERA = ("Camera", (0.0, 1.5, 1.9), (0.0, 0.55, -0.7), 60.0)
+
+
+def glossy_floor_room(floor: str) -> GltfWriter:
+    """The room above with the `floor` of GF_FLOORS ("metal" or "dielectric")."""
+    w = GltfWriter(GENERATOR, png_level=0)
+    M = {}
+    add_class_room_materials(w, M, ("Red paint", "Green paint", "Blue paint", "Grey paint"))
+    M["Floor"] = w.add_material("Polished metal" if floor == "metal" else "Glossy floor", **GF_FLOORS[floor])
+
+    def node(name, mesh, material, **kw):
+        return w.add_node(name, mesh=add_mesh(w, name, mesh, M[material]), **kw)
+
+    X, Z, H = GF_X, GF_Z, GF_H
+    shell = {
+        "Floor": (quad((-X, 0, Z), (X, 0, Z), (X, 0, -Z), (-X, 0, -Z), uv_size=(2 * X, 2 * Z)), "Floor"),
+        "Ceiling": (quad((-X, H, -Z), (X, H, -Z), (X, H, Z), (-X, H, Z), uv_size=(2 * X, 2 * Z)), "Ceiling paint"),
+        "Wall north": (quad((-X, 0, -Z), (X, 0, -Z), (X, H, -Z), (-X, H, -Z), uv_size=(2 * X, H)), "Grey paint"),
+        "Wall south": (quad((X, 0, Z), (-X, 0, Z), (-X, H, Z), (X, H, Z), uv_size=(2 * X, H)), "Grey paint"),
+        "Wall east": (quad((X, 0, -Z), (X, 0, Z), (X, H, Z), (X, H, -Z), uv_size=(2 * Z, H)), "Green paint"),
+        "Wall west": (quad((-X, 0, Z), (-X, 0, -Z), (-X, H, -Z), (-X, H, Z), uv_size=(2 * Z, H)), "Red paint"),
+    }
+    for name, (mesh, material) in shell.items():
+        node(name, mesh, material)
+    node("Ceiling light", CEILING_LIGHT, "Light diffuser", translation=(0.0, H - 0.01, 0.0))
+    node("Pedestal", box((0.4, 0.8, 0.4), (0, 0.4, 0)), "Plinth", translation=(0.0, 0.0, -0.7))
+    node("Ball", uv_sphere(0.2, 32, 16), "Blue paint", translation=(0.0, 1.0, -0.7))
+    add_class_room_camera(w, *GF_CAMERA)
+    return w
+
+
 def generate(out_dir: Path | str = HERE) -> list[Path]:
     """Write all built-in scene files into out_dir; returns their paths."""
     out = Path(out_dir)
@@ -785,7 +826,9 @@ def generate(out_dir: Path | str = HERE) -> list[Path]:
     written = [cornell_box().write(out / "cornell-box.glb"),
                living_room().write(out / "living-room.glb"),
                material_classes().write(out / "material-classes.glb"),
-               planar_classes().write(out / "planar-classes.glb")]
+               planar_classes().write(out / "planar-classes.glb"),
+               glossy_floor_room("metal").write(out / "metal-floor-room.glb"),
+               glossy_floor_room("dielectric").write(out / "glossy-floor-room.glb")]
     return written
 
 

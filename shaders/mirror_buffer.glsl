@@ -13,7 +13,9 @@
 //   MIRROR_BACKGROUND_NORMAL marks a texel where nothing was drawn (its radiance is the sky);
 // - no hit of a tangent plane (parallel, or behind P): the direction itself is projected (w = 0),
 //   i.e. the scene is taken to be infinitely far that way; a point or direction behind the
-//   mirror camera (clip w <= MIRROR_W_EPS) is not valid and falls back to the centre sample's uv.
+//   mirror camera (clip w <= MIRROR_W_EPS) is not valid and falls back to the centre sample's uv;
+// - step 2 meeting background projects the direction where step 1 hit no plane or the direction's
+//   uv is background too; else step 1's look-up (background: the sky) stands.
 // Layers, slots and bindings: viewer/passes/mirror.py.
 
 #include "common.glsl"
@@ -133,8 +135,18 @@ MirrorSample mirror_project_sample(vec3 P, vec3 w, mat4 vp, int layer, MirrorCen
         bool ok2, hit2;
         float t2;
         vec2 uv2 = mirror_step(P, w, s.plane_p, s.plane_n, vp, ok2, hit2, t2);
+        // Background at step 1's point: the ray passes its plane where nothing was drawn. Step 1's
+        // look-up (that background, the sky) stands unless the direction at infinity shows background
+        // too (the sky along w itself); taking the direction's uv whatever it shows put whatever the
+        // direction meets there -- a lamp the ray passed beside -- into the ray (mirror_projection.
+        // project_sample). A missed (parallel / behind) plane keeps step 1.
         bool background = length(s.plane_n) < MIRROR_BACKGROUND_NORMAL;
-        if (hit2 || background) {  // a missed (parallel / behind) plane keeps step 1
+        if (background && hit1 && !hit2) {
+            vec3 p_inf, n_inf;
+            mirror_fetch_plane(layer, uv2, p_inf, n_inf);
+            background = length(n_inf) < MIRROR_BACKGROUND_NORMAL;
+        }
+        if (hit2 || background) {
             uv = uv2;
             ok = ok2;
             s.at_infinity = !hit2;
