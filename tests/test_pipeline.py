@@ -90,14 +90,19 @@ def test_camera_change_keeps_lightmaps(tmp_path, monkeypatch):
     assert "extra" in [c["name"] for c in manifest["cameras"]]
 
 
-def test_lobe_change_rebakes_lightmaps_and_reuses_the_unwrap(tmp_path, monkeypatch):
-    """The bake's paths scatter by the lobes (bake/scatter.py): a new reflection lobe on the floor
-    changes the light maps (the walls receive what the floor reflects); the charts are reused."""
+FLOOR_LOBE = {"kind": "reflect", "ks": [1, 1, 1], "mx": 0.1, "my": 0.1, "r0": 0.04}
+
+
+@pytest.mark.parametrize("change", [{"floor_lobes": [FLOOR_LOBE]}, {"kd": (0.3, 0.3, 0.3)}], ids=["lobe", "kd"])
+def test_material_change_rebakes_lightmaps_and_reuses_the_unwrap(tmp_path, monkeypatch, change):
+    """A kd edit, and a new reflection lobe on the floor (the bake's paths scatter by the lobes,
+    bake/scatter.py: the walls receive what the floor reflects), change the light maps; the charts
+    are reused."""
     out = tmp_path / "room.bake"
     path = write_room(tmp_path / "room.glb")
     bake(path, out)
     before = lightmap_bytes(out)
-    write_room(path, floor_lobes=[{"kind": "reflect", "ks": [1, 1, 1], "mx": 0.1, "my": 0.1, "r0": 0.04}])
+    write_room(path, **change)
     import glint.bake.unwrap as unwrap_module
 
     def no_unwrap(*a, **k):
@@ -107,26 +112,10 @@ def test_lobe_change_rebakes_lightmaps_and_reuses_the_unwrap(tmp_path, monkeypat
     report = bake(path, out)
     assert report.status == "lightmaps"
     assert lightmap_bytes(out) != before
-    manifest = json.loads((out / "manifest.json").read_text())
-    floor = next(m for m in manifest["materials"] if m["name"] == "Floor")
-    assert floor["lobes"] and floor["lobes"][0]["mx"] == pytest.approx(0.1)
-
-
-def test_diffuse_change_rebakes_lightmaps_only(tmp_path, monkeypatch):
-    out = tmp_path / "room.bake"
-    path = write_room(tmp_path / "room.glb")
-    bake(path, out)
-    before = lightmap_bytes(out)
-    write_room(path, kd=(0.3, 0.3, 0.3))
-    import glint.bake.unwrap as unwrap_module
-
-    def no_unwrap(*a, **k):
-        raise AssertionError("geometry did not change, the unwrap must be reused")
-
-    monkeypatch.setattr(unwrap_module, "unwrap", no_unwrap)
-    report = bake(path, out)
-    assert report.status == "lightmaps"
-    assert lightmap_bytes(out) != before
+    if "floor_lobes" in change:
+        manifest = json.loads((out / "manifest.json").read_text())
+        floor = next(m for m in manifest["materials"] if m["name"] == "Floor")
+        assert floor["lobes"] and floor["lobes"][0]["mx"] == pytest.approx(0.1)
 
 
 def test_geometry_change_rebakes_everything(tmp_path):
