@@ -1,7 +1,7 @@
 """End-to-end error of the glossy-floor rooms against Mitsuba 3: docs/BENCHMARKS.md, "Glossy floors".
 
-    python3 -m glint.bench.measure_glossy_floors [--size 160x90] [--spp 1024] [--converge 64]
-        [--quality preview] [--out DIR]
+    python3 -m glint.bench.measure_glossy_floors [--size 160x90] [--spp 1024] [--seed 0] [--converge 64]
+        [--quality preview] [--scenes metal-floor-room glossy-floor-room] [--out DIR]
 
 For metal-floor-room and glossy-floor-room (scenes/generate.py `glossy_floor_room`), from their
 camera: glint's walkthrough image and its converged still-camera image (`--converge` frames),
@@ -82,8 +82,10 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", default="160x90")
     p.add_argument("--spp", type=int, default=1024)
+    p.add_argument("--seed", type=int, default=0, help="Mitsuba's sampler seed")
     p.add_argument("--converge", type=int, default=64)
     p.add_argument("--quality", default="preview")
+    p.add_argument("--scenes", nargs="+", choices=SCENES, default=list(SCENES))
     p.add_argument("--out", type=Path, default=Path("glossy-floors"))
     args = p.parse_args(argv)
     width, height = (int(v) for v in args.size.split("x"))
@@ -91,14 +93,15 @@ def main(argv=None) -> int:
     import mitsuba as mi
 
     variant = choose_variant("auto")["variant"]
-    results = {"size": args.size, "spp": args.spp, "converge": args.converge, "quality": args.quality,
+    results = {"size": args.size, "spp": args.spp, "seed": args.seed, "converge": args.converge,
+               "quality": args.quality,
                "mitsuba_variant": variant, "scenes": {}}
-    for name in SCENES:
+    for name in args.scenes:
         scene = load_scene(builtin_path(name))
         camera = scene.cameras[0]
         started = time.perf_counter()
-        scene_dict, _ = convert(scene, [sensor_dict(camera, width, height, spp=args.spp)])
-        reference = render(mi.load_dict(scene_dict), spp=args.spp).astype(np.float64)
+        scene_dict, _ = convert(scene, [sensor_dict(camera, width, height, spp=args.spp, seed=args.seed)])
+        reference = render(mi.load_dict(scene_dict), spp=args.spp, seed=args.seed).astype(np.float64)
         mitsuba_s = time.perf_counter() - started
         write_image(args.out / f"{name}-mitsuba.exr", reference.astype(np.float32), half=False)
         images = {}
