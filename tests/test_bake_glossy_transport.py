@@ -1,6 +1,6 @@
 """The bake's transport through reflection lobes against Mitsuba 3: irradiance on the walls and
-ceiling of a room whose floor is a near-mirror metal (glTF metallicFactor 1, roughnessFactor
-sqrt(0.05): Beckmann m 0.05, r0 1, ks = base colour 0.9, kd 0).
+ceiling of a room whose floor is a glossy or near-mirror metal (glTF metallicFactor 1, roughnessFactor
+sqrt(m): Beckmann m 0.05 or 0.001, r0 1, ks = base colour 0.9, kd 0).
 
 The method of tests/test_bake_vs_mitsuba.py (bench/mitsuba_reference.py: Mitsuba's irradiance at
 a point is pi x the radiance of a tiny white Lambertian patch there), with the bake's integrator
@@ -19,8 +19,6 @@ from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
 from glint.bench.measure_regularisation import write_metal_floor_room
 from glint.bench.mitsuba_reference import scene_irradiance
-
-M = 0.05  # the floor's Beckmann m (glTF roughness sqrt(m))
 
 
 def wall_points():
@@ -41,7 +39,8 @@ def wall_points():
 
 
 @pytest.mark.slow
-def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path):
+@pytest.mark.parametrize("M", [0.05, 0.001])  # the floor's Beckmann m (glTF roughness sqrt(m))
+def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path, M):
     """Mean relative L1 error over the 24 points at most 3 %, the signed mean within +-1.5 % (measured:
     1.4 % and -0.3 %; the two sides' noise: the bake's 16384 paths and Mitsuba's 2048 samples per
     point, each ~1-3 % per point, the caustic of the lamp off the floor dominating).
@@ -51,7 +50,9 @@ def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path):
     mean -26.7 % (walls and ceiling far too dark, up to -46 % at a point); next-event estimation at
     a path vertex with only kd / pi (the lobes left out of the light sample, its MIS weight still
     against the mixture) gives signed mean -2.8 %. (The lobe pdf without Eq. 4.9's cos(theta_h)
-    passes here: cos(theta_h) ~ 1 for m = 0.05.)"""
+    passes here: cos(theta_h) ~ 1 for m = 0.05.) At m = 0.001 the bake's lobe is widened to
+    M_REGULARISE = 0.02 (bake/scatter.py), Mitsuba's is not: the case bounds the regularisation's
+    bias on a near-mirror floor under an area lamp (measured 1.5 %, signed -0.5 %)."""
     scene = load_scene(write_metal_floor_room(tmp_path / "room.glb", M))
     floor = next(m for m in scene.materials if m.name == "Floor")
     assert float(np.max(floor.kd)) == 0 and [(lobe.kind, lobe.r0) for lobe in floor.lobes] == [("reflect", 1.0)]
