@@ -66,6 +66,7 @@ from glint.bake.alpha import MAX_CUTOUTS, Coverage
 from glint.bake.lights import LightSet, luminance
 from glint.bake.raytrace import RayTracer
 from glint.bake.scatter import LobeTable, Vertex, frame
+from glint.core.bsdf import dot3
 from glint.core.image_io import sample_texture
 from glint.core.scene import Scene
 from glint.core.volume import fresnel_dielectric, refracted_cos
@@ -123,9 +124,6 @@ def _add_rows(L: np.ndarray, rows: np.ndarray, c: np.ndarray) -> None:
     Lf = L.reshape(-1)
     Lf[flat] += c.reshape(-1)
 
-
-def _dot(a, b):
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
 def _cosine_sample(n: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -272,7 +270,7 @@ class _Transport:
                 break
             dl = d[live]
             ng = h.ng[p]
-            w = np.where(glass[p, None], self.transmittance(h.material[p], np.abs(_dot(dl, ng)), h.front[p],
+            w = np.where(glass[p, None], self.transmittance(h.material[p], np.abs(dot3(dl, ng)), h.front[p],
                                                             h.t[p]), 0.0)
             if cov.any:
                 c = c[p]
@@ -282,7 +280,7 @@ class _Transport:
                 filters[live] += 1
             T[live] *= w
             new_o = tr.offset(h.position[p], ng, dl, h.eps[p])
-            tmax[live] -= _dot(new_o - o[live], dl)
+            tmax[live] -= dot3(new_o - o[live], dl)
             o[live] = new_o
             live = live[tmax[live] > 0]
         return clear, T
@@ -300,12 +298,12 @@ class _Transport:
         if area.count:
             y, nl, Le, two, pdf_a, eps_l = area.sample(*u_light)
             v = y - x
-            d2 = _dot(v, v)
+            d2 = dot3(v, v)
             dist = np.sqrt(d2)
             l = v / np.maximum(dist, 1e-30)[:, None]
-            cos_x = _dot(ns, l)
-            cos_l = -_dot(nl, l)
-            ok = (cos_x > 0) & (_dot(ng, l) > 0) & ((cos_l > 0) | (two & (cos_l < 0)))
+            cos_x = dot3(ns, l)
+            cos_l = -dot3(nl, l)
+            ok = (cos_x > 0) & (dot3(ng, l) > 0) & ((cos_l > 0) | (two & (cos_l < 0)))
             sel = np.flatnonzero(ok)
             if len(sel):
                 y, nl, Le, xu, b, ls = _take(sel, y, nl, Le, x_up, beta, l)
@@ -316,7 +314,7 @@ class _Transport:
                 w = _power_weight(pdf_l, pdf_b)
                 # the shadow ray runs from x_up to the light point lifted eps off its own triangle towards x
                 seg = y + (eps_l[sel] * np.sign(cl))[:, None] * nl - xu
-                length = np.sqrt(_dot(seg, seg))
+                length = np.sqrt(dot3(seg, seg))
                 rows.append(sel)
                 dirs.append(seg / np.maximum(length, 1e-30)[:, None])
                 tmaxs.append(length)
@@ -324,8 +322,8 @@ class _Transport:
 
         if lights.delta.count:
             for l, dist, E in lights.delta.evaluate(x):
-                cos_x = _dot(ns, l)
-                sel = np.flatnonzero((cos_x > 0) & (_dot(ng, l) > 0) & (E.max(axis=1) > 0))
+                cos_x = dot3(ns, l)
+                sel = np.flatnonzero((cos_x > 0) & (dot3(ng, l) > 0) & (E.max(axis=1) > 0))
                 if len(sel):
                     ls, Es, b = _take(sel, l, E, beta)
                     fb = b * vertex.evaluate(sel, ls)[0]
@@ -337,8 +335,8 @@ class _Transport:
         sky = lights.sky
         if sky is not None and not sky.constant and sky.samplable:
             l, pdf_s = sky.sample(*u_sky)
-            cos_x = _dot(ns, l)
-            sel = np.flatnonzero((cos_x > 0) & (_dot(ng, l) > 0) & (pdf_s > 0))
+            cos_x = dot3(ns, l)
+            sel = np.flatnonzero((cos_x > 0) & (dot3(ng, l) > 0) & (pdf_s > 0))
             if len(sel):
                 cx, ps = cos_x[sel], pdf_s[sel]
                 ls, b = _take(sel, l, beta)
@@ -429,7 +427,7 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
     key = _mix(np.repeat(texel_key, samples) * _GOLDEN + np.tile(np.arange(samples, dtype=np.uint64), nt))
 
     n = normals.copy()
-    length = np.sqrt(_dot(n, n))
+    length = np.sqrt(dot3(n, n))
     good = (length > 1e-12) & np.isfinite(points).all(axis=1) & np.isfinite(n).all(axis=1)
     n[good] /= length[good, None]
     points = np.where(good[:, None], points, 0.0)
@@ -481,7 +479,7 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
             me, pr = mat[em], h.prim[em]
             pe, ppe, ne, de, be = _take(em, pos, prev_pos, ngeo, d, beta)
             v = pe - ppe
-            pdf_l = tp.emitter_pdf_area[pr] * _dot(v, v) / np.maximum(np.abs(_dot(ne, de)), 1e-12)
+            pdf_l = tp.emitter_pdf_area[pr] * dot3(v, v) / np.maximum(np.abs(dot3(ne, de)), 1e-12)
             # factor x emissive texture at the hit (glTF 3.9.3)
             Le = tp.lights.area.emission_at(me, pr, h.b1[em], h.b2[em])
             _add_rows(L, idx[em], be * Le * _power_weight(prev_pdf[em], pdf_l)[:, None])
@@ -491,7 +489,7 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
         kd, metallic = tp.albedo(mat, h.prim, h.b1, h.b2)
         ok = front | tp.two_sided[mat]  # the back face of a single-sided surface ends the path
         if tp.any_transmissive:
-            cos_in = np.abs(_dot(d, ngeo))
+            cos_in = np.abs(dot3(d, ngeo))
             lum_s = luminance(kd) + tp.lobes.reflectance(mat, metallic, cos_in)  # what scattering reflects
             # scatter (by the BSDF) or pass straight through (weight T), chosen by luminance
             T = np.where(tp.transmissive[mat][:, None], tp.transmittance(mat, cos_in, front, h.t), 0.0)
@@ -521,7 +519,7 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
         flip = np.where(front, 1.0, -1.0)[:, None]
         ngeo = ngeo * flip
         ns = ns * flip
-        bad = np.flatnonzero(_dot(ns, ngeo) <= 0)
+        bad = np.flatnonzero(dot3(ns, ngeo) <= 0)
         if len(bad):
             ns[bad] = ngeo[bad]
         x_up = pos + eps[:, None] * ngeo
@@ -531,8 +529,8 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
             _add_rows(L, idx[rows], c)
         d, f, pdf = vertex.sample(_uniform2(key, 8 * (depth + 1) + 4)[0], *_uniform2(key, 8 * (depth + 1) + 2),
                                   _cosine_sample)
-        cos = _dot(d, ns)
-        go = (pdf > 0) & (cos > 0) & (_dot(d, ngeo) > 0)
+        cos = dot3(d, ns)
+        go = (pdf > 0) & (cos > 0) & (dot3(d, ngeo) > 0)
         beta = beta * np.where(go[:, None], f * (cos / np.where(go, pdf, 1.0))[:, None], 0.0)  # f cos / p
         if depth + 1 >= RR_DEPTH:  # Russian roulette on the throughput (relative to the texel's pi)
             q = np.minimum(beta.max(axis=1) * INV_PI, RR_MAX)

@@ -42,20 +42,17 @@ from __future__ import annotations
 import numpy as np
 
 from glint.bake.lights import luminance
-from glint.core.bsdf import lobe_pdf, reflect_lobe, sample_lobe, schlick_F
+from glint.core.bsdf import dot3, lobe_pdf, reflect_lobe, sample_lobe, schlick_F
 
 M_REGULARISE = 0.02  # smallest Beckmann m of a lobe in the bake's transport (module docstring)
 INV_PI = 1.0 / np.pi
 _MR_CODES = {"": 0, "metal": 1, "dielectric": 2}
 
 
-def _dot(a, b):
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
 
 def _local(w, t, b, n):
     """World directions w in the frames (t, b, n)."""
-    return np.stack([_dot(w, t), _dot(w, b), _dot(w, n)], axis=1)
+    return np.stack([dot3(w, t), dot3(w, b), dot3(w, n)], axis=1)
 
 
 def frame(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -146,7 +143,7 @@ class Vertex:
 
     def evaluate(self, rows: np.ndarray, wi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(f (n, 3) RGB, mixture pdf (n,)) for world directions wi at vertices `rows` (Eq. 3.6, module doc)."""
-        cos = _dot(wi, np.take(self.n, rows, axis=0))
+        cos = dot3(wi, np.take(self.n, rows, axis=0))
         above = cos > 0
         f = np.where(above[:, None], np.take(self.kd, rows, axis=0) * INV_PI, 0.0)
         pdf = np.where(above, np.take(self.q_d, rows) * cos * INV_PI, 0.0)

@@ -60,7 +60,8 @@ KINDS = ("reflect", "transmit")
 
 # ----------------------------------------------------------------------------- helpers
 
-def _dot(a, b):
+def dot3(a, b):
+    """Dot products of (..., 3) arrays along the last axis."""
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
@@ -73,7 +74,7 @@ def mirror(w):
 def half_vector(wi, wo):
     """h = (wi + wo) / |wi + wo| and a mask of where it exists (wi != -wo)."""
     s = np.asarray(wi, dtype=float) + np.asarray(wo, dtype=float)
-    length = np.sqrt(_dot(s, s))
+    length = np.sqrt(dot3(s, s))
     ok = length > HALF_MIN
     h = s / np.maximum(length, HALF_MIN)[..., None]  # s = 0 gives h = 0 (masked by ok)
     return h, ok
@@ -126,7 +127,7 @@ def _lobe(wi, wo, mx, my, r0, alpha, transmit):
     wo = np.asarray(wo, dtype=float)
     h, ok = half_vector(wi, wo)
     ci, co = wi[..., 2], wo[..., 2]
-    oh = _dot(wo, h)
+    oh = dot3(wo, h)
     F = schlick_F(oh, r0)
     if transmit:
         F = 1.0 - F
@@ -212,7 +213,7 @@ def sample_lobe(wo, xi1, xi2, mx, my, kind):
     _check_kind(kind)
     wo = np.asarray(wo, dtype=float)
     h = sample_half_vector(xi1, xi2, mx, my)
-    wi = 2.0 * _dot(wo, h)[..., None] * h - wo  # Eq. 4.8
+    wi = 2.0 * dot3(wo, h)[..., None] * h - wo  # Eq. 4.8
     return mirror(wi) if kind == "transmit" else wi
 
 
@@ -230,7 +231,7 @@ def lobe_pdf(wi, wo, mx, my, kind):
     if kind == "transmit":
         wi = mirror(wi)
     h, ok = half_vector(wi, wo)
-    oh = _dot(wo, h)
+    oh = dot3(wo, h)
     p = beckmann_D(h, mx, my) * h[..., 2] / (4.0 * np.maximum(oh, DOT_MIN))
     return np.where(ok & (oh > 0.0) & (h[..., 2] > 0.0), p, 0.0)
 
@@ -250,7 +251,7 @@ def sample_weight(wi, wo, r0, alpha, kind):
     wr = mirror(wi) if kind == "transmit" else wi  # the lobe is always evaluated on the +n side
     h, ok = half_vector(wr, wo)
     ci, co, hz = wr[..., 2], wo[..., 2], h[..., 2]
-    oh = _dot(wo, h)
+    oh = dot3(wo, h)
     F = schlick_F(oh, r0)
     if kind == "transmit":
         F = 1.0 - F
