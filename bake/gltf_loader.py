@@ -333,7 +333,8 @@ class _SceneBuilder:
         self.warnings: list[str] = []
         self._accessors: dict[int, np.ndarray] = {}
         self._decoded: dict[int, bytes] = {}  # meshopt-compressed bufferViews, decoded
-        self._images: dict[int, np.ndarray | None] = {}  # image -> pixels as stored (sRGB not decoded)
+        # image -> pixels as stored; (image, srgb) -> pixels as a material reads them
+        self._images: dict = {}
         self._names: set[str] = set()
 
     def build(self) -> Scene:
@@ -642,20 +643,23 @@ class _SceneBuilder:
 
     def _texture_image(self, tex: dict, what: str, name: str, where: str,
                        srgb: bool = True) -> np.ndarray | None:
-        """The decoded image of a glTF texture (each image decoded once), or None with a warning;
-        `srgb`: the colour is sRGB-encoded and decoded to linear (alpha is always linear)."""
+        """The decoded image of a glTF texture, or None with a warning; `srgb`: the colour is
+        sRGB-encoded and decoded to linear (alpha is always linear). Each image is decoded once, and
+        converted once per encoding, however many materials use it."""
         source = tex.get("source")
         if source is None:
             self.warn(f"{where}: {what} texture has no PNG/JPEG source; ignored",
                       NO_IMAGE, name, ignored=["textures without a PNG/JPEG source"])
             return None
-        if source not in self._images:
-            self._images[source] = self._decode_image(source, where)
-        rgba = self._images[source]
-        if rgba is None or not srgb:
-            return rgba
-        # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
-        return np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
+        if (source, srgb) not in self._images:
+            if source not in self._images:
+                self._images[source] = self._decode_image(source, where)
+            rgba = self._images[source]
+            if rgba is not None and srgb:
+                # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
+                rgba = np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
+            self._images[source, srgb] = rgba
+        return self._images[source, srgb]
 
     def _sampler(self, tex: dict) -> tuple[tuple[str, str], bool]:
         """The texture's glTF sampler: ((wrapS, wrapT), magFilter is NEAREST). glTF 5.26: without
