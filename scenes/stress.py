@@ -26,6 +26,11 @@ Cases:
     degenerate  zero-area triangles, an object of only zero-area triangles, missing normals,
                 zero-length normals, missing texture coordinates under a textured material.
     big         many objects and triangles (500 objects, 2 M triangles at full size).
+    many-*      a room with N small boxes, each its own glTF node sharing one mesh per material
+                (linked duplicates, as Blender exports them), a third of them rough metal (curved:
+                a cube map each, or a shared probe): N = 10, 300, 1000, 3000, 10000
+                (`many_objects`; MANY_COUNTS). Per-object costs show here: draw calls, culling,
+                cube-map arrays past GL_MAX_ARRAY_TEXTURE_LAYERS.
 """
 from __future__ import annotations
 
@@ -44,6 +49,8 @@ HOT_RADIANCE = 1e5         # the emitters case's lamp: above half float's larges
 FURNACE_KD, FURNACE_LE = 0.5, 1.0
 FURNACE_SAMPLES = 256  # paths per texel: the light maps' noise (after denoising) stays below 1.5 % (draft's 32: 5.5 %)
 SCALES = {"scale-1mm": 1e-3, "scale-1m": 1.0, "scale-10km": 1e4}
+MANY_COUNTS = (10, 300, 1000, 3000, 10000)
+MANY_FLOOR = 4.0  # m: the square the boxes stand on, whatever their count
 
 # Per size: the parameters of each case (full: the scale the suite is meant to prove).
 SIZES = {
@@ -295,6 +302,31 @@ def big(out_dir, objects: int = 50, triangles: int = 200_000) -> StressScene:
             + _camera_toml("overview", (e, 2.6, e), (0, 0.3, 0), 70, 0.01, 1000.0))
     # The report's notes give the renderer's own object and triangle counts (the room included).
     return StressScene("big", _write(w, out_dir, "big", side), LAMP_RADIANCE)
+
+
+def many_objects(out_dir, objects: int = 1000, metal_every: int | None = 3, name: str | None = None) -> StressScene:
+    """`objects` boxes on a grid over a MANY_FLOOR square, each its own node; box size shrinks with
+    the count so that they cover about the same part of the frame at any count (the frame's raster
+    work stays alike and the per-object costs show). Every `metal_every`-th box is rough metal
+    (None: all diffuse). Two meshes in the file, whatever the count: the nodes share them."""
+    w = GltfWriter(GENERATOR)
+    _room(w)
+    side_n = math.ceil(math.sqrt(objects))
+    pitch = MANY_FLOOR / side_n
+    s = 0.5 * pitch
+    paint = w.add_material("Paint", base_color=(0.7, 0.35, 0.2), roughness=1.0)
+    metal = w.add_material("Metal", base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.3)
+    meshes = {m: add_mesh(w, f"Box {k}", box((s, s, s), (0, s / 2, 0)), m) for k, m in enumerate((paint, metal))}
+    for k in range(objects):
+        i, j = divmod(k, side_n)
+        m = metal if metal_every and k % metal_every == metal_every - 1 else paint
+        w.add_node(f"Box {k}", mesh=meshes[m],
+                   translation=(-MANY_FLOOR / 2 + pitch * (j + 0.5), 0.0, -MANY_FLOOR / 2 + pitch * (i + 0.5)))
+    name = name or f"many-{objects}"
+    # 8 texels per metre: the light maps stay small at 10,000 boxes; the boxes' faces get a texel or so
+    side = ("[bake]\nquality = \"draft\"\ntexels_per_metre = 8\n\n"
+            + _camera_toml("view", (0.0, 2.2, 3.2), (0.0, 0.2, -0.3), 60, 0.01, 100.0))
+    return StressScene(name, _write(w, out_dir, name, side), LAMP_RADIANCE, notes=[f"{objects} boxes"])
 
 
 CASES = ("materials", "emitters", "furnace", "scale-1mm", "scale-1m", "scale-10km", "degenerate", "big")
