@@ -18,6 +18,9 @@ every camera of it is rendered as a walkthrough frame and as a still camera's ru
 - scale: a case with `compare_with` (the 1 mm and 10 km rooms) must give the 1 m room's image
   (the scene is scale-invariant when emission is radiance): mean relative difference of the
   still-camera images at most SCALE_TOLERANCE.
+- black: a case with `max_black_fraction` (the many-objects rooms, whose every visible surface is
+  lit) has at most that fraction of black pixels in its still-camera images: an object drawn
+  without its light or its cube map fails it.
 - times: bake seconds (wall), frame ms (the renderer's per-pass timers, median), and memory:
   the process RSS and the GPU memory -- GL_NVX_gpu_memory_info on NVIDIA, elsewhere the bytes of
   the textures and buffers glint allocated (`allocated_bytes`).
@@ -215,6 +218,11 @@ def check_case(case, rendered: dict, bake_counts: dict, reference: dict | None) 
         if not err <= FURNACE_TOLERANCE:
             result["failures"].append(f"furnace: radiance off by {err:.1%} of Le/(1-kd) = {case.expected_radiance:g} "
                                       f"(tolerance {FURNACE_TOLERANCE:.0%})")
+    if case.max_black_fraction is not None:
+        black = max(float(np.mean(np.max(im["still"], axis=-1) <= 0.0)) for im in rendered["images"].values())
+        result["black_fraction"] = black
+        if not black <= case.max_black_fraction:
+            result["failures"].append(f"{black:.2%} of the pixels are black (bound {case.max_black_fraction:.2%})")
     if reference is not None:
         diffs = []
         for name, im in rendered["images"].items():
@@ -404,6 +412,8 @@ def markdown(setup: dict, rows: list, walk: dict | None, failures: list) -> str:
             energy += f"; furnace error {r['furnace_error']:.2%}"
         if "scale_difference" in r:
             energy += f"; vs 1 m room {r['scale_difference']:.2%}"
+        if "black_fraction" in r:
+            energy += f"; black {r['black_fraction']:.2%}"
         gpu = r["gpu"]
         mem = _mib(gpu.get("allocated_bytes")) + (f" (NVX used {_mib(gpu['nvx_used_bytes'])})" if "nvx_used_bytes" in gpu else "")
         notes = ", ".join(r["notes"] + [f"{r['objects']} objects, {r['triangles']} triangles", r["lightmap_format"]]
