@@ -15,6 +15,6 @@ void main() {
     out_diffuse = vec4(s.diffuse, 1.0);
     out_normal = vec4(s.normal, s.dark ? GB_DARK_BACK_FACE : s.normal_mapped ? GB_NORMAL_MAPPED : 0.0);
     out_tangent = vec4(s.tangent, s.bitangent_sign);
-    out_material = gb_pack_ids(material_index, v_object);
+    out_material = gb_pack_ids(object_material(), v_object);
     out_surface = s.mr;
 }

@@ -12,7 +12,7 @@ layout(location = MIRROR_NORMAL_LOCATION) out vec4 out_normal;    // rgba16f: xy
 
 void main() {
     RasterSurface s = raster_surface();
-    vec3 L = s.dark ? vec3(0.0) : s.diffuse + constant_emission(materials[material_index]);
+    vec3 L = s.dark ? vec3(0.0) : s.diffuse + constant_emission(materials[object_material()]);
     out_radiance = vec4(clean_half_radiance(L), 1.0);
     out_position = vec4(v_position, 1.0);
     out_normal = vec4(s.mesh_normal, 0.0);  // the surface's, not a normal map's: the projection's tangent plane

@@ -4,8 +4,8 @@
 
 #include "common.glsl"
 #include "materials.glsl"
+#include "scene_objects.glsl"
 
-uniform int material_index;
 layout(binding = KD_TEXTURE_UNIT) uniform sampler2D kd_texture;   // the material's base colour (1x1 white: none)
 layout(binding = EMISSION_TEXTURE_UNIT) uniform sampler2D emission_texture;  // its emissiveTexture (same)
 layout(binding = METALLIC_ROUGHNESS_TEXTURE_UNIT) uniform sampler2D metallic_roughness_texture;  // G, B (same)
@@ -13,9 +13,6 @@ layout(binding = NORMAL_TEXTURE_UNIT) uniform sampler2D normal_texture;  // its 
 layout(binding = ANISOTROPY_TEXTURE_UNIT) uniform sampler2D anisotropy_texture;  // KHR_materials_anisotropy's
 layout(binding = LIGHTMAP_UNIT) uniform sampler2DArray lightmaps;  // irradiance E (rgb), one layer per page
 uniform vec3 eye;                   // the eye the pass looks from (a mirror pass: the mirrored eye)
-// Layers a back face adds to its light-map page: the object's back-side pages (E around -n, baked
-// for two-sided materials) follow the front pages in the array; 0 = no back side, the front serves.
-uniform int lightmap_back_layer;
 
 in vec3 v_position;
 in vec3 v_normal;
@@ -25,6 +22,17 @@ in vec3 v_color;  // glTF COLOR_0 in 0..1; -1 for objects without (viewer/gpu_sc
 in vec2 v_lm_uv;
 flat in int v_lm_page;
 flat in int v_object;
+
+// The drawn object's material (one multi-draw draws many objects: viewer/draw_list.py).
+int object_material() {
+    return scene_objects[v_object].info.x;
+}
+
+// Layers a back face adds to its light-map page: the object's back-side pages (E around -n, baked
+// for two-sided materials) follow the front pages in the array; 0 = no back side, the front serves.
+int lightmap_back_layer() {
+    return scene_objects[v_object].info.y;
+}
 
 struct RasterSurface {
     vec3 normal;          // unit shading normal (the normal map's, if any), on the side the eye sees
@@ -115,7 +123,7 @@ const float NORMAL_MAP_MIN_COS = 0.02;
 
 RasterSurface raster_surface() {
     RasterSurface s;
-    Material m = materials[material_index];
+    Material m = materials[object_material()];
     vec3 to_eye = safe_normalize(eye - v_position, vec3(0.0, 0.0, 1.0));
 
     // Geometric normal from screen-space derivatives, towards the viewer: the fallback for
@@ -172,7 +180,7 @@ RasterSurface raster_surface() {
     if (v_color.r >= 0.0)
         kd *= v_color;
     // E of the side seen: a two-sided surface is lit on each side by its own light map.
-    int layer = v_lm_page + (back ? lightmap_back_layer : 0);
+    int layer = v_lm_page + (back ? lightmap_back_layer() : 0);
     vec3 E = clean_radiance(texture(lightmaps, vec3(v_lm_uv, float(layer))).rgb);
     s.diffuse = s.dark ? vec3(0.0) : clean_radiance(max(kd, 0.0) * INV_PI * E);
     // glTF 3.9.3: emission = emissiveFactor x emissiveTexture. Textured emission varies per pixel,

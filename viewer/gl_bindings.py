@@ -32,6 +32,11 @@ SPECULAR_FLAGS_BINDING = 9  # specular.glsl: a flag per tile
 MIRROR_SLOT_BINDING = 10    # mirror_buffer.glsl: per mirror-buffer slot (viewer/passes/mirror.py SLOT_DTYPE)
 MIRROR_OBJECT_BINDING = 11  # mirror_buffer.glsl: per object its slot this frame
 LOBE_MR_BINDING = 12        # materials.glsl: per lobe how a metallic-roughness texture changes it (LOBE_MR_*)
+SCENE_OBJECT_BINDING = 13   # scene_objects.glsl: per object its material, light-map layer, index range, box
+DRAW_ORDER_BINDING = 14     # cull.comp: the object of each draw command (viewer/draw_list.py)
+DRAW_COMMAND_BINDING = 15   # cull.comp: the indirect draw commands it writes
+DRAW_STATE_BINDING = 16     # cull.comp: why each object was drawn or not
+DRAW_HIDDEN_BINDING = 17    # cull.comp: per object, 1 = left out
 
 # -- raster passes over the bake's meshes (raster_surface.glsl: G-buffer and mirror passes) -----------
 LIGHTMAP_UNIT = 0

@@ -2,8 +2,13 @@
 
 Everything here is read-only after upload; passes bind what they need.
 
-- Meshes: one vertex/index buffer per object, interleaved as `VERTEX_DTYPE`, and
-  one vertex array per (object, program) on demand (`GpuObject.vertex_array`).
+- Meshes: every object's vertices in one vertex buffer, interleaved as `VERTEX_DTYPE`,
+  and its triangles in one index buffer of global vertex indices (an object is a range of
+  it: `GpuObject.first_index`, 3 x `triangles`); one vertex array per program on demand
+  (`vertex_array`). Per object a row of the object table (`SCENE_OBJECT_DTYPE`,
+  shaders/scene_objects.glsl): world box, material, back-side light-map layer, index range,
+  which the raster passes read by the object id of the vertex, so one multi-draw draws every
+  object (viewer/draw_list.py).
   Tangents (`surface_tangents`): the file's TANGENT where the bake has it, else
   MikkTSpace's from the texture coordinates (`tangents`; vertices equal in position,
   normal and uv share one, so light-map seams do not split them, and a vertex whose
@@ -41,7 +46,7 @@ Everything here is read-only after upload; passes bind what they need.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import moderngl
 import numpy as np
@@ -57,6 +62,7 @@ from glint.viewer.gl_bindings import (
     LOBE_PATTERN_BINDING,
     MATERIAL_BINDING,
     PATTERN_BINDING,
+    SCENE_OBJECT_BINDING,
 )
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
@@ -118,6 +124,9 @@ VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent
                          ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4"), ("object", "<i4"),
                          ("color", "<f4", 3)])
 VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i 3f"
+# Per object (std430; shaders/scene_objects.glsl): world box (lo, hi; w unused) and (material, back-side
+# light-map layer offset, first index, index count).
+SCENE_OBJECT_DTYPE = np.dtype([("lo", "<f4", 4), ("hi", "<f4", 4), ("info", "<i4", 4)])
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object",
                      "in_color")
 
@@ -142,26 +151,7 @@ class GpuObject:
     triangles: int
     bounds: np.ndarray  # (2, 3) world-space box
     back_layer: int  # light-map layers a back face adds to its page: 0 = no back-side light map
-    vbo: moderngl.Buffer | None
-    ibo: moderngl.Buffer | None
-    _vaos: dict = field(default_factory=dict)
-
-    def vertex_array(self, program: moderngl.Program) -> moderngl.VertexArray:
-        """This object's vertex array for `program` (made once; attributes it lacks are skipped)."""
-        key = program.glo
-        if key not in self._vaos:
-            self._vaos[key] = program.ctx.vertex_array(
-                program, [(self.vbo, VERTEX_FORMAT, *VERTEX_ATTRIBUTES)], index_buffer=self.ibo,
-                index_element_size=4, skip_errors=True)
-        return self._vaos[key]
-
-    def release(self) -> None:
-        for vao in self._vaos.values():
-            vao.release()
-        self._vaos.clear()
-        for buf in (self.vbo, self.ibo):
-            if buf is not None:
-                buf.release()
+    first_index: int = 0  # its first index in the scene's index buffer (3 per triangle)
 
 
 class GpuScene:
@@ -181,10 +171,7 @@ class GpuScene:
             if not 0 <= int(entry["material"]) < count:  # the shaders index the material buffer with it
                 raise GlintError(f"{bake.path}: object '{entry['name']}' has material {entry['material']} "
                                  f"of {count}; run `glint bake --force`")
-        front_pages = len(manifest.get("lightmaps") or [])
-        self.objects = [self._object(i, entry, mesh, front_pages if bake.has_back(i) else 0)
-                        for i, (entry, mesh) in enumerate(zip(manifest["objects"], bake.meshes))]
-        self.triangles = sum(o.triangles for o in self.objects)
+        self._meshes(bake)
         drawn = [o.bounds for o in self.objects if o.triangles]
         self.bounds = (np.stack([np.min([b[0] for b in drawn], axis=0), np.max([b[1] for b in drawn], axis=0)])
                        if drawn else np.zeros((2, 3)))
@@ -195,7 +182,55 @@ class GpuScene:
         self.cubemaps = CubeMaps(ctx, bake)
 
     # -- meshes ----------------------------------------------------------------------------------
-    def _object(self, index: int, entry: dict, mesh: dict, back_layer: int) -> GpuObject:
+    def _meshes(self, bake) -> None:
+        """Every object's vertices into one vertex buffer and its triangles into one index buffer
+        (global vertex indices), and the object table (`SCENE_OBJECT_DTYPE`) the raster passes
+        and the culling read (viewer/draw_list.py)."""
+        manifest = bake.manifest
+        front_pages = len(manifest.get("lightmaps") or [])
+        parts = [self._object(i, entry, mesh, front_pages if bake.has_back(i) else 0)
+                 for i, (entry, mesh) in enumerate(zip(manifest["objects"], bake.meshes))]
+        self.objects = [obj for obj, _, _ in parts]
+        self.triangles = sum(o.triangles for o in self.objects)
+        table = np.zeros(max(len(parts), 1), SCENE_OBJECT_DTYPE)
+        vertices, indices = [], []
+        first_vertex = first_index = 0
+        for k, (obj, v, idx) in enumerate(parts):
+            obj.first_index = first_index
+            table[k]["lo"][:3], table[k]["hi"][:3] = obj.bounds
+            table[k]["info"] = (obj.material, obj.back_layer, first_index, 3 * obj.triangles)
+            vertices.append(v)
+            indices.append(idx.reshape(-1) + np.uint32(first_vertex))
+            first_vertex += len(v)
+            first_index += 3 * obj.triangles
+        self.object_table = table
+        what = f"the meshes ({len(parts)} objects, {self.triangles} triangles)"
+        with self._gl.checked(f"upload {what}"):
+            v = np.concatenate(vertices) if vertices else np.zeros(1, VERTEX_DTYPE)
+            i = np.concatenate(indices) if indices and first_index else np.zeros(3, np.uint32)
+            self.vertex_buffer = self.ctx.buffer(v.tobytes())
+            self.index_buffer = self.ctx.buffer(i.astype(np.uint32).tobytes())
+            self.object_buffer = self.ctx.buffer(table.tobytes())
+        self.object_binding = SCENE_OBJECT_BINDING
+        self._vaos: dict = {}
+
+    def vertex_array(self, program: moderngl.Program) -> moderngl.VertexArray:
+        """The scene's vertex array for `program` (made once; attributes it lacks are skipped)."""
+        key = program.glo
+        if key not in self._vaos:
+            self._vaos[key] = self.ctx.vertex_array(
+                program, [(self.vertex_buffer, VERTEX_FORMAT, *VERTEX_ATTRIBUTES)], index_buffer=self.index_buffer,
+                index_element_size=4, skip_errors=True)
+        return self._vaos[key]
+
+    def draw_object(self, program: moderngl.Program, index: int) -> None:
+        """One object alone (the occlusion queries of planar reflectors): its range of the index buffer."""
+        obj = self.objects[index]
+        if obj.triangles:
+            self.vertex_array(program).render(moderngl.TRIANGLES, vertices=3 * obj.triangles, first=obj.first_index)
+
+    def _object(self, index: int, entry: dict, mesh: dict, back_layer: int) -> tuple:
+        """(GpuObject, its vertices as VERTEX_DTYPE, its (M, 3) local indices)."""
         indices = np.asarray(mesh.get("indices", np.zeros((0, 3))), np.uint32).reshape(-1, 3)
         positions = np.asarray(mesh["positions"], np.float64).reshape(-1, 3)
         n = len(positions)
@@ -224,11 +259,9 @@ class GpuScene:
         v["lm_page"] = np.asarray(mesh["lm_page"], np.int32).reshape(-1)[source]
         bounds = (np.stack([positions[indices.ravel()].min(axis=0), positions[indices.ravel()].max(axis=0)])
                   if len(indices) else np.zeros((2, 3)))
-        if not len(indices):
-            return GpuObject(entry["name"], int(entry["material"]), entry.get("role", "diffuse"), 0, bounds,
-                             back_layer, None, None)
-        return GpuObject(entry["name"], int(entry["material"]), entry.get("role", "diffuse"), len(indices),
-                         bounds, back_layer, self.ctx.buffer(v.tobytes()), self.ctx.buffer(indices.tobytes()))
+        obj = GpuObject(entry["name"], int(entry["material"]), entry.get("role", "diffuse"), len(indices), bounds,
+                        back_layer)
+        return obj, (v if len(indices) else v[:0]), indices
 
     # -- materials -------------------------------------------------------------------------------
     def _materials(self, bake) -> None:
@@ -365,6 +398,16 @@ class GpuScene:
         self.lobe_pattern_buffer.bind_to_storage_buffer(LOBE_PATTERN_BINDING)
         self.cubemaps.bind_buffers()
 
+    @property
+    def material_count(self) -> int:
+        return len(self.kd_textures)
+
+    def material_textures(self, material: int) -> tuple:
+        """The textures a draw of `material` binds, in viewer/draw_list.py TEXTURE_UNITS order (base
+        colour, emission, metallic-roughness, normal, anisotropy; the 1x1 white where it has none)."""
+        return (self.kd_texture(material), self.emission_texture(material), self.metallic_roughness_texture(material),
+                self.normal_texture(material), self.anisotropy_texture(material))
+
     def kd_texture(self, material: int) -> moderngl.Texture:
         t = self.kd_textures[material] if 0 <= material < len(self.kd_textures) else None
         return t if t is not None else self.white
@@ -456,8 +499,11 @@ class GpuScene:
         return {"sky_mode": self.sky_mode, "sky_scale": tuple(map(float, self.sky_scale))}
 
     def release(self) -> None:
-        for o in self.objects:
-            o.release()
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos.clear()
+        for buf in (self.vertex_buffer, self.index_buffer, self.object_buffer):
+            buf.release()
         for t in [*self.kd_textures, *self.emission_textures, *self.metallic_roughness_textures,
                   *self.normal_textures, *self.anisotropy_textures, self.lightmaps, self.white]:
             if t is not None:

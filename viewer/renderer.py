@@ -34,11 +34,16 @@ once.
 """
 from __future__ import annotations
 
+import time
+from collections import deque
+from statistics import median
+
 import moderngl
 import numpy as np
 
 from glint.core.errors import GlintError
 from glint.viewer.camera import ViewCamera
+from glint.viewer.draw_list import DrawList
 from glint.viewer.gl import check_context, describe, max_texture_size
 from glint.viewer.gpu_scene import GpuScene, shader_defines
 from glint.viewer.passes.gbuffer import GBufferPass
@@ -97,8 +102,9 @@ class Renderer:
             raise GlintError(f"the mirror-pass budget must be a whole number of at least 0 (got {mirror_budget!r})")
         mirror_unit = scene_units(self.scene)["MIRROR_RADIANCE_UNIT"]
         defines = {**shader_defines(), **mirror_defines(mirror_unit)}
-        self.gbuffer = GBufferPass(ctx, self.scene, defines)
-        self.mirror = MirrorPasses(ctx, self.scene, bake, defines, budget=int(mirror_budget))
+        self.draws = DrawList(ctx, self.scene, defines)
+        self.gbuffer = GBufferPass(ctx, self.scene, self.draws, defines)
+        self.mirror = MirrorPasses(ctx, self.scene, bake, self.draws, defines, budget=int(mirror_budget))
         self.mirror.set_units(mirror_unit)
         self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
         self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror,
@@ -111,6 +117,7 @@ class Renderer:
         self.weights = weights
         self.walkthrough = walkthrough
         self.timer = PassTimer(ctx)
+        self.cpu_ms: deque = deque(maxlen=self.timer.history)  # wall time of each render() call
         self.size: tuple[int, int] | None = None
         self.mode: str | None = None  # of the last frame: "walkthrough" or "converge"
         self._last_key = None  # view of the last frame, for mode="auto"
@@ -119,7 +126,6 @@ class Renderer:
         self._gbuffer_key = None  # view the G-buffer holds
         self._linear: moderngl.Texture | None = None
         self._display: moderngl.Texture | None = None
-        self._drawn: dict = {}
         self._view: tuple[ViewCamera, float] | None = None  # camera and aspect of the last frame
         self._device = describe(ctx)
 
@@ -151,6 +157,13 @@ class Renderer:
         `mode` is one of MODES (see the module docstring)."""
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, not {mode!r}")
+        start = time.perf_counter()
+        try:
+            self._render(camera, width, height, hidden_objects, mode)
+        finally:
+            self.cpu_ms.append((time.perf_counter() - start) * 1e3)
+
+    def _render(self, camera: ViewCamera, width: int, height: int, hidden_objects, mode: str) -> None:
         self.check_size(width, height)
         hidden = tuple(sorted(set(int(i) for i in hidden_objects)))
         key = (Progressive.view_key(camera, (width, height), self.supersample, self.exposure), hidden)
@@ -196,7 +209,7 @@ class Renderer:
                 plan = mirror.plan(camera, aspect, hidden)
                 mirror.run(plan, camera, aspect, hidden, timer)
             with timer("gbuffer"):
-                self._drawn = self.gbuffer.run(camera, aspect, hidden)
+                self.gbuffer.run(camera, aspect, hidden)
             if mirror.active and plan.queries:
                 with timer("occlusion_queries"):
                     mirror.query_occlusion(plan, self.gbuffer.fbo, camera, aspect)
@@ -277,10 +290,11 @@ class Renderer:
     @property
     def stats(self) -> dict:
         """GPU ms per pass (last frame and median of recent ones), what was drawn and skipped."""
-        skipped: dict = {"objects_outside_view": list(self._drawn.get("objects_culled", [])),
-                         "objects_without_triangles": list(self._drawn.get("objects_empty", []))}
-        if self._drawn.get("objects_hidden"):
-            skipped["objects_hidden"] = list(self._drawn["objects_hidden"])
+        drawn = self.draws.record(GBufferPass.REGION) if self.size else {}
+        skipped: dict = {"objects_outside_view": list(drawn.get("objects_culled", [])),
+                         "objects_without_triangles": list(drawn.get("objects_empty", []))}
+        if drawn.get("objects_hidden"):
+            skipped["objects_hidden"] = list(drawn["objects_hidden"])
         if self.supersample == 1:
             skipped["resolve"] = "supersample 1: the shaded image is the output"
         specular = self._specular_stats()
@@ -301,7 +315,7 @@ class Renderer:
                                           "(see mirror.skipped_reflectors) show their diffuse part only: "
                                           + ", ".join(planar_off["no_specular"]))
         size = list(self.size) if self.size else None
-        median = self.timer.median_ms  # reads the last frame's queries first
+        gpu_median = self.timer.median_ms  # reads the last frame's queries first
         return {
             "device": self._device,
             "size": size,
@@ -309,12 +323,16 @@ class Renderer:
             "supersample": self.supersample,
             "exposure": self.exposure,
             "gpu_ms": dict(self.timer.last_ms),
-            "gpu_ms_median": median,
+            "gpu_ms_median": gpu_median,
+            # The render() call as the program sees it: Python and the GL driver (on a software
+            # renderer the driver's part includes the work a GPU would do; see viewer/timing.py).
+            "cpu_ms": {"last": round(self.cpu_ms[-1], 3) if self.cpu_ms else None,
+                       "median": round(median(self.cpu_ms), 3) if self.cpu_ms else None},
             "frames_timed": self.timer.frames,
             "timing": self.timer.description,
             "objects": len(self.scene.objects),
-            "objects_drawn": self._drawn.get("objects_drawn", 0),
-            "triangles": self._drawn.get("triangles", 0),
+            "objects_drawn": drawn.get("objects_drawn", 0),
+            "triangles": drawn.get("triangles", 0),
             "triangles_in_scene": self.scene.triangles,
             "lightmap_format": "RGBA16F" if self.scene.lightmap_dtype == "f2" else "RGBA32F",
             "skipped": skipped,
@@ -369,8 +387,8 @@ class Renderer:
         }
 
     def release(self) -> None:
-        for part in (self.gbuffer, self.mirror, self.shading, self.resolve, self.tonemap, self.progressive,
-                     self.split_sum, self.scene):
+        for part in (self.gbuffer, self.mirror, self.draws, self.shading, self.resolve, self.tonemap,
+                     self.progressive, self.split_sum, self.scene):
             if part is not None:
                 part.release()
         self._linear = self._display = None

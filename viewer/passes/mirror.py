@@ -47,7 +47,7 @@ import moderngl
 import numpy as np
 
 from glint.core.geometry import fit_plane
-from glint.viewer.camera import ViewCamera, gl_bytes, in_frustum
+from glint.viewer.camera import ViewCamera, gl_bytes
 from glint.viewer.gl import (
     GL,
     GL_ANY_SAMPLES_PASSED_CONSERVATIVE,
@@ -63,7 +63,6 @@ from glint.viewer.gl import (
     GL_RENDERBUFFER,
 )
 from glint.viewer.gl_bindings import (
-    LIGHTMAP_UNIT,
     MIP_SOURCE_IMAGE,
     MIP_TARGET_IMAGE,
     MIRROR_NORMAL_LOCATION,
@@ -76,7 +75,7 @@ from glint.viewer.gl_bindings import (
 )
 from glint.viewer.gpu_scene import SKY_MODES
 from glint.viewer.mirror_camera import group_coplanar
-from glint.viewer.passes.gbuffer import draw_object
+from glint.viewer.passes.gbuffer import GBufferPass
 from glint.viewer.reflectors import (
     DEFAULT_BUDGET,
     MirrorPlan,
@@ -133,11 +132,14 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
 class MirrorPasses:
     name = "mirror"
 
-    def __init__(self, ctx: moderngl.Context, scene, bake, defines: dict, budget: int = DEFAULT_BUDGET):
+    def __init__(self, ctx: moderngl.Context, scene, bake, draws, defines: dict, budget: int = DEFAULT_BUDGET):
+        """draws: the scene's viewer/draw_list.py DrawList (pass k draws into its region
+        GBufferPass.REGION + 1 + k)."""
         if not (isinstance(budget, (int, np.integer)) and budget >= 0):
             raise ValueError(f"the mirror-pass budget must be a whole number of at least 0 (got {budget!r})")
         self.ctx = ctx
         self.scene = scene
+        self.draws = draws
         self.budget = int(budget)
         self.objects = manifest_reflectors(bake)  # (object index, Reflector)
         self.reflectors = [r for _, r in self.objects]
@@ -252,7 +254,7 @@ class MirrorPasses:
         self.object_buffer.write(self.object_slots.tobytes())
 
     def _draw_pass(self, k: int, p, camera: ViewCamera, aspect: float, hidden: set) -> dict:
-        ctx, gl, scene = self.ctx, self._gl, self.scene
+        ctx, gl = self.ctx, self._gl
         glo, fbo = self._fbos[k]
         fbo.use()
         gl.BindFramebuffer(GL_FRAMEBUFFER, glo)
@@ -272,37 +274,21 @@ class MirrorPasses:
         gl.Enable(GL_CLIP_DISTANCE0)
         mirror = p.camera
         view_proj = p.view_projection(aspect)  # the guard band's wider frustum (viewer/reflectors.py)
-        self.raster["view_proj"].write(gl_bytes(view_proj))
         set_uniforms(self.raster, eye=tuple(map(float, mirror.eye)),
                      clip_plane=tuple(map(float, mirror.clip_plane())))
-        scene.bind_materials()
-        scene.lightmaps.use(LIGHTMAP_UNIT)
         members = {self.object_of[r.name] for r in p.members}
-        point, normal = np.asarray(mirror.point), np.asarray(mirror.normal)
-        drawn = triangles = 0
-        behind = culled = 0
+        region = GBufferPass.REGION + 1 + k
         try:
-            for index, obj in enumerate(scene.objects):
-                if index in members or index in hidden or not obj.triangles:
-                    continue
-                corners = np.array([[x, y, z] for x in obj.bounds[:, 0] for y in obj.bounds[:, 1]
-                                    for z in obj.bounds[:, 2]])
-                if np.all((corners - point) @ normal < 0.0):
-                    behind += 1  # wholly behind the mirror: clipped anyway
-                    continue
-                if not in_frustum(obj.bounds, view_proj):
-                    culled += 1
-                    continue
-                draw_object(self.raster, scene, obj)
-                drawn += 1
-                triangles += obj.triangles
+            # geometry wholly behind the mirror is culled (it would be clipped anyway), the reflectors
+            # of this plane left out
+            self.draws.draw(self.raster, view_proj, region=region, hidden=members | hidden,
+                            clip_plane=mirror.clip_plane())
         finally:
             gl.Disable(GL_CLIP_DISTANCE0)
             ctx.front_face = "ccw"
         if sky_map:
             self._draw_sky(mirror, camera, aspect, p.guard)
-        return {"reflectors": p.names, "objects_drawn": drawn, "triangles": triangles,
-                "objects_behind_plane": behind, "objects_outside_view": culled}
+        return {"reflectors": p.names, "region": region}
 
     def _draw_sky(self, mirror, camera: ViewCamera, aspect: float, guard: float = 1.0) -> None:
         """The sky on the texels the scene left at the clear depth (the pass's framebuffer is bound);
@@ -358,7 +344,7 @@ class MirrorPasses:
                     gl.GenQueries(1, ctypes.byref(name))
                     query = self._queries[r.name] = name.value
                 gl.BeginQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE, query)
-                self.scene.objects[self.object_of[r.name]].vertex_array(self.occluder).render(moderngl.TRIANGLES)
+                self.scene.draw_object(self.occluder, self.object_of[r.name])
                 gl.EndQuery(GL_ANY_SAMPLES_PASSED_CONSERVATIVE)
                 self._pending.add(r.name)
         finally:
@@ -414,8 +400,8 @@ class MirrorPasses:
             plan = MirrorPlan(passes=[], skipped=[], queries=[], budget=self.budget)
             self._drawn = []
         out.update({**plan.stats(), "budget": self.budget})
-        out["passes"] = [{**d, "screen_area": round(p.screen_area, 4), "distance_m": round(p.distance, 3),
-                          "guard_scale": round(p.guard, 3)}
+        out["passes"] = [{**self._pass_record(d), "screen_area": round(p.screen_area, 4),
+                          "distance_m": round(p.distance, 3), "guard_scale": round(p.guard, 3)}
                          for d, p in zip(self._drawn, plan.passes)]
         out["skipped_reflectors"] = {reason.value: names for reason, names in plan.skipped_by_reason().items()
                                      if names}
@@ -428,6 +414,12 @@ class MirrorPasses:
             "no_specular": [name for i, name in missing.items() if i not in cube_mapped],
         }
         return out
+
+    def _pass_record(self, drawn: dict) -> dict:
+        """What a pass drew (reads its draw states back from the GPU)."""
+        r = self.draws.record(drawn["region"])
+        return {"reflectors": drawn["reflectors"], "objects_drawn": r["objects_drawn"], "triangles": r["triangles"],
+                "objects_behind_plane": len(r["objects_behind_plane"]), "objects_outside_view": len(r["objects_culled"])}
 
     # -- cleaning up -------------------------------------------------------------------------------
     def _release_targets(self) -> None:

@@ -1,0 +1,57 @@
+// Culling of every object at once (viewer/draw_list.py): per object one glDrawElementsIndirect
+// command in this region's part of the command buffer -- instance count 1 when the object may be
+// seen, 0 when it is hidden, has no triangles, lies wholly outside a frustum plane or wholly behind
+// the clip plane -- and the reason, for the stats. Commands follow the draw order (objects batched
+// by the textures of their material), so each batch is one contiguous multi-draw.
+
+#include "scene_objects.glsl"
+
+layout(local_size_x = CULL_GROUP) in;
+
+struct DrawCommand {
+    uint count;
+    uint instance_count;
+    uint first_index;
+    int base_vertex;     // 0: the scene's index buffer holds global vertex indices
+    uint base_instance;
+};
+
+layout(std430, binding = DRAW_ORDER_BINDING) readonly buffer DrawOrder { int draw_order[]; };
+layout(std430, binding = DRAW_COMMAND_BINDING) writeonly buffer DrawCommands { DrawCommand commands[]; };
+layout(std430, binding = DRAW_STATE_BINDING) writeonly buffer DrawStates { uint draw_states[]; };
+layout(std430, binding = DRAW_HIDDEN_BINDING) readonly buffer DrawHidden { uint hidden[]; };
+
+uniform vec4 planes[6];    // the view frustum's planes, inside where dot(plane, (x, 1)) >= 0 (camera.py)
+uniform vec4 clip_plane;   // mirror passes: the mirror plane, the eye's side positive
+uniform int use_clip;
+uniform int first_command; // this region's first command (region x object count)
+uniform int object_count;
+
+// Whether the box lies wholly on the negative side of the plane: its corner farthest along the
+// plane's normal is behind it (viewer/camera.py in_frustum, the test this replaces).
+bool beyond(vec4 plane, vec3 lo, vec3 hi) {
+    vec3 far_corner = mix(lo, hi, step(0.0, plane.xyz));
+    return dot(plane.xyz, far_corner) + plane.w < 0.0;
+}
+
+void main() {
+    int c = int(gl_GlobalInvocationID.x);
+    if (c >= object_count)
+        return;
+    int i = draw_order[c];
+    SceneObject o = scene_objects[i];
+    uint state = DRAWN;
+    if (hidden[first_command + i] != 0u)
+        state = HIDDEN;
+    else if (o.info.w == 0)
+        state = EMPTY;
+    else if (use_clip != 0 && beyond(clip_plane, o.lo.xyz, o.hi.xyz))
+        state = BEHIND_PLANE;
+    else {
+        for (int k = 0; k < 6; ++k)
+            if (beyond(planes[k], o.lo.xyz, o.hi.xyz))
+                state = OUTSIDE_VIEW;
+    }
+    commands[first_command + c] = DrawCommand(uint(o.info.w), state == DRAWN ? 1u : 0u, uint(o.info.z), 0, uint(i));
+    draw_states[first_command + i] = state;
+}

@@ -1,0 +1,12 @@
+// Per object of the scene (viewer/gpu_scene.py SCENE_OBJECT_DTYPE, std430), indexed by the object id
+// every vertex carries: what a raster pass used to set as per-draw uniforms, so that one multi-draw
+// draws them all (viewer/draw_list.py).
+
+struct SceneObject {
+    vec4 lo;      // xyz: world-space bounding box, low corner (the culling test, cull.comp)
+    vec4 hi;      // xyz: high corner
+    ivec4 info;   // x: material index; y: light-map layers a back face adds to its page (0: no back
+                  // side); z: first index in the scene's index buffer; w: index count (0: no triangles)
+};
+
+layout(std430, binding = SCENE_OBJECT_BINDING) readonly buffer SceneObjectBuffer { SceneObject scene_objects[]; };

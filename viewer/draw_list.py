@@ -1,0 +1,183 @@
+"""GPU-driven drawing of the static scene: every raster pass draws all objects with one
+multi-draw per texture batch, culled on the GPU.
+
+    draws = DrawList(ctx, scene)
+    draws.draw(program, view_proj, region=0, hidden={3})          # the G-buffer
+    draws.draw(program, mirror_vp, region=1, clip_plane=plane)    # a mirror pass
+    draws.record(0)     # what region 0's last draw drew and left out, and why (reads the GPU)
+
+The scene's meshes lie in one vertex and one index buffer (viewer/gpu_scene.py), each object a
+range of the indices, and its material and light-map layer in a storage buffer indexed by the
+object id every vertex carries (shaders/scene_objects.glsl). So a draw needs no per-object
+uniform: `draw` runs shaders/cull.comp, which writes one glDrawElementsIndirect command per
+object (instance count 0 for objects culled), then issues glMultiDrawElementsIndirect
+(moderngl's `render_indirect`) once per *batch*: the objects whose materials bind the same
+textures (all untextured materials form one batch). The CPU work per draw is a fixed handful of
+GL calls, whatever the object count; it grows only with the textured materials.
+
+Reads: the scene's object table, vertex and index buffers. Writes: the framebuffer bound by the
+caller, and per region (a draw that must not overwrite another's commands in the same frame: the
+G-buffer, each mirror pass) its commands and the reason each object was or was not drawn
+(`DRAWN`, `HIDDEN`, `EMPTY`, `OUTSIDE_VIEW`, `BEHIND_PLANE`, shaders/cull.comp), which `record`
+reads back only when asked (the stats), never per frame.
+
+Culling: an object is left out when its world box lies wholly outside one frustum plane (the
+test of viewer/camera.py `in_frustum`, which this pass replaces: the box corner farthest along
+the plane's normal), wholly behind the clip plane (mirror passes), or its id is hidden.
+"""
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from glint.viewer.camera import frustum_planes, gl_bytes
+from glint.viewer.gl_bindings import (
+    ANISOTROPY_TEXTURE_UNIT,
+    DRAW_COMMAND_BINDING,
+    DRAW_HIDDEN_BINDING,
+    DRAW_ORDER_BINDING,
+    DRAW_STATE_BINDING,
+    EMISSION_TEXTURE_UNIT,
+    KD_TEXTURE_UNIT,
+    LIGHTMAP_UNIT,
+    METALLIC_ROUGHNESS_TEXTURE_UNIT,
+    NORMAL_TEXTURE_UNIT,
+)
+from glint.viewer.shader_source import compute_program, set_uniforms
+
+# Why an object was or was not drawn (shaders/cull.comp writes one per object and region).
+DRAW_STATES = {"DRAWN": 0, "HIDDEN": 1, "EMPTY": 2, "OUTSIDE_VIEW": 3, "BEHIND_PLANE": 4}
+COMMAND_BYTES = 20  # glDrawElementsIndirect's command: count, instanceCount, firstIndex, baseVertex, baseInstance
+CULL_GROUP = 64     # cull.comp's local size
+TEXTURE_UNITS = (KD_TEXTURE_UNIT, EMISSION_TEXTURE_UNIT, METALLIC_ROUGHNESS_TEXTURE_UNIT, NORMAL_TEXTURE_UNIT,
+                 ANISOTROPY_TEXTURE_UNIT)
+
+
+def draw_defines() -> dict:
+    return {**DRAW_STATES, "CULL_GROUP": CULL_GROUP}
+
+
+def batches(textures_of_material: list[tuple], materials: np.ndarray) -> tuple[np.ndarray, list]:
+    """Objects grouped by the textures their material binds: -> (order: object ids, batch after
+    batch, each in id order; [(first, count, textures)] per batch, `first` an index into order)."""
+    keys: dict[tuple, int] = {}
+    batch_of = np.array([keys.setdefault(tuple(id(t) for t in textures_of_material[m]), len(keys))
+                         for m in materials], np.int64)
+    order = np.argsort(batch_of, kind="stable")
+    firsts = np.searchsorted(batch_of[order], np.arange(len(keys)))
+    counts = np.bincount(batch_of, minlength=len(keys))
+    example = {b: textures_of_material[m] for m, b in zip(materials, batch_of)}
+    return order.astype(np.int32), [(int(f), int(c), example[b]) for b, (f, c) in enumerate(zip(firsts, counts))]
+
+
+class DrawList:
+    def __init__(self, ctx: moderngl.Context, scene, defines: dict | None = None):
+        self.ctx = ctx
+        self.scene = scene
+        self.count = len(scene.objects)
+        self.cull_program = compute_program(ctx, "cull.comp", {**(defines or {}), **draw_defines()})
+        self.triangles = np.array([o.triangles for o in scene.objects], np.int64)
+        order, self.batches = batches([scene.material_textures(m) for m in range(scene.material_count)],
+                                      np.array([o.material for o in scene.objects], np.int64))
+        self.order = order
+        self.order_buffer = ctx.buffer(np.ascontiguousarray(order if len(order) else np.zeros(1, np.int32)).tobytes())
+        self.regions = 0
+        self.command_buffer = self.state_buffer = self.hidden_buffer = None
+        self._hidden: list = []   # per region: the hidden set its slice of hidden_buffer holds
+        self._records: dict = {}  # region -> the record, once read back this frame
+        self._grow(1)
+
+    def _grow(self, regions: int) -> None:
+        """Room for `regions` regions' commands, states and hidden flags (kept: none are in use)."""
+        if regions <= self.regions:
+            return
+        n = max(self.count, 1)
+        for buf in (self.command_buffer, self.state_buffer, self.hidden_buffer):
+            if buf is not None:
+                buf.release()
+        self.command_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
+        self.state_buffer = self.ctx.buffer(reserve=regions * n * 4)
+        self.hidden_buffer = self.ctx.buffer(np.zeros(regions * n, np.uint32).tobytes())
+        self._hidden = [frozenset()] * regions
+        self.regions = regions
+
+    def _set_hidden(self, region: int, hidden) -> None:
+        hidden = frozenset(int(i) for i in hidden if 0 <= int(i) < self.count)
+        if hidden == self._hidden[region]:
+            return
+        flags = np.zeros(max(self.count, 1), np.uint32)
+        flags[list(hidden)] = 1
+        self.hidden_buffer.write(flags.tobytes(), offset=region * max(self.count, 1) * 4)
+        self._hidden[region] = hidden
+
+    def cull(self, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None) -> None:
+        """Write region's draw commands and states (shaders/cull.comp): every object whose box may
+        lie in the frustum of `view_proj` and, when `clip_plane` (a, b, c, d) is given, on its
+        positive side, unless its index is in `hidden`."""
+        if self.count == 0:
+            return
+        self._grow(region + 1)
+        self._set_hidden(region, hidden)
+        self._records.pop(region, None)
+        n = self.count
+        planes = frustum_planes(view_proj)
+        planes /= np.maximum(np.linalg.norm(planes[:, :3], axis=1, keepdims=True), 1e-30)
+        clip = np.zeros(4) if clip_plane is None else np.asarray(clip_plane, np.float64)
+        set_uniforms(self.cull_program, first_command=region * n, object_count=n,
+                     use_clip=int(clip_plane is not None), clip_plane=tuple(map(float, clip)))
+        self.cull_program["planes"].write(planes.astype(np.float32).tobytes())
+        self.scene.object_buffer.bind_to_storage_buffer(self.scene.object_binding)
+        self.order_buffer.bind_to_storage_buffer(DRAW_ORDER_BINDING)
+        self.command_buffer.bind_to_storage_buffer(DRAW_COMMAND_BINDING)
+        self.state_buffer.bind_to_storage_buffer(DRAW_STATE_BINDING)
+        self.hidden_buffer.bind_to_storage_buffer(DRAW_HIDDEN_BINDING)
+        self.cull_program.run(-(-n // CULL_GROUP))
+        self.ctx.memory_barrier(moderngl.COMMAND_BARRIER_BIT | moderngl.SHADER_STORAGE_BARRIER_BIT)
+
+    def draw(self, program, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None) -> None:
+        """Draw every object in view with `program` (its framebuffer and state set by the caller):
+        `cull`, then one multi-draw per texture batch."""
+        if self.count == 0:
+            return
+        self.cull(view_proj, region, hidden, clip_plane)
+        scene, first_command = self.scene, region * self.count
+        program["view_proj"].write(gl_bytes(view_proj))
+        scene.bind_materials()
+        scene.lightmaps.use(LIGHTMAP_UNIT)
+        vao = scene.vertex_array(program)
+        for first, count, textures in self.batches:
+            for unit, texture in zip(TEXTURE_UNITS, textures):
+                texture.use(unit)
+            vao.render_indirect(self.command_buffer, moderngl.TRIANGLES, count=count, first=first_command + first)
+
+    def states(self, region: int = 0) -> np.ndarray:
+        """(objects,) the DRAW_STATES value of each object in region's last cull (reads the GPU)."""
+        n = self.count
+        if not n or region >= self.regions:
+            return np.zeros(0, np.uint32)
+        return np.frombuffer(self.state_buffer.read(size=4 * n, offset=4 * region * n), np.uint32)
+
+    def record(self, region: int = 0) -> dict:
+        """What region's last draw did (reads its states back from the GPU): objects_drawn,
+        triangles, and the names of the objects left out by reason."""
+        if region in self._records:
+            return self._records[region]
+        out = {"objects_drawn": 0, "triangles": 0, "objects_culled": [], "objects_empty": [],
+               "objects_hidden": [], "objects_behind_plane": []}
+        if self.count and region < self.regions:
+            states = self.states(region)
+            objects = self.scene.objects
+            drawn = states == DRAW_STATES["DRAWN"]
+            out["objects_drawn"] = int(drawn.sum())
+            out["triangles"] = int(self.triangles[drawn].sum())
+            for key, state in (("objects_culled", "OUTSIDE_VIEW"), ("objects_empty", "EMPTY"),
+                               ("objects_hidden", "HIDDEN"), ("objects_behind_plane", "BEHIND_PLANE")):
+                out[key] = [objects[i].name for i in np.flatnonzero(states == DRAW_STATES[state])]
+        self._records[region] = out
+        return out
+
+    def release(self) -> None:
+        for buf in (self.command_buffer, self.state_buffer, self.hidden_buffer, self.order_buffer):
+            if buf is not None:
+                buf.release()
+        self.cull_program.release()
