@@ -53,12 +53,13 @@ from tqdm import tqdm
 from glint.bench.report import json_safe, num, pyplot, save_figure, slug, write_csv, write_json, write_png
 from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
-from glint.core.constants import GB_DARK_BACK_FACE, GB_ID_BITS, MIRROR_PLANE_COS
+from glint.core.constants import MIRROR_PLANE_COS
 from glint.core.errors import GlintError
 from glint.services import number, parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 from glint.viewer.context import headless_context
 from glint.viewer.gl import describe
+from glint.viewer.passes.gbuffer import read_gbuffer
 from glint.viewer.renderer import Renderer
 from glint.viewer.skipping import bake_section, frame_section, markdown_table
 from glint.viewer.timing import PassTimer
@@ -218,13 +219,9 @@ def region_masks(renderer, bake) -> dict[str, np.ndarray]:
     cube map or on a planar reflector whose plane got a mirror pass this frame, where the surface
     faces that plane) and "material:NAME" for each such material. With supersampling a pixel
     belongs where most of its N x N samples do."""
-    targets = renderer.gbuffer.targets
-    w, h = targets["material"].size
-    ids = np.frombuffer(targets["material"].read(alignment=1), np.uint32).reshape(h, w)
-    depth = np.frombuffer(targets["depth"].read(alignment=1), np.float32).reshape(h, w)
-    normal = np.frombuffer(targets["normal"].read(alignment=1), np.float16).reshape(h, w, 4).astype(np.float32)
-    dark = normal[..., 3] > 0.5 * GB_DARK_BACK_FACE  # as shaders/gbuffer_read.glsl
-    material, obj = (ids & ((1 << GB_ID_BITS) - 1)).astype(np.int64), (ids >> GB_ID_BITS).astype(np.int64)
+    g = read_gbuffer(renderer.gbuffer.targets)
+    h, w = g["material"].shape
+    dark, material, obj, normal, drawn = g["dark"], g["material"], g["object"], g["normal"], g["drawn"]
     manifest = bake.manifest
     objects = manifest["objects"]
     lobed = np.array([bool(m.get("lobes")) for m in manifest["materials"]] + [False])
@@ -237,10 +234,9 @@ def region_masks(renderer, bake) -> dict[str, np.ndarray]:
         if o["name"] in mirrored and o.get("plane"):
             in_pass[i] = True
             plane_normal[i] = o["plane"]["normal"]
-    drawn = depth < 1.0
     material = np.where(drawn, np.minimum(material, len(lobed) - 1), len(lobed) - 1)
     obj = np.where(drawn, np.minimum(obj, len(cubed) - 1), len(cubed) - 1)
-    facing = np.einsum("hwc,hwc->hw", normal[..., :3], plane_normal[obj]) >= MIRROR_PLANE_COS
+    facing = np.einsum("hwc,hwc->hw", normal, plane_normal[obj]) >= MIRROR_PLANE_COS
     specular = drawn & lobed[material] & ~dark & (cubed[obj] | (in_pass[obj] & facing))
     k = renderer.supersample
     out_h, out_w = h // k, w // k

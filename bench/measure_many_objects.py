@@ -81,7 +81,7 @@ def measure(root: Path, n: int, kind: str, size, frames: int, warmup: int, ctx) 
             "triangles": stats["triangles"], "bake_seconds_this_run": round(time.perf_counter() - t0, 2),
             "bake_seconds": statistics.get("seconds"), "cube_maps": statistics.get("cubemaps"),
             **{k: timed[k] for k in ("passes_ms", "gpu_total_ms", "wall_ms_per_frame")},
-            "render_call_ms_median": stats["cpu_ms"]["median"], **profiled}
+            "render_call_ms_median": (stats.get("cpu_ms") or {}).get("median"), **profiled}
 
 
 def markdown(setup: dict, rows: list[dict]) -> str:

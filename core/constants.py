@@ -12,14 +12,15 @@ LOBE_TAN_MAX = 100.0  # Eq. 4.15 caps tan(alpha) here (alpha ~ 89.4 deg): wider 
 # A planar object's pixel reads its plane's mirror buffer where its normal is within 10 degrees of the
 # plane's (shaders/specular.glsl mirror_slot_at; bench/bench.py's region masks use the same test).
 MIRROR_PLANE_COS = 0.985
-# The G-buffer (shaders/gbuffer_layout.glsl; bench/bench.py's region masks read it back): the normal
-# target's w is GB_DARK_BACK_FACE on the back of a single-sided material (it sends the viewer no
-# light), else 0; the integer target holds the material index in its low GB_ID_BITS bits and the
-# object index above them.
-GB_DARK_BACK_FACE = 1.0
-# ... and GB_NORMAL_MAPPED where a normal map perturbed the normal: its pixels cannot tell by the
-# normal whether they lie in their planar object's plane, so mirror_slot_at asks their position to
-# lie within MIRROR_PLANE_DISTANCE x (the distance to the eye) of the plane instead.
-GB_NORMAL_MAPPED = -1.0
-MIRROR_PLANE_DISTANCE = 0.002
+# The G-buffer (shaders/gbuffer_layout.glsl; viewer/passes/gbuffer.py reads it back in numpy): the ids
+# hold the material index in their low GB_ID_BITS bits and the object index above them; the frame
+# target's flags word has GB_DARK_BIT set on the back of a single-sided material (it sends the viewer
+# no light), GB_BITANGENT_NEGATIVE_BIT for a bitangent sign of -1, and GB_NORMAL_MAPPED_BIT where a
+# normal map perturbed the normal: its pixels cannot tell by the normal whether they lie in their
+# planar object's plane, so mirror_slot_at asks their position to lie within
+# MIRROR_PLANE_DISTANCE x (the distance to the eye) of the plane instead.
 GB_ID_BITS = 16
+GB_DARK_BIT = 1 << 16
+GB_NORMAL_MAPPED_BIT = 1 << 17
+GB_BITANGENT_NEGATIVE_BIT = 1 << 18
+MIRROR_PLANE_DISTANCE = 0.002

@@ -4,12 +4,9 @@
 #include "camera.glsl"
 #include "gbuffer_layout.glsl"
 
-layout(binding = GB_DIFFUSE_UNIT) uniform sampler2D gb_diffuse;
-layout(binding = GB_NORMAL_UNIT) uniform sampler2D gb_normal;
-layout(binding = GB_TANGENT_UNIT) uniform sampler2D gb_tangent;
-layout(binding = GB_MATERIAL_UNIT) uniform usampler2D gb_material;
+layout(binding = GB_SHADE_UNIT) uniform usampler2D gb_shade;
+layout(binding = GB_FRAME_UNIT) uniform usampler2D gb_frame;
 layout(binding = GB_DEPTH_UNIT) uniform sampler2D gb_depth;
-layout(binding = GB_SURFACE_UNIT) uniform sampler2D gb_surface;
 
 // One visible surface point, as the shading pass and its per-pixel hooks see it.
 struct Surface {
@@ -24,7 +21,7 @@ struct Surface {
     int material;
     int object;          // index of the object in the bake manifest
     bool dark;           // back face of a single-sided material: sends no light to the viewer
-    vec2 mr;             // metallic-roughness texel: roughness multiplier g, metallic M' (GB_SURFACE)
+    vec2 mr;             // metallic-roughness texel: roughness multiplier g, metallic M' (GB_FRAME's w)
 };
 
 // True where nothing was drawn (the sky shows).
@@ -34,19 +31,18 @@ bool gbuffer_empty(ivec2 p) {
 
 Surface gbuffer_surface(ivec2 p, vec3 ray) {
     Surface s;
-    vec4 n = texelFetch(gb_normal, p, 0);
-    vec4 t = texelFetch(gb_tangent, p, 0);
-    s.normal = safe_normalize(n.xyz, -ray);
-    s.tangent = safe_normalize(t.xyz, vec3(0.0));
-    s.anisotropy = clamp(length(t.xyz), 0.0, 1.0);
-    s.normal_mapped = n.w < 0.5 * GB_NORMAL_MAPPED;
-    s.bitangent_sign = t.w < 0.0 ? -1.0 : 1.0;
-    s.dark = n.w > 0.5 * GB_DARK_BACK_FACE;
-    s.diffuse = texelFetch(gb_diffuse, p, 0).rgb;
-    s.mr = clamp(texelFetch(gb_surface, p, 0).rg, 0.0, 1.0);
-    uint ids = texelFetch(gb_material, p, 0).r;
-    s.material = gb_material_id(ids);
-    s.object = gb_object_id(ids);
+    uvec4 shade = texelFetch(gb_shade, p, 0);
+    uvec4 frame = texelFetch(gb_frame, p, 0);
+    s.normal = safe_normalize(gb_oct_decode(unpackSnorm2x16(frame.x)), -ray);
+    s.anisotropy = unpackUnorm2x16(frame.z & 0xFFFFu).x;
+    s.tangent = s.anisotropy > 0.0 ? gb_oct_decode(unpackSnorm2x16(frame.y)) : vec3(0.0);
+    s.normal_mapped = (frame.z & GB_NORMAL_MAPPED_BIT) != 0u;
+    s.bitangent_sign = (frame.z & GB_BITANGENT_NEGATIVE_BIT) != 0u ? -1.0 : 1.0;
+    s.dark = (frame.z & GB_DARK_BIT) != 0u;
+    s.diffuse = uintBitsToFloat(shade.xyz);
+    s.mr = unpackUnorm2x16(frame.w);
+    s.material = gb_material_id(shade.w);
+    s.object = gb_object_id(shade.w);
     // ray is a unit vector within the field of view, so dot(ray, cam_forward) > 0.
     float along = eye_depth(texelFetch(gb_depth, p, 0).r) / max(dot(ray, cam_forward), 1e-6);
     s.position = eye + ray * along;

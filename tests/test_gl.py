@@ -31,8 +31,7 @@ def test_buffer_bindings_are_distinct_and_shading_units_follow_the_fixed_ones():
     assert len(set(bindings.values())) == len(bindings)
     for classes in (0, 1, 3):
         units = gl_bindings.shading_units(classes)
-        fixed = [gl_bindings.GB_DIFFUSE_UNIT, gl_bindings.GB_NORMAL_UNIT, gl_bindings.GB_TANGENT_UNIT,
-                 gl_bindings.GB_MATERIAL_UNIT, gl_bindings.GB_DEPTH_UNIT, gl_bindings.GB_SURFACE_UNIT,
+        fixed = [gl_bindings.GB_SHADE_UNIT, gl_bindings.GB_FRAME_UNIT, gl_bindings.GB_DEPTH_UNIT,
                  gl_bindings.SKY_UNIT]
         c = max(classes, 1)
         taken = [*fixed, *range(units["CUBE_FIRST_UNIT"], units["CUBE_FIRST_UNIT"] + c),

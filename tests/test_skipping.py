@@ -25,6 +25,7 @@ from glint.core.bake_dir import Bake
 from glint.core.skipped import NO_LOBE, PLANAR, last_bake
 from glint.scenes.gltf_writer import GltfWriter
 from glint.viewer.camera import ViewCamera
+from glint.viewer.passes.gbuffer import read_gbuffer
 from glint.viewer.renderer import Renderer
 from glint.viewer.skipping import skipping_section
 
@@ -109,16 +110,14 @@ def test_specular_tiles_are_those_the_glossy_sphere_covers(ctx, tmp_path):
     with Renderer(ctx, b, supersample=1, mirror_budget=0) as r:
         r.render(camera, *size)
         stats = r.stats
-        gb = r.gbuffer.targets
-        ids = np.frombuffer(gb["material"].read(alignment=1), np.uint32).reshape(size[1], size[0])[::-1]
-        depth = np.frombuffer(gb["depth"].read(alignment=1), np.float32).reshape(size[1], size[0])[::-1]
+        gb = read_gbuffer(r.gbuffer.targets)
     s = skipping_section(stats, b.manifest)
     names = [o["name"] for o in b.manifest["objects"]]
     assert s["cube_maps"]["baked"] == 1 and b.manifest["objects"][names.index("Sphere")]["cubemap"]
     assert s["cube_maps"]["without_by_reason"][PLANAR]["names"] == ["Floor"]
     assert s["mirror"]["skipped"]["budget 0"]["count"] == 1 and s["mirror"]["passes_run"] == 0
     # The sphere's pixels from the G-buffer's object ids (image rows), not from the specular counters.
-    on_sphere = (depth < 1.0) & ((ids >> 16) == names.index("Sphere"))
+    on_sphere = (gb["drawn"] & (gb["object"] == names.index("Sphere")))[::-1]
     covered = tile_set(on_sphere)
     # ... and bounded by a ray cast of the true sphere: pixels inside the icosphere's inscribed
     # sphere must be in it, pixels outside its circumscribed sphere must not.

@@ -49,8 +49,10 @@ def glsl_constants() -> dict:
     """The constants every shader gets as defines: core/constants.py, the BSDF's numerical guards and
     the fixed texture units and buffer bindings (viewer/gl_bindings.py)."""
     return {"HALF_MAX": constants.HALF_MAX, "XI1_BORDER": constants.XI1_BORDER, "LOBE_TAN_MAX": constants.LOBE_TAN_MAX,
-            "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "GB_DARK_BACK_FACE": constants.GB_DARK_BACK_FACE,
-            "GB_NORMAL_MAPPED": constants.GB_NORMAL_MAPPED, "MIRROR_PLANE_DISTANCE": constants.MIRROR_PLANE_DISTANCE,
+            "MIRROR_PLANE_COS": constants.MIRROR_PLANE_COS, "GB_DARK_BIT": f"{constants.GB_DARK_BIT}u",
+            "GB_NORMAL_MAPPED_BIT": f"{constants.GB_NORMAL_MAPPED_BIT}u",
+            "GB_BITANGENT_NEGATIVE_BIT": f"{constants.GB_BITANGENT_NEGATIVE_BIT}u",
+            "MIRROR_PLANE_DISTANCE": constants.MIRROR_PLANE_DISTANCE,
             "GB_ID_BITS": constants.GB_ID_BITS, "M_MIN": bsdf.M_MIN, "HZ_MIN": bsdf.HZ_MIN,
             "DOT_MIN": bsdf.DOT_MIN, "COS_MIN": bsdf.COS_MIN, "HALF_MIN": bsdf.HALF_MIN, "XI_MIN": bsdf.XI_MIN,
             **gl_bindings.glsl_defines()}
@@ -143,5 +145,6 @@ def dispatch(program: moderngl.ComputeShader, width: int, height: int) -> None:
 def set_uniforms(program, **values) -> None:
     """Set uniforms by name; ones the compiler removed as unused are skipped."""
     for name, value in values.items():
-        if name in program:
-            program[name] = value
+        member = program.get(name, None)  # a dict look-up (`name in program` walks every member)
+        if member is not None:
+            member.value = value

@@ -9,20 +9,40 @@ single-sided materials, as in Mitsuba).
 from __future__ import annotations
 
 import moderngl
+import numpy as np
 
+from glint.core.constants import GB_DARK_BIT, GB_ID_BITS
 from glint.viewer.camera import ViewCamera
-from glint.viewer.gl_bindings import (
-    GB_DIFFUSE_LOCATION,
-    GB_MATERIAL_LOCATION,
-    GB_NORMAL_LOCATION,
-    GB_SURFACE_LOCATION,
-    GB_TANGENT_LOCATION,
-)
+from glint.viewer.gl_bindings import GB_FRAME_LOCATION, GB_SHADE_LOCATION
 from glint.viewer.shader_source import raster_program, set_uniforms
 
 # The colour targets by fragment-output location (gbuffer.frag, shaders/gbuffer_layout.glsl).
-COLOUR_TARGETS = {GB_DIFFUSE_LOCATION: "diffuse", GB_NORMAL_LOCATION: "normal", GB_TANGENT_LOCATION: "tangent",
-                  GB_MATERIAL_LOCATION: "material", GB_SURFACE_LOCATION: "surface"}
+COLOUR_TARGETS = {GB_SHADE_LOCATION: "shade", GB_FRAME_LOCATION: "frame"}
+
+
+def read_gbuffer(targets: dict) -> dict[str, np.ndarray]:
+    """The G-buffer read back (waits for the GPU), GL rows (row 0 at the bottom), decoded as
+    shaders/gbuffer_read.glsl decodes it: {"material", "object": (H, W) int64, "drawn": depth < 1,
+    "dark": back face of a single-sided material, "normal": (H, W, 3) the unit shading normal}."""
+    shade, frame = targets["shade"], targets["frame"]
+    w, h = shade.size
+    ids = np.frombuffer(shade.read(alignment=1), np.uint32).reshape(h, w, 4)[..., 3]
+    frame_words = np.frombuffer(frame.read(alignment=1), np.uint32).reshape(h, w, 4)
+    depth = np.frombuffer(targets["depth"].read(alignment=1), np.float32).reshape(h, w)
+    return {"material": (ids & ((1 << GB_ID_BITS) - 1)).astype(np.int64), "object": (ids >> GB_ID_BITS).astype(np.int64),
+            "drawn": depth < 1.0, "dark": (frame_words[..., 2] & GB_DARK_BIT) != 0,
+            "normal": oct_decode(frame_words[..., 0])}
+
+
+def oct_decode(words: np.ndarray) -> np.ndarray:
+    """numpy twin of gbuffer_layout.glsl's gb_oct_decode(unpackSnorm2x16(word)): (...,) uint32 ->
+    (..., 3) unit vectors."""
+    halves = np.stack([words & 0xFFFF, words >> 16], axis=-1).astype(np.uint16).view(np.int16)
+    p = np.clip(halves.astype(np.float64) / 32767.0, -1.0, 1.0)
+    n = np.concatenate([p, 1.0 - np.abs(p).sum(axis=-1, keepdims=True)], axis=-1)
+    folded = (1.0 - np.abs(p[..., ::-1])) * np.where(p >= 0.0, 1.0, -1.0)
+    n[..., :2] = np.where(n[..., 2:] < 0.0, folded, n[..., :2])
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
 
 
 class GBufferPass:
@@ -44,11 +64,8 @@ class GBufferPass:
             return
         self._release_targets()
         ctx = self.ctx
-        t = {"diffuse": ctx.texture(size, 4, dtype="f4"),
-             "normal": ctx.texture(size, 4, dtype="f2"),
-             "tangent": ctx.texture(size, 4, dtype="f2"),
-             "material": ctx.texture(size, 1, dtype="u4"),
-             "surface": ctx.texture(size, 2, dtype="f2"),
+        t = {"shade": ctx.texture(size, 4, dtype="u4"),
+             "frame": ctx.texture(size, 4, dtype="u4"),
              "depth": ctx.depth_texture(size)}
         for tex in t.values():
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # read with texelFetch; integer targets need it

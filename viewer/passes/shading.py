@@ -29,11 +29,8 @@ from glint.viewer.camera import ViewCamera
 from glint.viewer.gl import check_compute_texture_units
 from glint.viewer.gl_bindings import (
     GB_DEPTH_UNIT,
-    GB_DIFFUSE_UNIT,
-    GB_MATERIAL_UNIT,
-    GB_NORMAL_UNIT,
-    GB_SURFACE_UNIT,
-    GB_TANGENT_UNIT,
+    GB_FRAME_UNIT,
+    GB_SHADE_UNIT,
     MIRROR_PLANE_NORMAL_IMAGE,
     MIRROR_PLANE_POSITION_IMAGE,
     RADIANCE_IMAGE,
@@ -45,8 +42,7 @@ from glint.viewer.gl_bindings import (
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, dispatch, set_uniforms
 
 # shaders/gbuffer_read.glsl
-GBUFFER_UNITS = {"diffuse": GB_DIFFUSE_UNIT, "normal": GB_NORMAL_UNIT, "tangent": GB_TANGENT_UNIT,
-                 "material": GB_MATERIAL_UNIT, "depth": GB_DEPTH_UNIT, "surface": GB_SURFACE_UNIT}
+GBUFFER_UNITS = {"shade": GB_SHADE_UNIT, "frame": GB_FRAME_UNIT, "depth": GB_DEPTH_UNIT}
 SPECULAR_MODES = {"SPECULAR_PATTERNS": 0, "SPECULAR_QMC": 1, "SPECULAR_FILTERED_IS": 2, "SPECULAR_SPLIT_SUM": 3}
 WEIGHTS = ("eq4.25", "eq4.24")  # Eq. 4.25 (the thesis' choice) or Eq. 4.24 for the walkthrough estimate
 WORK_HEADER = 8  # uints before the tile list (shaders/specular.glsl SpecularWork)
