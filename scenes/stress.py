@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glint.scenes.generate import Mesh, box, checker_texture, quad, uv_sphere
+from glint.scenes.generate import Mesh, box, checker_texture, merge, quad, uv_sphere
 from glint.scenes.gltf_writer import GltfWriter
 
 GENERATOR = "glint scenes/stress.py"
@@ -51,6 +51,7 @@ FURNACE_SAMPLES = 256  # paths per texel: the light maps' noise (after denoising
 SCALES = {"scale-1mm": 1e-3, "scale-1m": 1.0, "scale-10km": 1e4}
 MANY_COUNTS = (10, 300, 1000, 3000, 10000)
 MANY_FLOOR = 4.0  # m: the square the boxes stand on, whatever their count
+MANY_TRIANGLES = 12_000  # all boxes together, at least 12 per box
 MANY_BLACK_FRACTION = 0.001  # of the pixels: a few at box edges, never a whole object
 
 # Per size: the parameters of each case (full: the scale the suite is meant to prove).
@@ -308,11 +309,28 @@ def big(out_dir, objects: int = 50, triangles: int = 200_000) -> StressScene:
     return StressScene("big", _write(w, out_dir, "big", side), LAMP_RADIANCE)
 
 
-def many_objects(out_dir, objects: int = 1000, metal_every: int | None = 3, name: str | None = None) -> StressScene:
+def subdivided(mesh: Mesh, k: int) -> Mesh:
+    """A box of `generate.box` (4 vertices per face) with each face cut into k x k quads."""
+    faces = []
+    t = np.linspace(0.0, 1.0, k + 1)
+    for f in range(len(mesh.positions) // 4):
+        p0, p1, _, p3 = mesh.positions[4 * f: 4 * f + 4]
+        grid = p0 + t[:, None, None] * (p1 - p0) + t[None, :, None] * (p3 - p0)  # (k+1, k+1, 3): [i along p1, j along p3]
+        ij = np.arange((k + 1) ** 2).reshape(k + 1, k + 1)
+        a, b, c, d = ij[:-1, :-1], ij[1:, :-1], ij[1:, 1:], ij[:-1, 1:]
+        tri = np.stack([np.stack([a, b, c], -1), np.stack([a, c, d], -1)], 2).reshape(-1, 3)
+        faces.append(Mesh(grid.reshape(-1, 3), np.tile(mesh.normals[4 * f], ((k + 1) ** 2, 1)), tri))
+    return merge(*faces)
+
+
+def many_objects(out_dir, objects: int = 1000, metal_every: int | None = 3, name: str | None = None,
+                 triangles: int = MANY_TRIANGLES) -> StressScene:
     """`objects` boxes on a grid over a MANY_FLOOR square, each its own node; box size shrinks with
-    the count so that they cover about the same part of the frame at any count (the frame's raster
-    work stays alike and the per-object costs show). Every `metal_every`-th box is rough metal
-    (None: all diffuse). Two meshes in the file, whatever the count: the nodes share them."""
+    the count so that they cover about the same part of the frame at any count, and each box's
+    faces are subdivided so that all boxes together have about `triangles` triangles (at least 12
+    per box): the frame's raster work stays alike and the per-object costs show. Every
+    `metal_every`-th box is rough metal (None: all diffuse). Two meshes in the file, whatever the
+    count: the nodes share them."""
     w = GltfWriter(GENERATOR)
     _room(w)
     side_n = math.ceil(math.sqrt(objects))
@@ -320,7 +338,9 @@ def many_objects(out_dir, objects: int = 1000, metal_every: int | None = 3, name
     s = 0.5 * pitch
     paint = w.add_material("Paint", base_color=(0.7, 0.35, 0.2), roughness=1.0)
     metal = w.add_material("Metal", base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.3)
-    meshes = {m: add_mesh(w, f"Box {k}", box((s, s, s), (0, s / 2, 0)), m) for k, m in enumerate((paint, metal))}
+    cuts = max(1, round(math.sqrt(triangles / (12 * objects))))
+    shape = subdivided(box((s, s, s), (0, s / 2, 0)), cuts)
+    meshes = {m: add_mesh(w, f"Box {k}", shape, m) for k, m in enumerate((paint, metal))}
     for k in range(objects):
         i, j = divmod(k, side_n)
         m = metal if metal_every and k % metal_every == metal_every - 1 else paint
