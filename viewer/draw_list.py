@@ -31,6 +31,7 @@ import moderngl
 import numpy as np
 
 from glint.viewer.camera import frustum_planes, gl_bytes
+from glint.viewer.gl import GL
 from glint.viewer.gl_bindings import (
     ANISOTROPY_TEXTURE_UNIT,
     DRAW_COMMAND_BINDING,
@@ -74,6 +75,7 @@ class DrawList:
     def __init__(self, ctx: moderngl.Context, scene, defines: dict | None = None):
         self.ctx = ctx
         self.scene = scene
+        self._gl = GL(ctx)
         self.count = len(scene.objects)
         self.cull_program = compute_program(ctx, "cull.comp", {**(defines or {}), **draw_defines()})
         self.triangles = np.array([o.triangles for o in scene.objects], np.int64)
@@ -95,9 +97,10 @@ class DrawList:
         for buf in (self.command_buffer, self.state_buffer, self.hidden_buffer):
             if buf is not None:
                 buf.release()
-        self.command_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
-        self.state_buffer = self.ctx.buffer(reserve=regions * n * 4)
-        self.hidden_buffer = self.ctx.buffer(np.zeros(regions * n, np.uint32).tobytes())
+        with self._gl.checked(f"allocate the draw commands of {regions} passes x {n} objects"):
+            self.command_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
+            self.state_buffer = self.ctx.buffer(reserve=regions * n * 4)
+            self.hidden_buffer = self.ctx.buffer(np.zeros(regions * n, np.uint32).tobytes())
         self._hidden = [frozenset()] * regions
         self.regions = regions
 

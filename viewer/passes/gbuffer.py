@@ -13,6 +13,7 @@ import numpy as np
 
 from glint.core.constants import GB_DARK_BIT, GB_ID_BITS
 from glint.viewer.camera import ViewCamera
+from glint.viewer.gl import GL
 from glint.viewer.gl_bindings import GB_FRAME_LOCATION, GB_SHADE_LOCATION
 from glint.viewer.shader_source import raster_program, set_uniforms
 
@@ -64,9 +65,10 @@ class GBufferPass:
             return
         self._release_targets()
         ctx = self.ctx
-        t = {"shade": ctx.texture(size, 4, dtype="u4"),
-             "frame": ctx.texture(size, 4, dtype="u4"),
-             "depth": ctx.depth_texture(size)}
+        with GL(ctx).checked(f"allocate the G-buffer of {size[0]} x {size[1]} pixels"):
+            t = {"shade": ctx.texture(size, 4, dtype="u4"),
+                 "frame": ctx.texture(size, 4, dtype="u4"),
+                 "depth": ctx.depth_texture(size)}
         for tex in t.values():
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # read with texelFetch; integer targets need it
             tex.repeat_x = tex.repeat_y = False
