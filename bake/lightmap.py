@@ -158,11 +158,15 @@ def texel_warnings(result: LightmapPages, scene: Scene) -> list[str]:
         if not of or count <= limit * of or by_object is None:
             continue
         worst = [k for k in np.argsort(-by_object, kind="stable")[:WARN_OBJECTS] if by_object[k]]
-        parts = [f"'{names[k]}' ({100 * by_object[k] / count:.0f} %{' of them' if i == 0 else ''})"
-                 for i, k in enumerate(worst)]
-        more = ", ..." if np.count_nonzero(by_object) > len(parts) else ""
-        out.append(f"{100 * count / of:.0f} % of light-map texels ({count} of {of}) {what} — "
-                   f"most in {', '.join(parts)}{more}")
+        more = ", ..." if np.count_nonzero(by_object) > len(worst) else ""
+        if worst and by_object[worst[0]] < 0.01 * count:  # spread thin: no object holds 1 % of them
+            where = (f"spread over {np.count_nonzero(by_object)} objects, at most {by_object[worst[0]]} in one: "
+                     + ", ".join(f"'{names[k]}'" for k in worst) + more)
+        else:
+            parts = [f"'{names[k]}' ({100 * by_object[k] / count:.0f} %{' of them' if i == 0 else ''})"
+                     for i, k in enumerate(worst)]
+            where = f"most in {', '.join(parts)}{more}"
+        out.append(f"{100 * count / of:.0f} % of light-map texels ({count} of {of}) {what} — {where}")
     return out
 
 

@@ -185,3 +185,23 @@ def _write_inward_room(path: Path) -> Path:
     w.add_node("Camera", camera=w.add_camera("Camera", 1.3), translation=(0, 1, 0.95))
     w.write(path)
     return path
+
+
+def test_texel_warning_of_texels_spread_over_many_objects():
+    """Unlit texels spread thinly over 500 objects (no object holds 1 % of them) are reported as
+    spread, with the largest count, not as 'most in X (0 % of them)'.
+
+    Deliberate bug this catches (tried): the spread branch left out: the line says
+    "most in 'o0' (0 % of them)"."""
+    from types import SimpleNamespace
+
+    from glint.bake.lightmap import LightmapPages, texel_warnings
+
+    n = 500
+    by_object = np.full(n, 25, np.int64)
+    result = LightmapPages([], [], texels=100_000, invalid=0, rays=0, back_irradiance=[], back_baked=[],
+                           unlit=int(by_object.sum()), unlit_by_object=by_object)
+    scene = SimpleNamespace(objects=[SimpleNamespace(name=f"o{k}") for k in range(n)])
+    (line,) = texel_warnings(result, scene)
+    assert line.startswith("12 % of light-map texels (12500 of 100000) are unlit")
+    assert "spread over 500 objects, at most 25 in one: 'o0', 'o1'" in line and "0 %" not in line
