@@ -98,7 +98,6 @@ from scipy.spatial import cKDTree
 
 from glint.bake import hashing
 from glint.bake.bounding_planes import (
-    ENCLOSE_MIN,
     ENCLOSE_RELATIVE,
     BoundingPlane,
     box_planes,
@@ -159,9 +158,10 @@ def automatic_size(obj: Object, material: Material) -> int:
 
 def clearance(lo: np.ndarray, hi: np.ndarray, planes: list[BoundingPlane], fallback: float) -> float:
     """Distance from the centre of the box lo..hi to the nearest of `planes` that the box does not
-    touch (within bounding_planes.py's enclosure slack); `fallback` where no plane is left."""
+    touch (within bounding_planes.py's relative enclosure slack: no absolute length, so that a
+    scene's plan does not depend on its scale); `fallback` where no plane is left."""
     centre, half = (lo + hi) / 2, (hi - lo) / 2
-    slack = max(ENCLOSE_MIN, ENCLOSE_RELATIVE * float(np.linalg.norm(hi - lo)))
+    slack = ENCLOSE_RELATIVE * float(np.linalg.norm(hi - lo))
     gaps = [float(np.dot(centre - p.point, p.normal)) for p in planes
             if float(np.dot(centre - p.point, p.normal)) - float(np.abs(p.normal) @ half) > slack]
     return min(gaps) if gaps else float(fallback)
