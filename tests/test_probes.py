@@ -102,7 +102,7 @@ def test_scaled_scene_plans_the_same_probes(tmp_path):
     """The rule is in ratios (radius over clearance, angles): the same boxes at 1 mm scale make
     the same clusters. Deliberate bug tried: bake/bounding_planes.py's absolute 1 cm enclosure
     slack in `clearance` (at 1 mm every box then 'touches' every wall, and the fallback clearance
-    makes 5 probes of 24 to 37 boxes where the 1 m room has 34)."""
+    makes 5 probes, the first of 24 boxes, where the 1 m room has 34)."""
     path = _scene(tmp_path, 300, 3)
     scene = load_scene(path)
     small = load_scene(path)
