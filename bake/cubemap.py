@@ -27,7 +27,7 @@ File: `cubemaps/<i>.exr` (i: the manifest index of the probe's first object), RG
 vertically in the GL order above, each S x S with its first row at t = 0 and first column at
 s = 0 (viewer/cubemaps.py reads it). RGB is radiance W/(m^2 sr); A is the distance in metres
 from the centre along the texel's direction to the visible surface (the mean over its 2 x 2
-supersamples), `SKY_DISTANCE` where only sky shows. Half float unless a value does not fit,
+supersamples; one sample on faces over SUPERSAMPLED_FACE_MAX), `SKY_DISTANCE` where only sky shows. Half float unless a value does not fit,
 then float32 (glint.core.image_io); never Inf.
 
 Face size S (`automatic_size`), a power of two in `AUTO_SIZE_RANGE`, the smaller of two needs:
@@ -118,7 +118,11 @@ FACES = (("+x", (1, 0, 0), (0, -1, 0)), ("-x", (-1, 0, 0), (0, -1, 0)),
 AUTO_SIZE_RANGE = (32, 512)
 TEXELS_PER_LOBE_RADIUS = 4
 FACE_TEXELS_PER_METRE = 400.0
-SUPERSAMPLE = 2  # per axis: a texel is the mean of 2 x 2 samples
+SUPERSAMPLE = 2  # per axis: a texel is the mean of 2 x 2 samples ...
+# ... on faces up to this size; larger faces take one sample per texel: their texels (under 0.18
+# degrees at 512) are finer than any lobe but a near-mirror's, whose look-ups read them through the
+# MIP chain anyway, and 2 x 2 samples would make a 512 face a 1024^2 render, 4x the pixel work.
+SUPERSAMPLED_FACE_MAX = 256
 # Clip planes of the faces, from the distance `far` to the scene's farthest corner (so a 1 mm and
 # a 10 km scene get the same picture): zfar = FAR_MARGIN x far, znear = NEAR_PER_FAR x far.
 # 24-bit depth then resolves d^2 / (znear 2^24), 6e-4 of far at far; 1 mm at 6 m on a room
@@ -129,6 +133,11 @@ SKY_DISTANCE = HALF_MAX  # alpha where only sky shows: far but finite
 PROBE_RADIUS_MAX = 0.25  # a shared probe's radius per clearance, however wide the lobes (docstring)
 BUDGET_MERGE_STEPS = 8  # doublings of the sharing factor tried to bring the probes within the budget
 MIB_PER_TEXEL = 8 * 4 / 3 / 2 ** 20  # RGBA16F (8 bytes) with its MIP chain (a third more), viewer/cubemaps.py
+
+
+def supersample(size: int) -> int:
+    """Samples per texel side when rendering a face of `size` texels (SUPERSAMPLED_FACE_MAX)."""
+    return SUPERSAMPLE if size <= SUPERSAMPLED_FACE_MAX else 1
 
 
 def narrowest_lobe(material: Material) -> float | None:
@@ -313,7 +322,7 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
         p.hash = hashing.cubemap_hash(transport, {
             "object": [p.index, p.name], "size": p.size, "centre": p.centre,
             "hidden": [[k, scene.objects[k].name] for k in p.hidden],
-            "render": {"supersample": SUPERSAMPLE, "near_per_far": NEAR_PER_FAR, "far_margin": FAR_MARGIN,
+            "render": {"supersample": supersample(p.size), "near_per_far": NEAR_PER_FAR, "far_margin": FAR_MARGIN,
                        "sky_distance": SKY_DISTANCE}})
     return plans
 

@@ -13,7 +13,7 @@ a pixel-pack buffer, which queues the copy and returns), for all six faces of as
 then made from it. The distance of a texel (`face_distances`) is the eye-space depth of the
 face's pixel (the inverse of the perspective depth mapping of camera.glsl) times the length of its
 ray per unit of depth, hypot(1, x, y) at the face's 90-degree field of view, averaged over the
-SUPERSAMPLE x SUPERSAMPLE pixels of the texel that hit something.
+pixels of the texel (bake/cubemap.py `supersample` per side) that hit something.
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from glint.bake.cubemap import FACES, FAR_MARGIN, NEAR_PER_FAR, SKY_DISTANCE, SUPERSAMPLE, CubeMapPlan
+from glint.bake.cubemap import FACES, FAR_MARGIN, NEAR_PER_FAR, SKY_DISTANCE, SUPERSAMPLE, CubeMapPlan, supersample
 from glint.core.bake_dir import Bake
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera
@@ -44,7 +44,7 @@ def diffuse_view(manifest: dict) -> dict:
 
 def face_bytes(size: int) -> tuple[int, int]:
     """Bytes of one face's resolved radiance (RGBA32F, size^2) and depth (float32, supersampled)."""
-    return 16 * size ** 2, 4 * (SUPERSAMPLE * size) ** 2
+    return 16 * size ** 2, 4 * (supersample(size) * size) ** 2
 
 
 def batches(plans: list[CubeMapPlan], limit: int = BATCH_MIB * 2 ** 20) -> list[list[CubeMapPlan]]:
@@ -79,6 +79,7 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
                     pack.orphan(need)
                 offset = 0
                 for plan in group:
+                    renderer.supersample = supersample(plan.size)
                     offset = queue_faces(renderer, pack, offset, plan.centre, plan.size, plan.hidden,
                                          far=farthest(lo, hi, plan.centre))
                 data = pack.read(size=need)  # one wait for the whole batch
@@ -133,7 +134,7 @@ def unpack_faces(data: bytes, offset: int, size: int, *, far: float) -> tuple[np
     `offset`, row 0 at t = 0 (GL order); and the offset after them."""
     colour, depth = face_bytes(size)
     faces = np.zeros((6, size, size, 4), np.float32)
-    n = SUPERSAMPLE * size
+    n = supersample(size) * size
     for k in range(6):
         faces[k, ..., :3] = np.frombuffer(data, np.float32, size * size * 4, offset).reshape(size, size, 4)[..., :3]
         d = np.frombuffer(data, np.float32, n * n, offset + colour).reshape(n, n)
@@ -144,7 +145,7 @@ def unpack_faces(data: bytes, offset: int, size: int, *, far: float) -> tuple[np
 
 def face_distances(depth: np.ndarray, znear: float, zfar: float, size: int) -> np.ndarray:
     """(size, size) distances from the centre (module docstring) of a face's (n, n) window-space
-    depths, n = SUPERSAMPLE x size, rows from t = 0; SKY_DISTANCE where no pixel hit."""
+    depths, n = supersample(size) x size, rows from t = 0; SKY_DISTANCE where no pixel hit."""
     n = depth.shape[0]
     z = 2.0 * znear * zfar / np.maximum(zfar + znear - (2.0 * depth.astype(np.float64) - 1.0) * (zfar - znear), 1e-30)
     s = (np.arange(n) + 0.5) / n * 2.0 - 1.0  # tan of the angle off the face's axis, per pixel
