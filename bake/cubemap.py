@@ -69,7 +69,9 @@ for wide lobes: it keeps a cluster in the inner half of its enclosure, where one
 sees the room much as each member does. An object whose own radius is over its limit cannot
 share: large curved objects keep their own probe. A probe's face size is the largest of its
 members' (`automatic_size`). What a shared probe gets wrong: its members do not see each other,
-and nearby objects are seen from the cluster's centre.
+and nearby objects are seen from the cluster's centre; an object of the cluster's size or smaller
+whose box holds that centre is left out of the probe too (`enclosing`: its inside would fill the
+view).
 
 The budget ([bake] `cubemap_budget` probes and `cubemap_budget_mib` MiB, counted as RGBA16F with
 the MIP chain): with more probes planned, the sharing factor is doubled (at most
@@ -174,6 +176,17 @@ def clearance(lo: np.ndarray, hi: np.ndarray, planes: list[BoundingPlane], fallb
     gaps = [float(np.dot(centre - p.point, p.normal)) for p in planes
             if float(np.dot(centre - p.point, p.normal)) - float(np.abs(p.normal) @ half) > slack]
     return min(gaps) if gaps else float(fallback)
+
+
+def enclosing(bounds: np.ndarray, centre: np.ndarray, diagonal: float) -> list[int]:
+    """Objects (bounds (n, 2, 3)) whose box holds `centre` and is no larger than `diagonal` (a
+    shared probe's cluster box): a shared probe's centre may fall inside an object standing among
+    its members, whose inside would fill the probe's whole view (black back faces); such objects
+    are left out of the probe too. Larger ones (the room around it) are seen from inside as they
+    should be."""
+    inside = np.all((bounds[:, 0] <= centre) & (centre <= bounds[:, 1]), axis=1)
+    small = np.linalg.norm(bounds[:, 1] - bounds[:, 0], axis=1) <= diagonal
+    return [int(k) for k in np.flatnonzero(inside & small)]
 
 
 def box_walls(lo: np.ndarray, hi: np.ndarray) -> list[BoundingPlane]:
@@ -294,17 +307,18 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
         boxes, limits = np.zeros((0, 2, 3)), np.zeros(0)
 
     def plan(members: list[int], sizes: list[int], planes_of, fixed: bool) -> CubeMapPlan:
-        first = scene.objects[members[0]]
+        first, around = scene.objects[members[0]], []
         if len(members) == 1:
             centre, planes = first.bounds.mean(axis=0), planes_of[0]
         else:  # the cluster's box: its centre, and its own bounding planes
             box = np.array([scene.objects[k].bounds for k in members])
             lo, hi = box[:, 0].min(axis=0), box[:, 1].max(axis=0)
-            surfaces_ = candidate_surfaces(scene) if surfaces is None else surfaces
-            centre, planes = (lo + hi) / 2, box_planes(lo, hi, surfaces_)
-        return CubeMapPlan(members[0], first.name, max(sizes), centre, tuple(sorted({*members, *glass})), planes,
-                           members=tuple(members), fixed_size=fixed)
+            centre, planes = (lo + hi) / 2, box_planes(lo, hi, candidate_surfaces(scene) if surfaces is None else surfaces)
+            around = enclosing(all_bounds, centre, float(np.linalg.norm(hi - lo)))
+        return CubeMapPlan(members[0], first.name, max(sizes), centre, tuple(sorted({*members, *glass, *around})),
+                           planes, members=tuple(members), fixed_size=fixed)
 
+    all_bounds = np.array([o.bounds for o in scene.objects]) if shared else None
     owns = [plan([i], [size], [planes], True) for i, size, planes in own]
     sharing, steps = max(float(rules.sharing), 0.0), 0
     while True:
