@@ -213,3 +213,47 @@ def test_shared_probes_match_own_maps(tmp_path, ctx):
     assert ((ratio > 1 / 1.2) & (ratio < 1.2)).mean() >= 0.995
     assert abs(a.mean() / b.mean() - 1) < 0.01
     assert np.abs(a - b).sum() / b.sum() < 0.02
+
+
+def test_classes_over_the_texture_units_are_resampled_with_one_warning(tmp_path, monkeypatch, capsys):
+    """With the compute texture units lowered so that the shading programs bind one cube-map array
+    (viewer/cubemaps.py gl_limits), probes of faces 4 and 8 go into one class of 4: the size-8
+    probes are box-filtered, one warning says so, and every object still reads its own probe's
+    colour (constant per probe, so the filter keeps it exactly); two objects sharing one file
+    read it from one layer. Deliberate bug tried: the size-8 faces fitted but not resampled
+    (CubeMaps keeping the files' faces): the class of 4 cannot be stacked (ValueError)."""
+    from types import SimpleNamespace
+
+    from test_specular import cube_file
+
+    from glint.bench import glsl_eval
+    from glint.core.image_io import write_image
+    from glint.viewer.cubemaps import CubeMaps, gl_limits
+    from glint.viewer.gl_bindings import shading_units
+
+    ctx = glsl_eval.context()
+    monkeypatch.setitem(ctx.info, "GL_MAX_COMPUTE_TEXTURE_IMAGE_UNITS", shading_units(1)["SPLIT_SUM_LUT_UNIT"] + 1)
+    assert gl_limits(ctx)["max_classes"] == 1
+    (tmp_path / "cubemaps").mkdir()
+    colours = np.array([[0.1, 0.2, 0.3], [1.0, 0.5, 0.0], [0.0, 0.7, 0.2]])
+    objects = []
+    for i, (c, size) in enumerate(zip(colours, (4, 8, 8))):
+        write_image(tmp_path / f"cubemaps/{i}.exr", cube_file(lambda d, c=c: np.broadcast_to(c, d.shape), size),
+                    channels=("R", "G", "B", "A"))
+    for i, probe in enumerate((0, 1, 2, 2)):  # objects 2 and 3 share probe 2
+        objects.append({"name": f"o{i}", "bounds": [[0, 0, 0], [1, 1, 1]],
+                        "cubemap": {"file": f"cubemaps/{probe}.exr", "size": 4, "centre": [0, 0, 0]}})
+    capsys.readouterr()
+    cubes = CubeMaps(ctx, SimpleNamespace(path=tmp_path, manifest={"objects": objects}))
+    try:
+        assert [(c.size, len(c.probes)) for c in cubes.classes] == [(4, 3)] and cubes.count == 3
+        assert capsys.readouterr().err.count("glint: warning: cube maps: 2 of 3 probes resampled") == 1
+        cubes.bind_buffers()
+        cubes.bind(None, 8)
+        d = np.tile([[0.3, 0.5, 0.81]], (4, 1))
+        k = np.repeat(np.arange(4, dtype=np.float64)[:, None], 3, axis=1)
+        out = glsl_eval.evaluate("cubemaps.glsl", "L = cube_radiance(cube_objects[int(k.x)], d, 0.0);",
+                                 {"d": d, "k": k}, {"L": 3}, defines=cubes.defines(8))
+    finally:
+        cubes.release()
+    np.testing.assert_allclose(out["L"], colours[[0, 1, 2, 2]], atol=2e-3)
