@@ -86,7 +86,12 @@ def candidate_surfaces(scene: Scene) -> list[Surface]:
 
 def choose_planes(obj: Object, surfaces: list[Surface]) -> list[BoundingPlane]:
     """The automatic bounding planes of `obj` (see the module docstring), nearest first."""
-    lo, hi = obj.bounds
+    return box_planes(*obj.bounds, surfaces)
+
+
+def box_planes(lo: np.ndarray, hi: np.ndarray, surfaces: list[Surface]) -> list[BoundingPlane]:
+    """The automatic bounding planes of the box lo..hi (an object's, or a shared probe's cluster of
+    objects, bake/cubemap.py), nearest first."""
     centre = (lo + hi) / 2
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
     slack = max(ENCLOSE_MIN, ENCLOSE_RELATIVE * float(np.linalg.norm(hi - lo)))

@@ -3,7 +3,8 @@
 Stages and what invalidates them (bake/hashing.py):
     unwrap + texels   geometry, texel density, padding
     light maps        the above + transport (kd, lobes, emission, glass, lights, sky, samples)
-    cube maps         one hash each: the light maps + its object, face size, centre, hidden objects
+    cube maps         one hash per probe: the light maps + its first object, face size, centre,
+                      hidden objects (bake/cubemap.py; probe settings shape the plan, not a hash)
     manifest          everything else (roles, cameras, bounding planes): rewritten
 """
 from __future__ import annotations
@@ -18,9 +19,9 @@ import numpy as np
 from tqdm import tqdm
 
 from glint.bake import hashing
-from glint.bake.cubemap import CubeMapPlan, plan_cubemaps
+from glint.bake.cubemap import CubeMapPlan, ProbeRules, budget_statistics, plan_cubemaps
 from glint.bake.lightmap import bake_lightmaps, two_sided_objects, warn_texels
-from glint.bake.settings import BakeSettings
+from glint.bake.settings import PROBE_SETTINGS, BakeSettings
 from glint.bake.texels import rasterize_texels
 from glint.bake.unwrap import Atlas, ObjectCharts, unwrap
 from glint.core.bake_dir import FORMAT_VERSION, BakeDirWriter, load_meshes, read_manifest, save_meshes, write_json
@@ -47,13 +48,19 @@ class BakeReport:
             return f"{self.bake_dir}: light maps up to date; manifest updated (materials, roles or cameras)"
         cm = stats.get("cubemaps", {})
         cubes = (f"{cm['rendered']} of {cm['count']} cube maps in {cm['seconds']:.1f} s"
-                 if cm.get("rendered") else "")
+                 + (f" ({probe_line(cm)})" if "probes" in cm else "") if cm.get("rendered") else "")
         if self.status == "cubemaps":
             return f"{self.bake_dir}: light maps up to date; rendered {cubes}"
         lm = stats["lightmaps"]
         return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels, "
                 f"{lm['rays'] / 1e6:.1f} M rays in {lm['seconds']:.1f} s "
                 f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)" + (f"; {cubes}" if cubes else ""))
+
+
+def probe_line(cm: dict) -> str:
+    """"3 probes for 333 objects, 1.7 MiB, faces 32: 2, 64: 1" from the cube-map statistics."""
+    sizes = ", ".join(f"{size}: {n}" for size, n in cm.get("face_sizes", {}).items())
+    return f"{cm['probes']} probes for {cm['objects']} objects, {cm['mib']:.1f} MiB, faces {sizes}"
 
 
 def source_hash(scene: Scene) -> str:
@@ -71,7 +78,7 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
         return [float(x) for x in np.asarray(v).ravel()]
 
     objects = []
-    cubes = {plan.index: plan.manifest_entry() for plan in cubemaps}
+    cubes = {k: plan.manifest_entry() for plan in cubemaps for k in plan.members}
     two = two_sided_objects(scene)
     for i, obj in enumerate(scene.objects):
         entry = {"name": obj.name, "material": obj.material, "role": obj.role,
@@ -106,6 +113,13 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
     paths = [{"name": p.name, "keys": p.keys} for p in scene.camera_paths]
     return {"objects": objects, "materials": materials, "lights": lights, "sky": sky,
             "cameras": cameras, "camera_paths": paths}
+
+
+def _probe_settings(settings: BakeSettings) -> dict:
+    """The probe settings that differ from the defaults (so that a later command reusing this bake
+    keeps them, glint.services), nothing otherwise: other bakes' manifests stay as they were."""
+    default = BakeSettings()
+    return {k: getattr(settings, k) for k in PROBE_SETTINGS if getattr(settings, k) != getattr(default, k)}
 
 
 def _emission_entry(m, i: int) -> dict:
@@ -184,13 +198,14 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     old = None if force else read_manifest(bake_dir)
     geometry = hashing.geometry_hash(scene, settings)
     transport = hashing.transport_hash(scene, settings, geometry)
-    cubemaps = plan_cubemaps(scene, transport)
+    rules = ProbeRules.of(settings)
+    cubemaps = plan_cubemaps(scene, transport, rules)
     description = describe(scene, cubemaps)
     manifest = {
         "format": "glint-bake", "version": FORMAT_VERSION,
         "scene": {"name": scene.name, "source": str(scene.source) if scene.source else None,
                   "hash": source_hash(scene)},
-        "settings": {**settings.transport_dict(), "quality": settings.quality},
+        "settings": {**settings.transport_dict(), "quality": settings.quality, **_probe_settings(settings)},
         "stages": {"geometry": geometry, "lightmaps": transport,
                    "cubemaps": {str(plan.index): plan.hash for plan in cubemaps}},
         **description,
@@ -220,8 +235,8 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
             manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
                                                           bake_dir if reuse_geometry else None))
             status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
-        manifest["statistics"]["cubemaps"] = _cubemaps(cubemaps, old, bake_dir, out, manifest, progress,
-                                                      render_cubemaps)
+        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, bake_dir, out, manifest, progress,
+                                                         render_cubemaps), **budget_statistics(cubemaps, rules)}
         if manifest["statistics"]["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status
             redone.append("cube maps")

@@ -8,6 +8,7 @@ from glint.core.errors import GlintError
 
 # samples: hemisphere paths per texel; texels_per_metre: light-map resolution.
 # Measured times per preset are in docs/BAKE.md.
+PROBE_SETTINGS = ("probe_sharing", "cubemap_budget", "cubemap_budget_mib")
 PRESETS = {
     "draft": {"samples": 32, "texels_per_metre": 8.0},
     "preview": {"samples": 128, "texels_per_metre": 16.0},
@@ -27,15 +28,20 @@ class BakeSettings:
     backface_threshold: float = 0.2  # texels seeing more back faces than this are invalid (inside walls)
     seed: int = 0
     jobs: int = 0  # 0 = one per core
+    # The cube-map probes (bake/cubemap.py "Probes"): sharing factor (0: one probe per object) and budget.
+    probe_sharing: float = 1.0
+    cubemap_budget: int = 2048  # probes
+    cubemap_budget_mib: float = 512.0
 
     @property
     def workers(self) -> int:
         return self.jobs if self.jobs > 0 else (os.cpu_count() or 1)
 
     def transport_dict(self) -> dict:
-        """The settings the light maps depend on (jobs does not change a result)."""
+        """The settings the light maps depend on (jobs does not change a result; the probes'
+        settings change only the cube-map plans, whose hashes hold what they decide)."""
         d = asdict(self)
-        for k in ("jobs", "quality"):
+        for k in ("jobs", "quality", *PROBE_SETTINGS):
             d.pop(k)
         return d
 
@@ -71,6 +77,11 @@ def resolve_settings(sidecar: dict | None = None, **cli) -> BakeSettings:
         raise GlintError(f"samples must be at least 1 (got {settings.samples})")
     if not settings.texels_per_metre > 0:
         raise GlintError(f"texels per metre must be positive (got {settings.texels_per_metre})")
+    if not settings.probe_sharing >= 0:
+        raise GlintError(f"probe_sharing must be 0 (a probe per object) or more (got {settings.probe_sharing})")
+    if settings.cubemap_budget < 1 or not settings.cubemap_budget_mib > 0:
+        raise GlintError(f"cubemap_budget and cubemap_budget_mib must be positive (got {settings.cubemap_budget}, "
+                         f"{settings.cubemap_budget_mib})")
     if settings.jobs < 0:
         raise GlintError(f"jobs must be 0 (all cores) or more (got {settings.jobs})")
     return settings

@@ -5,6 +5,10 @@ All tables are optional:
     [bake]                        # passed through as Scene.bake_settings
     quality = "preview"           # draft | preview | final
     texels_per_metre = 24
+    probe_sharing = 1.0           # cube maps shared by small curved objects close together
+                                  # (bake/cubemap.py "Probes"); 0: one per object
+    cubemap_budget = 2048         # at most this many cube maps ...
+    cubemap_budget_mib = 512      # ... and MiB of them: more sharing, then smaller faces
     diffuse_roughness = 0.5       # glTF dielectrics at least this rough get no lobe
                                   # (see bake/material_mapping.py); > 1 disables the rule
     [lights]
@@ -22,6 +26,8 @@ All tables are optional:
     cubemap_size = 256            # face size, a power of two (default: bake/cubemap.py's rule)
     bounding_planes = false       # none; or true (automatic, bake/bounding_planes.py), or a list:
                                   # [ { point = [0, 0, 0], normal = [0, 1, 0] }, ... ]
+    shared_probe = false          # its own cube map, never one shared with objects nearby
+                                  # (a cubemap_size or bounding_planes false / list imply it)
     [cameras.default]             # extra cameras, after the glTF's own
     eye = [0, 1.6, 3]
     target = [0, 1, 0]
@@ -35,7 +41,7 @@ Wrong types and unknown values are errors naming the file and key; unknown
 keys are warnings (a typo should not silently do nothing, nor stop the work).
 
 The per-object cube-map settings reach the bake as `Object.options`
-({"cubemap_size": int, "bounding_planes": bool | [{point, normal}]}, empty when the sidecar
+({"cubemap_size": int, "bounding_planes": bool | [{point, normal}], "shared_probe": bool}, empty when the sidecar
 gives none); bake/gltf_loader.py resolves the names.
 """
 from __future__ import annotations
@@ -71,7 +77,7 @@ BAKE_KEYS = tuple(f.name for f in fields(BakeSettings)) + ("diffuse_roughness",)
 QUALITIES = ("draft", "preview", "final")
 UNITS = ("photometric", "radiometric")
 DEFAULT_YFOV_DEG = 50.0
-OBJECT_KEYS = ("role", "cubemap_size", "bounding_planes")
+OBJECT_KEYS = ("role", "cubemap_size", "bounding_planes", "shared_probe")
 CUBEMAP_SIZE_RANGE = (4, 4096)  # an explicit cube-map face size: a power of two in this range
 
 
@@ -174,8 +180,9 @@ def parse_sidecar(data: dict, path: Path) -> Sidecar:
 
 
 def _cubemap_options(table: dict, name: str, obj_name: str, w: list[str]) -> dict:
-    """`cubemap_size` (a power of two) and `bounding_planes` (true, false or a list of
-    {point, normal} with a non-zero normal, made unit length) of an [objects."NAME"] table."""
+    """`cubemap_size` (a power of two), `bounding_planes` (true, false or a list of
+    {point, normal} with a non-zero normal, made unit length) and `shared_probe` (true or false)
+    of an [objects."NAME"] table."""
     where = f"{name}: [objects.\"{obj_name}\"]"
     options = {}
     if "cubemap_size" in table:
@@ -185,6 +192,10 @@ def _cubemap_options(table: dict, name: str, obj_name: str, w: list[str]) -> dic
             raise GlintError(f"{where} cubemap_size must be a power of two from {lo} to {hi}, "
                              f"not {size!r}")
         options["cubemap_size"] = size
+    if "shared_probe" in table:
+        if not isinstance(table["shared_probe"], bool):
+            raise GlintError(f"{where} shared_probe must be true or false, not {table['shared_probe']!r}")
+        options["shared_probe"] = table["shared_probe"]
     if "bounding_planes" in table:
         planes = table["bounding_planes"]
         if isinstance(planes, bool):

@@ -137,7 +137,7 @@ def allocated_bytes(root) -> int:
             count = int(np.prod(dims)) * obj.components * texel.get(obj.dtype, 4)
             total += count  # (MIP levels of the few mipmapped ones not counted)
         elif isinstance(obj, CubeClass):
-            base = 6 * obj.size ** 2 * len(obj.objects) * 4 * (2 if obj.dtype == "f2" else 4)
+            base = 6 * obj.size ** 2 * len(obj.probes) * 4 * (2 if obj.dtype == "f2" else 4)
             total += base * 4 // 3  # with the MIP chain
         elif isinstance(obj, dict):
             stack.extend(obj.values())

@@ -30,15 +30,17 @@
                            (linear), for materials whose manifest entry has `alpha_mode` MASK or
                            BLEND (with `alpha_cutoff` and `alpha` = baseColorFactor[3]; entries
                            without `alpha_mode` are OPAQUE: older bake dirs stay readable)
-    cubemaps/<i>.exr       cube map of object i, only for curved and transmissive objects
-                           (bake/cubemap.py): RGBA, S wide and 6 S high, the faces +X, -X, +Y,
+    cubemaps/<i>.exr       a cube-map probe, i the index of the first object it serves (curved
+                           and transmissive objects only; one probe may serve several objects
+                           close together, bake/cubemap.py): RGBA, S wide and 6 S high, the faces +X, -X, +Y,
                            -Y, +Z, -Z stacked top to bottom, each with its first row at GL's
                            t = 0 and first column at s = 0 (glTexImage2D's order); RGB radiance,
                            A the distance in metres from the centre to the visible surface
-                           (65504 for sky); half float unless a value does not fit. The object's
+                           (65504 for sky); half float unless a value does not fit. Each object's
                            manifest entry says `cubemap: {file, size, centre, bounding_planes:
-                           [{point, normal, object}]}`, or null; `stages.cubemaps` has each
-                           one's input hash by object index
+                           [{point, normal, object}]}` of its probe (plus `shared_by`, the number
+                           of objects, where more than one), or null; `stages.cubemaps` has each
+                           probe's input hash by i
 
 A bake is written into a temporary sibling directory and renamed into place, so an
 interrupted bake never leaves a half-written result (`BakeDirWriter`).

@@ -159,7 +159,7 @@ class Object:
     tangents: np.ndarray | None = None
     role: str = "diffuse"
     role_overridden: bool = False
-    options: dict = field(default_factory=dict)  # sidecar [objects."NAME"]: cubemap_size, bounding_planes
+    options: dict = field(default_factory=dict)  # sidecar [objects."NAME"]: cubemap_size, bounding_planes, shared_probe
 
     @property
     def triangle_areas(self) -> np.ndarray:

@@ -1,10 +1,19 @@
-"""The bake's one GPU stage: render the cube maps that glint.bake.cubemap planned.
+"""The bake's one GPU stage: render the cube-map probes that glint.bake.cubemap planned.
 
 Reads the bake directory written so far (manifest, meshes, light maps) and writes
-`cubemaps/<object index>.exr` (format in bake/cubemap.py's docstring). It sits above
+`cubemaps/<i>.exr` per probe (format in bake/cubemap.py's docstring). It sits above
 both the bake and the viewer because it needs the bake's plans and the viewer's renderer: the
 bake's pipeline is handed `render_cubemaps` (glint.services.bake_scene does that), so the bake never
 imports the renderer.
+
+Batches: reading a frame back right after rendering it makes the CPU wait for the GPU, face after
+face. Instead every face's radiance and depth are packed into one GPU buffer (`Texture.read_into`
+a pixel-pack buffer, which queues the copy and returns), for all six faces of as many probes as
+`BATCH_MIB` holds, and the buffer is read once per batch; radiance, distances and the files are
+then made from it. The distance of a texel (`face_distances`) is the eye-space depth of the
+face's pixel (the inverse of the perspective depth mapping of camera.glsl) times the length of its
+ray per unit of depth, hypot(1, x, y) at the face's 90-degree field of view, averaged over the
+pixels of the texel (bake/cubemap.py `supersample` per side) that hit something.
 """
 from __future__ import annotations
 
@@ -15,13 +24,15 @@ from typing import Callable
 
 import numpy as np
 
-from glint.bake.cubemap import FACES, FAR_MARGIN, NEAR_PER_FAR, SKY_DISTANCE, SUPERSAMPLE, CubeMapPlan
+from glint.bake.cubemap import FACES, FAR_MARGIN, NEAR_PER_FAR, SKY_DISTANCE, SUPERSAMPLE, CubeMapPlan, supersample
 from glint.core.bake_dir import Bake
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera
 from glint.viewer.context import headless_context
 from glint.viewer.gl import describe
 from glint.viewer.renderer import Renderer
+
+BATCH_MIB = 64  # GPU pack buffer per batch: all six faces of at least one probe, however large
 
 
 def diffuse_view(manifest: dict) -> dict:
@@ -31,42 +42,118 @@ def diffuse_view(manifest: dict) -> dict:
             "objects": [{**o, "cubemap": None} for o in manifest["objects"]]}
 
 
+def face_bytes(size: int) -> tuple[int, int]:
+    """Bytes of one face's resolved radiance (RGBA32F, size^2) and depth (float32, supersampled)."""
+    return 16 * size ** 2, 4 * (supersample(size) * size) ** 2
+
+
+def batches(plans: list[CubeMapPlan], limit: int = BATCH_MIB * 2 ** 20) -> list[list[CubeMapPlan]]:
+    """Consecutive plans in groups whose six faces fit in `limit` bytes (a larger probe alone)."""
+    out, current, used = [], [], 0
+    for plan in plans:
+        need = 6 * sum(face_bytes(plan.size))
+        if current and used + need > limit:
+            out.append(current)
+            current, used = [], 0
+        current.append(plan)
+        used += need
+    return out + [current] if current else out
+
+
 def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
                     progress: Callable[[], None] | None = None) -> dict:
     """Render `plans` from the bake in `bake_dir` (manifest, meshes and light maps written) into
-    its cubemaps/ folder; returns statistics (seconds, device)."""
+    its cubemaps/ folder, batch by batch; returns statistics (seconds, batches, device)."""
     t0 = time.perf_counter()
     bake = Bake(bake_dir)
     bake.manifest = diffuse_view(bake.manifest)
     ctx = headless_context()
+    groups = batches(plans)
     try:
         with Renderer(ctx, bake, supersample=SUPERSAMPLE) as renderer:
             lo, hi = renderer.scene.bounds
-            for plan in plans:
-                # far enough for the farthest corner of the scene, seen from the centre
-                far = float(np.linalg.norm(np.maximum(np.abs(lo - plan.centre), np.abs(hi - plan.centre))))
-                faces = render_faces(renderer, plan.centre, plan.size, plan.hidden, far=max(far, 1e-9))
-                write_cubemap(Path(bake_dir) / plan.file, faces)
-                if progress is not None:
-                    progress()
+            pack = ctx.buffer(reserve=max(6 * sum(face_bytes(p.size)) for g in groups for p in g)) if plans else None
+            for group in groups:
+                need = sum(6 * sum(face_bytes(p.size)) for p in group)
+                if need > pack.size:
+                    pack.orphan(need)
+                offset = 0
+                for plan in group:
+                    renderer.supersample = supersample(plan.size)
+                    offset = queue_faces(renderer, pack, offset, plan.centre, plan.size, plan.hidden,
+                                         far=farthest(lo, hi, plan.centre))
+                data = pack.read(size=need)  # one wait for the whole batch
+                offset = 0
+                for plan in group:
+                    faces, offset = unpack_faces(data, offset, plan.size, far=farthest(lo, hi, plan.centre))
+                    write_cubemap(Path(bake_dir) / plan.file, faces)
+                    if progress is not None:
+                        progress()
+            if pack is not None:
+                pack.release()
         device = describe(ctx)
     finally:
         ctx.release()
-    return {"seconds": round(time.perf_counter() - t0, 3), "device": device}
+    return {"seconds": round(time.perf_counter() - t0, 3), "batches": len(groups), "device": device}
 
 
-def render_faces(renderer, centre, size: int, hidden=(), *, far: float) -> np.ndarray:
-    """(6, S, S, 4) float32: radiance and distance of the six faces in GL order, row 0 at t = 0;
-    `far`: the distance from the centre to the farthest point to show."""
+def farthest(lo, hi, centre) -> float:
+    """Distance from `centre` to the farthest corner of the scene's box lo..hi (the faces' `far`)."""
+    return max(float(np.linalg.norm(np.maximum(np.abs(lo - centre), np.abs(hi - centre)))), 1e-9)
+
+
+def face_camera(centre, k: int, far: float) -> ViewCamera:
+    """The 90-degree camera of face k (FACES) at `centre`, clip planes from `far` (bake/cubemap.py)."""
+    _, forward, up = FACES[k]
+    return ViewCamera(eye=centre, forward=forward, up=up, yfov=math.pi / 2,
+                      znear=NEAR_PER_FAR * far, zfar=FAR_MARGIN * far)
+
+
+def queue_faces(renderer, pack, offset: int, centre, size: int, hidden=(), *, far: float) -> int:
+    """Render the six faces and queue their radiance and depth into the buffer `pack` from byte
+    `offset` on (face by face: radiance, then depth, each bottom row first); returns the offset
+    after them. Nothing is read back here."""
+    colour, depth = face_bytes(size)
+    for k in range(6):
+        renderer.render(face_camera(centre, k, far), size, size, hidden_objects=hidden)
+        linear, depth_texture = frame_textures(renderer)
+        linear.read_into(pack, alignment=1, write_offset=offset)
+        depth_texture.read_into(pack, alignment=1, write_offset=offset + colour)
+        offset += colour + depth
+    return offset
+
+
+def frame_textures(renderer):
+    """The renderer's last frame as textures: the resolved radiance (RGBA32F) and the G-buffer's
+    depth (what `read_linear` and `read_distance` read)."""
+    return renderer._linear, renderer.gbuffer.targets["depth"]
+
+
+def unpack_faces(data: bytes, offset: int, size: int, *, far: float) -> tuple[np.ndarray, int]:
+    """(6, S, S, 4) float32 radiance and distance of the six faces queued by `queue_faces` at
+    `offset`, row 0 at t = 0 (GL order); and the offset after them."""
+    colour, depth = face_bytes(size)
     faces = np.zeros((6, size, size, 4), np.float32)
-    for k, (_, forward, up) in enumerate(FACES):
-        camera = ViewCamera(eye=centre, forward=forward, up=up, yfov=math.pi / 2,
-                            znear=NEAR_PER_FAR * far, zfar=FAR_MARGIN * far)
-        renderer.render(camera, size, size, hidden_objects=hidden)
-        faces[k, ..., :3] = renderer.read_linear()[::-1]  # bottom row first: GL's t = 0
-        distance = renderer.read_distance()[::-1]
-        faces[k, ..., 3] = np.where(np.isfinite(distance), distance, SKY_DISTANCE)
-    return faces
+    n = supersample(size) * size
+    for k in range(6):
+        faces[k, ..., :3] = np.frombuffer(data, np.float32, size * size * 4, offset).reshape(size, size, 4)[..., :3]
+        d = np.frombuffer(data, np.float32, n * n, offset + colour).reshape(n, n)
+        faces[k, ..., 3] = face_distances(d, NEAR_PER_FAR * far, FAR_MARGIN * far, size)
+        offset += colour + depth
+    return faces, offset
+
+
+def face_distances(depth: np.ndarray, znear: float, zfar: float, size: int) -> np.ndarray:
+    """(size, size) distances from the centre (module docstring) of a face's (n, n) window-space
+    depths, n = supersample(size) x size, rows from t = 0; SKY_DISTANCE where no pixel hit."""
+    n = depth.shape[0]
+    z = 2.0 * znear * zfar / np.maximum(zfar + znear - (2.0 * depth.astype(np.float64) - 1.0) * (zfar - znear), 1e-30)
+    s = (np.arange(n) + 0.5) / n * 2.0 - 1.0  # tan of the angle off the face's axis, per pixel
+    r = z * np.sqrt(1.0 + s[:, None] ** 2 + s[None, :] ** 2)
+    hit = (depth < 1.0).reshape(size, n // size, size, n // size)
+    total = np.where(hit, r.reshape(hit.shape), 0.0).sum(axis=(1, 3))
+    count = hit.sum(axis=(1, 3))
+    return np.where(count > 0, total / np.maximum(count, 1), SKY_DISTANCE).astype(np.float32)
 
 
 def write_cubemap(path: Path, faces: np.ndarray) -> str:

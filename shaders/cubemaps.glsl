@@ -1,11 +1,12 @@
-// Per-object cube maps (section 4.4.1) and their bounding planes, as viewer/cubemaps.py binds them:
-// one samplerCubeArray per face-size class (CUBE_CLASSES comes in as a define), and per object a
-// row saying which class and layer hold its map and which bounding planes it has.
+// Cube maps (section 4.4.1) and their bounding planes, as viewer/cubemaps.py binds them: one
+// samplerCubeArray per face-size class (CUBE_CLASSES comes in as a define), and per object a row
+// saying which class and layer hold its probe (its own map or one shared with objects nearby,
+// bake/cubemap.py), the probe's centre and its bounding planes.
 
 #include "common.glsl"
 
 struct CubeObject {
-    vec4 centre;    // xyz: the cube map's projection centre (the object's bounding-box centre)
+    vec4 centre;    // xyz: the projection centre of the object's probe (its box centre, or its cluster's)
     ivec4 info;     // x: size class (-1: no cube map), y: layer, z: first bounding plane, w: plane count
     vec4 extent;    // glass solids (volume.glsl): xyz half extents of the oriented box, w: thickness (m)
     vec4 volume;    // glass solids: rgb absorption sigma_a (1/m), a: ior; a = 0: not a solid

@@ -326,7 +326,7 @@ def test_more_cube_maps_than_an_array_has_layers_get_more_classes(tmp_path, monk
                         "cubemap": {"file": f"cubemaps/{i}.exr", "size": 4, "centre": [0, 0, 0]}})
     cubes = CubeMaps(ctx, SimpleNamespace(path=tmp_path, manifest={"objects": objects}))
     try:
-        assert [len(c.objects) for c in cubes.classes] == [2, 2, 1]
+        assert [len(c.probes) for c in cubes.classes] == [2, 2, 1]
         cubes.bind_buffers()
         assert cubes.bind(None, 8) == 5
         d = np.tile([[0.3, 0.5, 0.81]], (5, 1))

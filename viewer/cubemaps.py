@@ -1,18 +1,35 @@
-"""Per-object cube maps on the GPU (section 4.4.1): the incident light of a curved or
-transmissive object, as seen from its bounding-box centre, plus its bounding planes.
+"""Cube maps on the GPU (section 4.4.1): the incident light of curved and transmissive objects,
+as seen from the centre of their probe (bake/cubemap.py: an object's own bounding-box centre, or a
+shared probe's, the centre of its cluster), plus the probe's bounding planes.
 
     cubes = CubeMaps(ctx, bake)     # every manifest object with a `cubemap` entry
     cubes.defines()                 # {"CUBE_CLASSES": k}: shaders/cubemaps.glsl's sampler array
     cubes.bind(program, first_unit) # cube-map arrays on texture units, face sizes as uniforms
     cubes.bind_buffers()            # per-object table and bounding planes (storage buffers)
 
-Cube maps differ in size (the bake picks one per object), and a cube-map *array*
-needs one size, so they are grouped into size classes: one `samplerCubeArray`
-per distinct face size (several where one size has more maps than an array has
-layers), an object's map is one layer of its class. Per object a
-storage buffer row (`CUBE_OBJECT_DTYPE`) says where: class (-1: no cube map),
-layer, and its bounding planes' range; the planes (point, unit normal) follow in
-a second buffer. Objects without a cube map (diffuse, planar) cost nothing.
+Each probe's file is read and uploaded once, however many objects it serves. Probes
+differ in size (the bake picks one per probe), and a cube-map *array* needs one
+size, so they are grouped into size classes: one `samplerCubeArray` per distinct
+face size (several where one size has more probes than an array has layers), a
+probe is one layer of its class. Per object a storage buffer row
+(`CUBE_OBJECT_DTYPE`) says where: class (-1: no cube map), layer, its probe's
+centre and the range of its bounding planes; the planes (point, unit normal) follow
+in a second buffer. Objects without a cube map (diffuse, planar) cost nothing.
+
+GL limits, checked here so that no object is left black (`fit_classes`): a class
+holds at most GL_MAX_ARRAY_TEXTURE_LAYERS / 6 probes (341 at GL 4.3's minimum of
+2048 layers); the shading programs bind every class twice (the cube maps and their
+split-sum prefiltered copies, viewer/gl_bindings.py `shading_units`) within
+GL_MAX_COMPUTE_TEXTURE_IMAGE_UNITS, which caps the number of classes; a face is at
+most GL_MAX_CUBE_MAP_TEXTURE_SIZE. Past a limit, the largest faces are resampled
+to half their size (a 2 x 2 box filter, what their next MIP level holds anyway), so
+that their probes join a smaller class, until everything fits, with one warning;
+when even the smallest faces need more classes than the programs can bind, a
+GlintError says how many probes fit ([bake] cubemap_budget). An upload that runs
+out of GPU memory (GL_OUT_OF_MEMORY, through GL.checked) is retried at half the face
+size, with a warning, down to `MIN_FALLBACK_SIZE`; any other failed upload is a
+GlintError. Where the driver tells its free memory (GL_NVX_gpu_memory_info,
+GL_ATI_meminfo), `memory()` reports it beside the cube maps' own MiB.
 
 Every class has a full MIP chain (GL's glGenerateMipmap: 2 x 2 box filter per
 level), GL_LINEAR_MIPMAP_LINEAR, and GL_TEXTURE_CUBE_MAP_SEAMLESS is on, so the
@@ -25,13 +42,14 @@ moderngl (5.13) has no cube-map arrays, so the few GL calls they need go through
 ctypes to the context's own function pointers (viewer/gl.py).
 
 The file layout (`read_cubemap`) is the bake's (bake/cubemap.py): one OpenEXR
-per object, the six faces stacked vertically in GL order +X, -X, +Y, -Y, +Z, -Z,
+per probe, the six faces stacked vertically in GL order +X, -X, +Y, -Y, +Z, -Z,
 each face S x S with its first row at GL's t = 0 and its first column at s = 0
 (the order glTexImage3D takes), so a look-up `texture(cube, dir)` returns the
 radiance seen along dir.
 """
 from __future__ import annotations
 
+import ctypes
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,14 +57,18 @@ import moderngl
 import numpy as np
 
 from glint.core.constants import HALF_MAX
-from glint.core.errors import GlintError
+from glint.core.errors import GlintError, warn
 from glint.core.geometry import oriented_box
 from glint.core.image_io import read_image
-from glint.viewer.gl import GL, GL_TEXTURE_CUBE_MAP_SEAMLESS
-from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING
+from glint.viewer.gl import GL, GL_TEXTURE_CUBE_MAP_SEAMLESS, describe
+from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, shading_units
 
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")  # GL's face order (GL_TEXTURE_CUBE_MAP_POSITIVE_X + k)
 MAX_PLANES = 16  # per object; more are ignored (each is a ray-plane test per sample)
+MIN_FALLBACK_SIZE = 4  # texels: below this an out-of-memory upload is an error, not a smaller retry
+# Driver memory queries (GL_NVX_gpu_memory_info, GL_ATI_meminfo): free memory in KiB.
+GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX = 0x9049
+GL_TEXTURE_FREE_MEMORY_ATI = 0x87FC
 
 # Per object (std430): xyz projection centre, w unused; class (-1: none), layer, first plane, plane count;
 # a glass solid's (shaders/volume.glsl) half extents of its oriented box (core/geometry.py oriented_box)
@@ -73,17 +95,49 @@ def read_cubemap(path: str | Path) -> np.ndarray:
     return np.clip(np.nan_to_num(faces, nan=0.0, posinf=0.0, neginf=0.0), 0.0, None)
 
 
+def downsample(faces: np.ndarray, size: int) -> np.ndarray:
+    """(6, S, S, 4) faces box-filtered to (6, size, size, 4), size a power of two dividing S."""
+    k = faces.shape[1] // size
+    return faces.reshape(6, size, k, size, k, 4).mean(axis=(2, 4), dtype=np.float32)
+
+
+def fit_classes(sizes: list[int], per_class: int, max_classes: int, max_face: int) -> tuple[list[int], list]:
+    """Face size per probe and the classes [(size, [probe, ...]), ...] for probes of `sizes`
+    within the GL limits: at most `per_class` probes a class, `max_classes` classes, faces of at
+    most `max_face`. The largest faces are halved until the classes fit (see the module
+    docstring); GlintError when even faces of one texel would need more classes."""
+    fitted = [min(s, 1 << (max(int(max_face), 1).bit_length() - 1)) for s in sizes]
+    while True:
+        classes = [(s, same[k:k + per_class]) for s in sorted(set(fitted))
+                   for same in [[p for p, f in enumerate(fitted) if f == s]]
+                   for k in range(0, len(same), per_class)]
+        if len(classes) <= max_classes:
+            return fitted, classes
+        if len(set(fitted)) == 1:
+            raise GlintError(f"{len(sizes)} cube-map probes need {len(classes)} cube-map arrays of at most "
+                             f"{per_class} probes, and this OpenGL binds {max_classes} in the shading programs: "
+                             f"set [bake] cubemap_budget = {per_class * max_classes} (or less) in the scene's "
+                             f"sidecar and bake again")
+        top = max(fitted)
+        fitted = [f // 2 if f == top else f for f in fitted]
+
+
 @dataclass
 class CubeClass:
-    """All cube maps of one face size: one GL cube-map array, a layer per object."""
+    """All probes of one face size: one GL cube-map array, a layer per probe."""
     size: int
     dtype: str          # "f2" or "f4"
-    objects: list       # manifest object index of each layer
+    probes: list        # the probe (file) of each layer
     glo: int = 0
 
     @property
     def levels(self) -> int:
         return int(np.log2(self.size)) + 1
+
+    @property
+    def mib(self) -> float:
+        texel = 8 if self.dtype == "f2" else 16
+        return sum(texel * 6 * (self.size >> k) ** 2 for k in range(self.levels)) * len(self.probes) / 2 ** 20
 
 
 class CubeMaps:
@@ -93,12 +147,17 @@ class CubeMaps:
         table = np.zeros(max(len(objects), 1), CUBE_OBJECT_DTYPE)
         table["info"][:, 0] = -1
         planes: list[np.ndarray] = []
-        faces: dict[int, np.ndarray] = {}
+        probes: dict[str, int] = {}  # file -> probe number (its index in `faces`)
+        faces: list[np.ndarray] = []
+        probe_of: dict[int, int] = {}
         for i, entry in enumerate(objects):
             cube = entry.get("cubemap")
             if not cube:
                 continue
-            faces[i] = read_cubemap(Path(bake.path) / cube["file"])
+            if cube["file"] not in probes:
+                probes[cube["file"]] = len(faces)
+                faces.append(read_cubemap(Path(bake.path) / cube["file"]))
+            probe_of[i] = probes[cube["file"]]
             table[i]["centre"][:3] = _finite(cube.get("centre", np.mean(entry["bounds"], axis=0)))
             volume = _material_volume(bake.manifest, entry)
             if volume:  # a glass solid: bake/pipeline.py's `volume` entry of its material
@@ -113,33 +172,49 @@ class CubeMaps:
             rows = _planes(cube.get("bounding_planes") or [])
             table[i]["info"][2:] = (len(planes), len(rows))
             planes.extend(rows)
-        sizes = sorted({f.shape[1] for f in faces.values()})
-        # A cube-map array holds at most GL_MAX_ARRAY_TEXTURE_LAYERS / 6 maps (341 on llvmpipe):
-        # a size with more objects gets several classes.
-        per_class = max(int(ctx.info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 2048)) // 6, 1)
-        self.classes = [CubeClass(s, "f2", same[k:k + per_class]) for s in sizes
-                        for same in [[i for i, f in faces.items() if f.shape[1] == s]]
-                        for k in range(0, len(same), per_class)]
-        for k, cls in enumerate(self.classes):
-            for layer, i in enumerate(cls.objects):
-                table[i]["info"][:2] = (k, layer)
+        limits = gl_limits(ctx)
+        fitted, classes = fit_classes([f.shape[1] for f in faces], **limits)
+        resampled = [(f.shape[1], s) for f, s in zip(faces, fitted) if f.shape[1] != s]
+        if resampled:
+            warn(f"cube maps: {len(resampled)} of {len(faces)} probes resampled to smaller faces "
+                 f"({', '.join(sorted({f'{a} -> {b}' for a, b in resampled}))}) to fit this OpenGL's limits "
+                 f"({limits['per_class']} probes per cube-map array, {limits['max_classes']} arrays, faces of "
+                 f"{limits['max_face']}; {describe(ctx)}); fewer probes ([bake] cubemap_budget) keep them sharp")
+            faces = [downsample(f, s) if f.shape[1] != s else f for f, s in zip(faces, fitted)]
+        self.classes = [CubeClass(s, "f2", members) for s, members in classes]
+        layer_of = {p: (k, layer) for k, cls in enumerate(self.classes) for layer, p in enumerate(cls.probes)}
+        for i, p in probe_of.items():
+            table[i]["info"][:2] = layer_of[p]
         self.table = table
         self.object_buffer = ctx.buffer(table.tobytes())
         plane_rows = np.array(planes, PLANE_DTYPE) if planes else np.zeros(1, PLANE_DTYPE)
         self.plane_buffer = ctx.buffer(plane_rows.tobytes())
         self.count = len(faces)
+        self.objects = len(probe_of)
         self._gl = GL(ctx) if faces else None
         for cls in self.classes:
-            self._upload(cls, [faces[i] for i in cls.objects])
+            self._upload(cls, [faces[p] for p in cls.probes])
 
     # -- GL ---------------------------------------------------------------------------------------
     def _upload(self, cls: CubeClass, maps: list[np.ndarray]) -> None:
-        data = np.stack(maps).reshape(len(maps) * 6, cls.size, cls.size, 4)  # layer-face = layer * 6 + face
-        cls.dtype = "f2" if float(data.max(initial=0.0)) <= HALF_MAX else "f4"
-        pixels = np.ascontiguousarray(data, np.float16 if cls.dtype == "f2" else np.float32)
-        cls.glo = self._gl.upload_cube_array(
-            pixels, f"the cube maps of face size {cls.size} ({len(maps)} objects, "
-                    f"{'RGBA16F' if cls.dtype == 'f2' else 'RGBA32F'}, {pixels.nbytes * 4 / 3 / 2**20:.0f} MiB)")
+        """Upload a class; out of GPU memory, retry at half the face size (module docstring)."""
+        while True:
+            data = np.stack(maps).reshape(len(maps) * 6, cls.size, cls.size, 4)  # layer-face = layer * 6 + face
+            cls.dtype = "f2" if float(data.max(initial=0.0)) <= HALF_MAX else "f4"
+            pixels = np.ascontiguousarray(data, np.float16 if cls.dtype == "f2" else np.float32)
+            try:
+                cls.glo = self._gl.upload_cube_array(
+                    pixels, f"the cube maps of face size {cls.size} ({len(maps)} probes, "
+                            f"{'RGBA16F' if cls.dtype == 'f2' else 'RGBA32F'}, {cls.mib:.0f} MiB)")
+                return
+            except GlintError as err:
+                if "GL_OUT_OF_MEMORY" not in str(err) or cls.size // 2 < MIN_FALLBACK_SIZE:
+                    raise
+                warn(f"cube maps: out of GPU memory for {len(maps)} probes of face size {cls.size} "
+                     f"({cls.mib:.0f} MiB); using faces of {cls.size // 2} (blurrier reflections); a smaller "
+                     "[bake] cubemap_budget_mib keeps the bake and the GPU in step")
+                cls.size //= 2
+                maps = [downsample(f, cls.size) for f in maps]
 
     def defines(self, first_unit: int) -> dict:
         """For shaders/cubemaps.glsl: CUBE_CLASSES, the length of its sampler array (at least 1),
@@ -169,8 +244,14 @@ class CubeMaps:
         return 0 <= obj < len(self.table) and int(self.table[obj]["info"][0]) >= 0
 
     def describe(self) -> list[dict]:
-        return [{"size": c.size, "layers": len(c.objects), "format": "RGBA16F" if c.dtype == "f2" else "RGBA32F",
-                 "mip_levels": c.levels} for c in self.classes]
+        return [{"size": c.size, "layers": len(c.probes), "format": "RGBA16F" if c.dtype == "f2" else "RGBA32F",
+                 "mip_levels": c.levels, "mib": round(c.mib, 3)} for c in self.classes]
+
+    def memory(self) -> dict:
+        """Probes, the objects they serve, their MiB on the GPU, and the driver's free memory in MiB
+        where it tells (None elsewhere, e.g. Mesa)."""
+        return {"probes": self.count, "objects": self.objects, "classes": len(self.classes),
+                "mib": round(sum(c.mib for c in self.classes), 3), "gpu_free_mib": gpu_free_mib(self.ctx)}
 
     def release(self) -> None:
         if self._gl is not None:
@@ -179,6 +260,33 @@ class CubeMaps:
                 cls.glo = 0
         self.object_buffer.release()
         self.plane_buffer.release()
+
+
+def gl_limits(ctx: moderngl.Context) -> dict:
+    """fit_classes' limits of `ctx`: probes per cube-map array, classes the shading programs can
+    bind (each class on two units, viewer/gl_bindings.py `shading_units`), largest face."""
+    info = ctx.info
+    units = min(int(info.get("GL_MAX_COMPUTE_TEXTURE_IMAGE_UNITS", 16)),
+                int(info.get("GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS", 16)))
+    max_classes = 1
+    while shading_units(max_classes + 1)["SPLIT_SUM_LUT_UNIT"] < units:
+        max_classes += 1
+    return {"per_class": max(int(info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 2048)) // 6, 1),
+            "max_classes": max_classes, "max_face": int(info.get("GL_MAX_CUBE_MAP_TEXTURE_SIZE", 16384))}
+
+
+def gpu_free_mib(ctx: moderngl.Context) -> float | None:
+    """Free GPU memory in MiB as the driver tells it (NVIDIA, AMD extensions); None otherwise."""
+    extensions = ctx.extensions
+    for extension, enum in (("GL_NVX_gpu_memory_info", GL_GPU_MEMORY_INFO_CURRENT_AVAILABLE_VIDMEM_NVX),
+                            ("GL_ATI_meminfo", GL_TEXTURE_FREE_MEMORY_ATI)):
+        if extension in extensions:
+            gl = GL(ctx)
+            out = (ctypes.c_int * 4)()
+            with gl.checked(f"query the free GPU memory ({extension})"):
+                gl.GetIntegerv(enum, out)
+            return round(out[0] / 1024, 1)
+    return None
 
 
 def _material_volume(manifest: dict, entry: dict) -> dict | None:

@@ -383,6 +383,7 @@ class Renderer:
             "samples_per_lobe": lobes,
             "cube_maps_bound": self.shading.cube_maps_bound,
             "cube_map_classes": scene.cubemaps.describe(),
+            "cube_map_memory": scene.cubemaps.memory(),  # probes, MiB, driver's free MiB (viewer/cubemaps.py)
             "progressive": self.progressive.describe(),
         }
 

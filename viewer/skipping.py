@@ -12,7 +12,8 @@ One fixed shape (every key always present), built only here, for `glint capture 
     mirror       planar reflectors, passes run, reflectors skipped per reason
                  (viewer/reflectors.py SkipReason; "budget 0" where the budget turned the
                  passes off), reflectors merged into another's pass (same plane)
-    cube_maps    objects, cube maps baked, objects without one per reason (core/skipped.py)
+    cube_maps    objects, cube maps baked, objects without one per reason (core/skipped.py); the bake's
+                 probes (shared cube maps), their MiB, face sizes and budget
     bake         this command's bake step, and what the bake that wrote the directory redid
                  and reused and why (manifest statistics.last_bake; null for older bake dirs)
 
@@ -93,14 +94,19 @@ def mirror_part(stats: dict) -> dict:
     }
 
 
+PROBE_KEYS = ("probes", "shared_probes", "mib", "face_sizes", "budget")
+
+
 def cube_map_part(manifest: dict) -> dict:
     cubes = cube_map_skips(manifest)
     n = cubes["objects"]
     without = {reason: skipped(len(names), n, CUBE_MAP_REASONS[reason], names)
                for reason, names in cubes["without"].items()}
+    stats = (manifest.get("statistics") or {}).get("cubemaps") or {}
+    probes = {k: stats[k] for k in PROBE_KEYS if k in stats}  # the bake's probes and budget (bake/cubemap.py)
     return {"objects": n, "baked": cubes["baked"],
             "without": skipped(n - cubes["baked"], n, "see without_by_reason"),
-            "without_by_reason": without}
+            "without_by_reason": without, **({"probes": probes} if probes else {})}
 
 
 def bake_part(manifest: dict, bake_status: str | None) -> dict:

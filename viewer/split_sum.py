@@ -160,9 +160,9 @@ class SplitSum:
         """The prefiltered chain of class k: a new cube-map array, each level written by one dispatch."""
         gl = self._gl
         internal = GL_RGBA16F if cls.dtype == "f2" else GL_RGBA32F
-        what = (f"the split-sum prefiltered cube maps of face size {cls.size} ({len(cls.objects)} objects, "
+        what = (f"the split-sum prefiltered cube maps of face size {cls.size} ({len(cls.probes)} probes, "
                 f"{levels} levels, {'RGBA16F' if cls.dtype == 'f2' else 'RGBA32F'})")
-        name = gl.allocate_cube_array(cls.size, 6 * len(cls.objects), levels, internal, what)
+        name = gl.allocate_cube_array(cls.size, 6 * len(cls.probes), levels, internal, what)
         cubes.bind(program, PREFILTER_CUBE_UNIT)
         with gl.checked(f"prefilter {what}"):  # an image binding GL refuses leaves the level unwritten
             for level in range(levels):
@@ -170,7 +170,7 @@ class SplitSum:
                 gl.BindImageTexture(PREFILTER_IMAGE, name, level, 1, 0, GL_WRITE_ONLY, internal)
                 set_uniforms(program, source_class=k, face_size=face, roughness=level_roughness(level, levels),
                              samples=level_samples(level, self.samples))
-                program.run(-(-face // LOCAL_SIZE), -(-face // LOCAL_SIZE), 6 * len(cls.objects))
+                program.run(-(-face // LOCAL_SIZE), -(-face // LOCAL_SIZE), 6 * len(cls.probes))
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
         return name
 
@@ -196,7 +196,7 @@ class SplitSum:
         order, row 0 at t = 0 (for tests and debugging)."""
         cls = self.classes[k]
         s = max(cls.size >> level, 1)
-        out = np.zeros((len(cls.objects), 6, s, s, 4), np.float32)
+        out = np.zeros((len(cls.probes), 6, s, s, 4), np.float32)
         return self._gl.read_cube_array(self.textures[k], level, out, f"level {level} of split-sum class {k}")
 
     def describe(self) -> dict:
