@@ -11,18 +11,17 @@ shaders/visibility.frag). The visibility buffer's raster time is a lower bound o
 cost: it still needs a compute pass that rebuilds each pixel's attributes from the triangle
 (fetch three vertices, intersect the pixel's ray, interpolate, sample the textures with
 analytic derivatives), which costs at least the G-buffer fragment work it moves. Medians of
---frames after 3 warm-up frames; timing as viewer/timing.py (glFinish wall clock on llvmpipe,
+--frames after 5 warm-up frames (measure_fill_rate.py `timed`); timing as viewer/timing.py (glFinish wall clock on llvmpipe,
 timer queries on a GPU).
 """
 from __future__ import annotations
 
 import argparse
-import time
 from pathlib import Path
-from statistics import median
 
 import moderngl
 
+from glint.bench.measure_fill_rate import timed
 from glint.bench.measure_frame_times import SCENES, load_bake
 from glint.viewer.camera import ViewCamera
 from glint.viewer.context import headless_context
@@ -31,25 +30,6 @@ from glint.viewer.gpu_scene import shader_defines
 from glint.viewer.renderer import Renderer
 from glint.viewer.shader_source import raster_program, set_uniforms
 from glint.viewer.timing import default_method
-
-
-def timed(ctx, fn, frames: int, method: str) -> float:
-    samples = []
-    query = ctx.query(time=True) if method == "query" else None
-    for i in range(frames + 3):
-        if query is not None:
-            with query:
-                fn()
-            ms = query.elapsed / 1e6
-        else:
-            ctx.finish()
-            t = time.perf_counter()
-            fn()
-            ctx.finish()
-            ms = (time.perf_counter() - t) * 1e3
-        if i >= 3:
-            samples.append(ms)
-    return median(samples)
 
 
 def main() -> None:
