@@ -47,15 +47,16 @@ In the living-room: the 20 cm chrome sphere (m = 0.0025) gets 256, its size limi
 Probes (section 4.4.1 extended): one cube map may serve several objects. A probe is one cube map
 rendered from one centre with its objects hidden, plus the bounding planes of its box; each object
 it serves looks it up from that centre through those planes (viewer/cubemaps.py loads each probe
-once, shaders/cubemaps.glsl). Transmissive objects, objects the sidecar gives a `cubemap_size` or its
-own `bounding_planes` (false or a list), and objects with `shared_probe = false` keep a probe of
-their own at their own box centre, as the thesis has it. The other curved objects are clustered (`cluster`): the box of
-a cluster, of radius r (half its diagonal), is served by one probe at its centre when for every
-member
+once, shaders/cubemaps.glsl). Objects the sidecar gives a `cubemap_size` or its own
+`bounding_planes` (false or a list), and objects with `shared_probe = false` keep a probe of their
+own at their own box centre, as the thesis has it. The other curved and transmissive objects are
+clustered (`cluster`): the box of a cluster, of radius r (half its diagonal), is served by one
+probe at its centre when for every member
 
-    r <= probe_sharing x min(tan(2 theta_thresh(m)), PROBE_RADIUS_MAX) x D
+    r <= probe_sharing x max(min(tan(2 theta_thresh(m)), PROBE_RADIUS_MAX), tan((pi / 2) / S)) x D
 
-with m its narrowest lobe and D its clearance (`clearance`): the distance from its box centre to
+(`sharing_slope`) with m its narrowest lobe, S the face size its own map would have
+(`automatic_size`) and D its clearance (`clearance`): the distance from its box centre to
 the nearest of its bounding planes and of the faces of the scene's bounding box (`box_walls`) that
 its box does not touch (the walls and ceiling around it, not the floor it stands on), or half the
 scene's diagonal where there is none. Why: looked up
@@ -63,7 +64,9 @@ from the cluster's centre instead of from the member, a surface at distance D is
 about r / D radians. The planes undo that for the enclosure; for what stands inside it (taken to
 be no nearer than D: the rule's approximation) the error stays within the angular radius of the
 member's narrowest reflected lobe, 2 theta_thresh (Eq. 4.10, doubled by Eq. 4.8), which blurs
-over as much anyway. So a chrome ball (m = 0.0025: 0.011 rad) practically never shares, while
+over as much anyway, or within one texel of the member's own map, (pi / 2) / S, which its own map
+could not show either (what lets a small glass bead, m = 1e-4 but S = 32, share with its
+neighbours). So a large chrome ball (m = 0.0025: 0.011 rad, S = 256) practically never shares, while
 rough metal (m = 0.09: 0.38 rad) shares up to `PROBE_RADIUS_MAX` = 0.25 of its clearance, the cap
 for wide lobes: it keeps a cluster in the inner half of its enclosure, where one centre still
 sees the room much as each member does. An object whose own radius is over its limit cannot
@@ -86,9 +89,10 @@ object, its face size and centre, the hidden objects (its members and thin glass
 settings here: a re-bake renders only the probes whose hash changed and carries the others over
 (an object's own probe hashes as its cube map did before probes were shared).
 
-The probes are rendered on one GL context in the bake's own process, not on the executor's worker
-processes: a GL context does not survive fork, and the GPU is one device anyway.
-glint/cubemap_stage.py renders them in batches and reads each batch back at once.
+The probes are rendered by glint/cubemap_stage.py, not on the executor's forked workers (a GL
+context does not survive fork): on one GL context where there is a GPU, on --jobs spawned
+processes with a context each on a software renderer; in batches read back at once. Objects under
+SMALL_OBJECT_TEXELS of a face are left out of it.
 """
 from __future__ import annotations
 
@@ -125,6 +129,10 @@ SUPERSAMPLE = 2  # per axis: a texel is the mean of 2 x 2 samples ...
 # degrees at 512) are finer than any lobe but a near-mirror's, whose look-ups read them through the
 # MIP chain anyway, and 2 x 2 samples would make a 512 face a 1024^2 render, 4x the pixel work.
 SUPERSAMPLED_FACE_MAX = 256
+# Objects (not emitters) whose bounding sphere projects to a radius under this many face texels are
+# left out of a face (viewer/draw_list.py): they would cover under a texel, and their triangles are
+# most of a probe's cost on a software renderer.
+SMALL_OBJECT_TEXELS = 0.5
 # Clip planes of the faces, from the distance `far` to the scene's farthest corner (so a 1 mm and
 # a 10 km scene get the same picture): zfar = FAR_MARGIN x far, znear = NEAR_PER_FAR x far.
 # 24-bit depth then resolves d^2 / (znear 2^24), 6e-4 of far at far; 1 mm at 6 m on a room
@@ -154,6 +162,13 @@ def lobe_radius(material: Material) -> float:
     Eq. 4.10's phi factor peaks at 1/m^2 where m = min(mx, my), so that is where it is narrowest."""
     m = narrowest_lobe(material)
     return math.pi / 2 if m is None else min(2 * float(theta_thresh(0.0, m, m)), math.pi / 2)
+
+
+def sharing_slope(material: Material, size: int) -> float:
+    """A member's cluster radius per unit of clearance (see "Probes"): the larger of the lobe's
+    bound, min(tan(2 theta_thresh(m)), PROBE_RADIUS_MAX), and the face's, tan of one texel of its
+    own map ((pi / 2) / S: a direction error its own map of S texels could not show either)."""
+    return max(min(math.tan(lobe_radius(material)), PROBE_RADIUS_MAX), math.tan((math.pi / 2) / size))
 
 
 def automatic_size(obj: Object, material: Material) -> int:
@@ -291,7 +306,7 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
         if planes is None:
             surfaces = candidate_surfaces(scene) if surfaces is None else surfaces
             planes = choose_planes(obj, surfaces)
-        if (obj.role == "transmissive" or given.get("shared_probe") is False or "cubemap_size" in given
+        if (given.get("shared_probe") is False or "cubemap_size" in given
                 or given.get("bounding_planes", True) is not True):
             own.append((i, int(size), planes))
         else:
@@ -300,9 +315,9 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
         lo, hi = scene.bounds
         fallback, walls = float(np.linalg.norm(hi - lo)) / 2, box_walls(lo, hi)
         boxes = np.array([scene.objects[i].bounds for i, _, _ in shared])
-        limits = np.array([min(math.tan(lobe_radius(scene.material_of(scene.objects[i]))), PROBE_RADIUS_MAX)
+        limits = np.array([sharing_slope(scene.material_of(scene.objects[i]), size)
                            * clearance(*scene.objects[i].bounds, planes + walls, fallback)
-                           for i, _, planes in shared])
+                           for i, size, planes in shared])
     else:
         boxes, limits = np.zeros((0, 2, 3)), np.zeros(0)
 
@@ -337,7 +352,7 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
             "object": [p.index, p.name], "size": p.size, "centre": p.centre,
             "hidden": [[k, scene.objects[k].name] for k in p.hidden],
             "render": {"supersample": supersample(p.size), "near_per_far": NEAR_PER_FAR, "far_margin": FAR_MARGIN,
-                       "sky_distance": SKY_DISTANCE}})
+                       "sky_distance": SKY_DISTANCE, "small_object_texels": SMALL_OBJECT_TEXELS}})
     return plans
 
 

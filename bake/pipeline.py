@@ -235,7 +235,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
             manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
                                                           bake_dir if reuse_geometry else None))
             status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
-        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, bake_dir, out, manifest, progress,
+        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, bake_dir, out, manifest, progress, settings.workers,
                                                          render_cubemaps), **budget_statistics(cubemaps, rules)}
         if manifest["statistics"]["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status
@@ -251,7 +251,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
 
 
 def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: BakeDirWriter, manifest: dict,
-              progress: bool, render_cubemaps: CubeMapRenderer | None) -> dict:
+              progress: bool, workers: int, render_cubemaps: CubeMapRenderer | None) -> dict:
     """Carry over the cube maps whose inputs did not change, render the others (bake/cubemap.py)."""
 
     old_hashes = old["stages"].get("cubemaps", {}) if old is not None else {}
@@ -269,7 +269,7 @@ def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: Ba
                              "(bake through glint.services.bake_scene)")
         write_json(out.path / "manifest.json", manifest)  # the renderer reads the bake written so far
         with tqdm(total=len(todo), desc="cube maps", unit="map", disable=not progress, leave=False) as bar:
-            stats.update(render_cubemaps(out.path, todo, progress=bar.update))
+            stats.update(render_cubemaps(out.path, todo, progress=bar.update, workers=workers))
         stats["seconds_per_cubemap"] = round(stats["seconds"] / len(todo), 3)
     return stats
 

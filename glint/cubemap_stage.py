@@ -14,25 +14,46 @@ then made from it. The distance of a texel (`face_distances`) is the eye-space d
 face's pixel (the inverse of the perspective depth mapping of camera.glsl) times the length of its
 ray per unit of depth, hypot(1, x, y) at the face's 90-degree field of view, averaged over the
 pixels of the texel (bake/cubemap.py `supersample` per side) that hit something.
+
+Processes: a software renderer (Mesa's llvmpipe) processes vertices on the thread that issues the
+draw and rasterises on others, so one GL context keeps about one core busy with a probe's many
+small triangles. There the probes are shared out, PROBES_PER_TASK at a time, among `workers`
+processes (the bake's --jobs), each with its own EGL context and renderer, started with spawn (a GL
+context does not survive fork); each probe is rendered alone, so the files are the same bytes
+whichever process renders it. A GPU gets one context: its driver queues the work anyway.
 """
 from __future__ import annotations
 
 import math
+import multiprocessing as mp
 import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from glint.bake.cubemap import FACES, FAR_MARGIN, NEAR_PER_FAR, SKY_DISTANCE, SUPERSAMPLE, CubeMapPlan, supersample
+from glint.bake.cubemap import (
+    FACES,
+    FAR_MARGIN,
+    NEAR_PER_FAR,
+    SKY_DISTANCE,
+    SMALL_OBJECT_TEXELS,
+    SUPERSAMPLE,
+    CubeMapPlan,
+    supersample,
+)
 from glint.core.bake_dir import Bake
+from glint.core.errors import GlintError
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera
 from glint.viewer.context import headless_context
-from glint.viewer.gl import describe
+from glint.viewer.gl import describe, software_renderer
 from glint.viewer.renderer import Renderer
 
 BATCH_MIB = 64  # GPU pack buffer per batch: all six faces of at least one probe, however large
+PROBES_PER_TASK = 8  # probes a worker process renders per task (software renderers, several processes)
 
 
 def diffuse_view(manifest: dict) -> dict:
@@ -61,40 +82,89 @@ def batches(plans: list[CubeMapPlan], limit: int = BATCH_MIB * 2 ** 20) -> list[
 
 
 def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
-                    progress: Callable[[], None] | None = None) -> dict:
+                    progress: Callable[[], None] | None = None, workers: int = 1) -> dict:
     """Render `plans` from the bake in `bake_dir` (manifest, meshes and light maps written) into
-    its cubemaps/ folder, batch by batch; returns statistics (seconds, batches, device)."""
+    its cubemaps/ folder, batch by batch; returns statistics (seconds, batches, processes, device).
+    On a software renderer with `workers` > 1 the probes are shared out among that many processes,
+    each with its own GL context (see the module docstring); on a GPU one context renders them all."""
     t0 = time.perf_counter()
-    bake = Bake(bake_dir)
-    bake.manifest = diffuse_view(bake.manifest)
     ctx = headless_context()
-    groups = batches(plans)
     try:
-        with Renderer(ctx, bake, supersample=SUPERSAMPLE) as renderer:
-            lo, hi = renderer.scene.bounds
-            pack = ctx.buffer(reserve=max(6 * sum(face_bytes(p.size)) for g in groups for p in g)) if plans else None
-            for group in groups:
-                need = sum(6 * sum(face_bytes(p.size)) for p in group)
-                if need > pack.size:
-                    pack.orphan(need)
-                offset = 0
-                for plan in group:
-                    renderer.supersample = supersample(plan.size)
-                    offset = queue_faces(renderer, pack, offset, plan.centre, plan.size, plan.hidden,
-                                         far=farthest(lo, hi, plan.centre))
-                data = pack.read(size=need)  # one wait for the whole batch
-                offset = 0
-                for plan in group:
-                    faces, offset = unpack_faces(data, offset, plan.size, far=farthest(lo, hi, plan.centre))
-                    write_cubemap(Path(bake_dir) / plan.file, faces)
-                    if progress is not None:
-                        progress()
-            if pack is not None:
-                pack.release()
-        device = describe(ctx)
+        device, software = describe(ctx), software_renderer(ctx)
+        groups = batches(plans)
+        processes = min(int(workers), len(plans) // PROBES_PER_TASK) if software else 1
+        if processes <= 1:
+            _render_groups(ctx, bake_dir, groups, progress)
     finally:
         ctx.release()
-    return {"seconds": round(time.perf_counter() - t0, 3), "batches": len(groups), "device": device}
+    if processes > 1:
+        # the largest faces first, so that the last tasks are short and the processes end together
+        by_size = sorted(plans, key=lambda p: -p.size)
+        tasks = [by_size[k:k + PROBES_PER_TASK] for k in range(0, len(plans), PROBES_PER_TASK)]
+        spawn = mp.get_context("spawn")  # a GL context does not survive fork
+        try:
+            with ProcessPoolExecutor(processes, mp_context=spawn, initializer=_start_worker,
+                                     initargs=(str(bake_dir),)) as pool:
+                for done in as_completed([pool.submit(_worker_task, task) for task in tasks]):
+                    for _ in range(done.result()):
+                        if progress is not None:
+                            progress()
+        except BrokenProcessPool as e:  # a worker died (out of memory, killed): one line, no traceback
+            raise GlintError(f"a cube-map worker process stopped before its probes were rendered ({e}); "
+                             "bake again, or with --jobs 1") from None
+    return {"seconds": round(time.perf_counter() - t0, 3), "batches": len(groups), "processes": max(processes, 1),
+            "device": device}
+
+
+def _diffuse_renderer(ctx, bake_dir) -> Renderer:
+    """The renderer the probes are rendered with: the bake's diffuse view, untimed, small objects left out."""
+    bake = Bake(bake_dir)
+    bake.manifest = diffuse_view(bake.manifest)
+    return Renderer(ctx, bake, supersample=SUPERSAMPLE, timing=False, small_objects=SMALL_OBJECT_TEXELS, display=False)
+
+
+def _render_groups(ctx, bake_dir, groups: list[list[CubeMapPlan]], progress, renderer: Renderer | None = None) -> None:
+    """Render and write the probes of `groups`, each group read back at once."""
+    own = renderer is None
+    renderer = _diffuse_renderer(ctx, bake_dir) if own else renderer
+    try:
+        lo, hi = renderer.scene.bounds
+        pack = ctx.buffer(reserve=max(6 * sum(face_bytes(p.size)) for g in groups for p in g)) if groups else None
+        for group in groups:
+            need = sum(6 * sum(face_bytes(p.size)) for p in group)
+            if need > pack.size:
+                pack.orphan(need)
+            offset = 0
+            for plan in group:
+                renderer.supersample = supersample(plan.size)
+                offset = queue_faces(renderer, pack, offset, plan.centre, plan.size, plan.hidden,
+                                     far=farthest(lo, hi, plan.centre))
+            data = pack.read(size=need)  # one wait for the whole batch
+            offset = 0
+            for plan in group:
+                faces, offset = unpack_faces(data, offset, plan.size, far=farthest(lo, hi, plan.centre))
+                write_cubemap(Path(bake_dir) / plan.file, faces)
+                if progress is not None:
+                    progress()
+        if pack is not None:
+            pack.release()
+    finally:
+        if own:
+            renderer.release()
+
+
+_worker: dict = {}
+
+
+def _start_worker(bake_dir: str) -> None:
+    """A worker process's GL context and renderer, made once (ProcessPoolExecutor initializer)."""
+    ctx = headless_context()
+    _worker.update(ctx=ctx, bake_dir=bake_dir, renderer=_diffuse_renderer(ctx, bake_dir))
+
+
+def _worker_task(plans: list[CubeMapPlan]) -> int:
+    _render_groups(_worker["ctx"], _worker["bake_dir"], batches(plans), None, _worker["renderer"])
+    return len(plans)
 
 
 def farthest(lo, hi, centre) -> float:

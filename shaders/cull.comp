@@ -26,12 +26,27 @@ uniform vec4 clip_plane;   // mirror passes: the mirror plane, the eye's side po
 uniform int use_clip;
 uniform int first_command; // this region's first command (region x object count)
 uniform int object_count;
+// Objects smaller than this are dropped (0: none): the radius of the box's bounding sphere over its
+// distance along the view axis, times proj_scale (the projection's y scale, cot(yfov / 2)), in NDC
+// units; emitters are never dropped (a small lamp still lights what reflects it).
+uniform float min_radius_ndc;
+uniform float proj_scale;
+uniform vec4 view_row;     // the view-projection's last row: w of a point = depth along the view axis
 
 // Whether the box lies wholly on the negative side of the plane: its corner farthest along the
 // plane's normal is behind it (viewer/camera.py in_frustum, the test this replaces).
 bool beyond(vec4 plane, vec3 lo, vec3 hi) {
     vec3 far_corner = mix(lo, hi, step(0.0, plane.xyz));
     return dot(plane.xyz, far_corner) + plane.w < 0.0;
+}
+
+// Whether the box's bounding sphere, wholly in front of the eye, projects to a radius under
+// min_radius_ndc (the nearest point of the sphere gives the largest projection).
+bool too_small(vec3 lo, vec3 hi) {
+    vec3 centre = 0.5 * (lo + hi);
+    float radius = 0.5 * length(hi - lo);
+    float w = dot(view_row, vec4(centre, 1.0)) - radius;
+    return w > 0.0 && radius * proj_scale < min_radius_ndc * w;
 }
 
 void main() {
@@ -47,6 +62,8 @@ void main() {
         state = EMPTY;
     else if (use_clip != 0 && beyond(clip_plane, o.lo.xyz, o.hi.xyz))
         state = BEHIND_PLANE;
+    else if (min_radius_ndc > 0.0 && o.lo.w == 0.0 && too_small(o.lo.xyz, o.hi.xyz))
+        state = TOO_SMALL;
     else {
         for (int k = 0; k < 6; ++k)
             if (beyond(planes[k], o.lo.xyz, o.hi.xyz))

@@ -3,7 +3,8 @@
 // draws them all (viewer/draw_list.py).
 
 struct SceneObject {
-    vec4 lo;      // xyz: world-space bounding box, low corner (the culling test, cull.comp)
+    vec4 lo;      // xyz: world-space bounding box, low corner (the culling test, cull.comp);
+                  // w: 1 for an emitter (never dropped for its size), else 0
     vec4 hi;      // xyz: high corner
     ivec4 info;   // x: material index; y: light-map layers a back face adds to its page (0: no back
                   // side); z: first index in the scene's index buffer; w: index count (0: no triangles)

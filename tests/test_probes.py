@@ -257,3 +257,37 @@ def test_classes_over_the_texture_units_are_resampled_with_one_warning(tmp_path,
     finally:
         cubes.release()
     np.testing.assert_allclose(out["L"], colours[[0, 1, 2, 2]], atol=2e-3)
+
+
+def test_probes_rendered_by_several_processes_are_the_bytes_of_one(tmp_path):
+    """On a software renderer the cube-map stage shares the probes out among worker processes,
+    each with its own GL context (glint/cubemap_stage.py). 24 own probes (three tasks of
+    PROBES_PER_TASK), each hiding three more boxes as shared probes hide their members, rendered
+    by 2 processes give files byte-identical to one process's, and the progress callback counts
+    every probe once.
+    Deliberate bug tried: the worker tasks keeping only the first hidden object of each plan:
+    the files differ."""
+    import dataclasses
+    import filecmp
+
+    from glint.bake.cubemap import plan_cubemaps
+    from glint.cubemap_stage import PROBES_PER_TASK, render_cubemaps
+
+    path = _scene(tmp_path, 72, 3, "probe_sharing = 0\n")
+    bake = _bake(path)
+    plans = plan_cubemaps(load_scene(path), "t", ProbeRules(sharing=0.0))
+    assert len(plans) == 24 and len(plans) >= 3 * PROBES_PER_TASK
+    plans = [dataclasses.replace(p, hidden=tuple(sorted({*p.hidden, p.index + 1, p.index + 2, p.index + 3})))
+             for p in plans]
+    one, two = tmp_path / "one", tmp_path / "two"
+    for out in (one, two):
+        import shutil
+
+        shutil.copytree(bake.path, out)
+        shutil.rmtree(out / "cubemaps")
+    counted = []
+    assert render_cubemaps(one, plans, workers=1)["processes"] == 1
+    assert render_cubemaps(two, plans, progress=lambda: counted.append(1), workers=2)["processes"] == 2
+    assert len(counted) == len(plans)
+    for plan in plans:
+        assert filecmp.cmp(one / plan.file, two / plan.file, shallow=False), plan.file

@@ -47,7 +47,7 @@ from glint.viewer.gl_bindings import (
 from glint.viewer.shader_source import compute_program, set_uniforms
 
 # Why an object was or was not drawn (shaders/cull.comp writes one per object and region).
-DRAW_STATES = {"DRAWN": 0, "HIDDEN": 1, "EMPTY": 2, "OUTSIDE_VIEW": 3, "BEHIND_PLANE": 4}
+DRAW_STATES = {"DRAWN": 0, "HIDDEN": 1, "EMPTY": 2, "OUTSIDE_VIEW": 3, "BEHIND_PLANE": 4, "TOO_SMALL": 5}
 COMMAND_BYTES = 20  # glDrawElementsIndirect's command: count, instanceCount, firstIndex, baseVertex, baseInstance
 CULL_GROUP = 64     # cull.comp's local size
 TEXTURE_UNITS = (KD_TEXTURE_UNIT, EMISSION_TEXTURE_UNIT, METALLIC_ROUGHNESS_TEXTURE_UNIT, NORMAL_TEXTURE_UNIT,
@@ -113,10 +113,12 @@ class DrawList:
         self.hidden_buffer.write(flags.tobytes(), offset=region * max(self.count, 1) * 4)
         self._hidden[region] = hidden
 
-    def cull(self, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None) -> None:
+    def cull(self, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None,
+             min_radius_ndc: float = 0.0) -> None:
         """Write region's draw commands and states (shaders/cull.comp): every object whose box may
         lie in the frustum of `view_proj` and, when `clip_plane` (a, b, c, d) is given, on its
-        positive side, unless its index is in `hidden`."""
+        positive side, unless its index is in `hidden` or (min_radius_ndc > 0, non-emitters) its
+        bounding sphere projects to a radius under min_radius_ndc."""
         if self.count == 0:
             return
         self._grow(region + 1)
@@ -126,8 +128,11 @@ class DrawList:
         planes = frustum_planes(view_proj)
         planes /= np.maximum(np.linalg.norm(planes[:, :3], axis=1, keepdims=True), 1e-30)
         clip = np.zeros(4) if clip_plane is None else np.asarray(clip_plane, np.float64)
+        vp = np.asarray(view_proj, np.float64)
         set_uniforms(self.cull_program, first_command=region * n, object_count=n,
-                     use_clip=int(clip_plane is not None), clip_plane=tuple(map(float, clip)))
+                     use_clip=int(clip_plane is not None), clip_plane=tuple(map(float, clip)),
+                     min_radius_ndc=float(min_radius_ndc), proj_scale=float(max(np.linalg.norm(vp[0, :3]), np.linalg.norm(vp[1, :3]))),
+                     view_row=tuple(map(float, vp[3])))
         self.cull_program["planes"].write(planes.astype(np.float32).tobytes())
         self.scene.object_buffer.bind_to_storage_buffer(self.scene.object_binding)
         self.order_buffer.bind_to_storage_buffer(DRAW_ORDER_BINDING)
@@ -137,12 +142,13 @@ class DrawList:
         self.cull_program.run(-(-n // CULL_GROUP))
         self.ctx.memory_barrier(moderngl.COMMAND_BARRIER_BIT | moderngl.SHADER_STORAGE_BARRIER_BIT)
 
-    def draw(self, program, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None) -> None:
+    def draw(self, program, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None,
+             min_radius_ndc: float = 0.0) -> None:
         """Draw every object in view with `program` (its framebuffer and state set by the caller):
         `cull`, then one multi-draw per texture batch."""
         if self.count == 0:
             return
-        self.cull(view_proj, region, hidden, clip_plane)
+        self.cull(view_proj, region, hidden, clip_plane, min_radius_ndc)
         scene, first_command = self.scene, region * self.count
         program["view_proj"].write(gl_bytes(view_proj))
         scene.bind_materials()
@@ -166,7 +172,7 @@ class DrawList:
         if region in self._records:
             return self._records[region]
         out = {"objects_drawn": 0, "triangles": 0, "objects_culled": [], "objects_empty": [],
-               "objects_hidden": [], "objects_behind_plane": []}
+               "objects_hidden": [], "objects_behind_plane": [], "objects_too_small": []}
         if self.count and region < self.regions:
             states = self.states(region)
             objects = self.scene.objects
@@ -174,7 +180,8 @@ class DrawList:
             out["objects_drawn"] = int(drawn.sum())
             out["triangles"] = int(self.triangles[drawn].sum())
             for key, state in (("objects_culled", "OUTSIDE_VIEW"), ("objects_empty", "EMPTY"),
-                               ("objects_hidden", "HIDDEN"), ("objects_behind_plane", "BEHIND_PLANE")):
+                               ("objects_hidden", "HIDDEN"), ("objects_behind_plane", "BEHIND_PLANE"),
+                               ("objects_too_small", "TOO_SMALL")):
                 out[key] = [objects[i].name for i in np.flatnonzero(states == DRAW_STATES[state])]
         self._records[region] = out
         return out

@@ -124,8 +124,8 @@ VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent
                          ("uv", "<f4", 2), ("lm_uv", "<f4", 2), ("lm_page", "<i4"), ("object", "<i4"),
                          ("color", "<f4", 3)])
 VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i 3f"
-# Per object (std430; shaders/scene_objects.glsl): world box (lo, hi; w unused) and (material, back-side
-# light-map layer offset, first index, index count).
+# Per object (std430; shaders/scene_objects.glsl): world box (lo, hi; lo.w 1 for emitters) and (material,
+# back-side light-map layer offset, first index, index count).
 SCENE_OBJECT_DTYPE = np.dtype([("lo", "<f4", 4), ("hi", "<f4", 4), ("info", "<i4", 4)])
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object",
                      "in_color")
@@ -138,9 +138,11 @@ def shader_defines() -> dict:
 
 
 def _clean(a, lo=0.0, hi=None) -> np.ndarray:
-    """Non-finite -> 0, then clamped to [lo, hi] (what bake/lights.py and irradiance.py do)."""
-    a = np.nan_to_num(np.asarray(a, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-    return a if lo is None and hi is None else np.clip(a, lo, hi)
+    """Non-finite -> 0, then clamped to [lo, hi] (what bake/lights.py and irradiance.py do). float32
+    input stays float32 (texture images: half the memory and time), anything else is float64."""
+    a = np.asarray(a)
+    a = np.nan_to_num(a if a.dtype == np.float32 else a.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    return a if lo is None and hi is None else np.clip(a, lo, hi, out=a)
 
 
 @dataclass
@@ -193,11 +195,13 @@ class GpuScene:
         self.objects = [obj for obj, _, _ in parts]
         self.triangles = sum(o.triangles for o in self.objects)
         table = np.zeros(max(len(parts), 1), SCENE_OBJECT_DTYPE)
+        emitters = [bool(np.any(_clean(m.get("emission", (0, 0, 0))) > 0)) for m in manifest["materials"]]
         vertices, indices = [], []
         first_vertex = first_index = 0
         for k, (obj, v, idx) in enumerate(parts):
             obj.first_index = first_index
             table[k]["lo"][:3], table[k]["hi"][:3] = obj.bounds
+            table[k]["lo"][3] = float(emitters[obj.material])
             table[k]["info"] = (obj.material, obj.back_layer, first_index, 3 * obj.triangles)
             vertices.append(v)
             indices.append(idx.reshape(-1) + np.uint32(first_vertex))

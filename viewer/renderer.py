@@ -77,7 +77,8 @@ class Renderer:
                  lobe_samples: int | None = None, weights: str = "eq4.25", walkthrough: str = "patterns",
                  samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
                  blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto",
-                 footprint: str = "moment"):
+                 footprint: str = "moment", timing: bool = True, small_objects: float = 0.0,
+                 display: bool = True):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "eq4.25" or "eq4.24" (walkthrough); walkthrough: a key of
         WALKTHROUGH_METHODS; samples_per_frame, max_frames, blend_frames: the still camera's
@@ -85,7 +86,12 @@ class Renderer:
         reflectors, viewer/reflectors.py; 0: none, planar objects show their diffuse part);
         planar_pattern: "auto", "ring" or "multi_ring", the walkthrough pattern of isotropic lobes
         on planar reflectors (viewer/gpu_scene.py; "auto" is the multi-ring); footprint: a key of
-        FOOTPRINTS, the filter of each pattern look-up in a cube map."""
+        FOOTPRINTS, the filter of each pattern look-up in a cube map; timing: False times no pass
+        (viewer/timing.py "off": no glFinish between passes on a software renderer; stats then
+        has no per-pass times); small_objects: the G-buffer leaves out objects (not emitters) whose
+        bounding sphere projects to a radius under this many output pixels (0: none; the bake's
+        cube-map renders, where such an object covers under a texel); display: False skips the tone
+        map (no display_texture or read_srgb: for renderers read with read_linear only)."""
         check_context(ctx)
         if walkthrough not in WALKTHROUGH_METHODS:
             raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
@@ -116,7 +122,9 @@ class Renderer:
                                        blend_frames=blend_frames)
         self.weights = weights
         self.walkthrough = walkthrough
-        self.timer = PassTimer(ctx)
+        self.timer = PassTimer(ctx, method=None if timing else "off")
+        self.small_objects = max(float(small_objects), 0.0)
+        self.display = bool(display)
         self.cpu_ms: deque = deque(maxlen=self.timer.history)  # wall time of each render() call
         self.size: tuple[int, int] | None = None
         self.mode: str | None = None  # of the last frame: "walkthrough" or "converge"
@@ -209,7 +217,7 @@ class Renderer:
                 plan = mirror.plan(camera, aspect, hidden)
                 mirror.run(plan, camera, aspect, hidden, timer)
             with timer("gbuffer"):
-                self.gbuffer.run(camera, aspect, hidden)
+                self.gbuffer.run(camera, aspect, hidden, min_radius_ndc=2.0 * self.small_objects / height)
             if mirror.active and plan.queries:
                 with timer("occlusion_queries"):
                     mirror.query_occlusion(plan, self.gbuffer.fbo, camera, aspect)
@@ -226,8 +234,9 @@ class Renderer:
         if blend is not None:
             with timer("accumulate"):
                 linear = self.progressive.add(linear, blend)
-        with timer("tonemap"):
-            self._display = self.tonemap.run(linear, self.exposure)
+        if self.display:
+            with timer("tonemap"):
+                self._display = self.tonemap.run(linear, self.exposure)
         self._linear = linear
         self._view = (camera, aspect)
         self.size = (width, height)
@@ -240,6 +249,11 @@ class Renderer:
         if self._linear is None:
             raise RuntimeError("nothing rendered yet: call render() first")
 
+    def _require_display(self) -> None:
+        self._require_frame()
+        if self._display is None:
+            raise RuntimeError("this renderer makes no display image (Renderer(display=False))")
+
     def read_linear(self) -> np.ndarray:
         """(H, W, 3) float32 linear radiance after the resolve; row 0 is the top of the image."""
         self._require_frame()
@@ -249,7 +263,7 @@ class Renderer:
 
     def read_srgb(self) -> np.ndarray:
         """(H, W, 3) uint8 tone-mapped sRGB; row 0 is the top of the image."""
-        self._require_frame()
+        self._require_display()
         w, h = self._display.size
         data = np.frombuffer(self._display.read(alignment=1), np.uint8).reshape(h, w, 4)
         return np.ascontiguousarray(data[::-1, :, :3])
@@ -284,7 +298,7 @@ class Renderer:
     def display_texture(self) -> moderngl.Texture:
         """The last frame, tone-mapped: RGBA8, GL orientation (row 0 at the bottom), sRGB-encoded
         already (blit it to a framebuffer without GL_FRAMEBUFFER_SRGB)."""
-        self._require_frame()
+        self._require_display()
         return self._display
 
     @property
@@ -295,6 +309,8 @@ class Renderer:
                          "objects_without_triangles": list(drawn.get("objects_empty", []))}
         if drawn.get("objects_hidden"):
             skipped["objects_hidden"] = list(drawn["objects_hidden"])
+        if drawn.get("objects_too_small"):
+            skipped["objects_too_small"] = list(drawn["objects_too_small"])
         if self.supersample == 1:
             skipped["resolve"] = "supersample 1: the shaded image is the output"
         specular = self._specular_stats()

@@ -15,7 +15,9 @@ later command needs the result, so its timer queries put the G-buffer's raster
 time into whichever pass comes next (measured: 0.3 ms for a G-buffer that takes
 several). There `method = "finish"` is used instead: glFinish before and after
 each pass and the wall clock in between -- exact for a software renderer, but it
-stalls a real GPU's pipeline, so hardware uses queries.
+stalls a real GPU's pipeline, so hardware uses queries. `method = "off"` times
+nothing (work that nobody reads the times of, e.g. the bake's cube-map renders,
+should not pay for the glFinish calls).
 """
 from __future__ import annotations
 
@@ -39,8 +41,8 @@ class PassTimer:
     def __init__(self, ctx: moderngl.Context, history: int = 60, method: str | None = None):
         self.ctx = ctx
         self.method = method or default_method(ctx)
-        if self.method not in ("query", "finish"):
-            raise ValueError(f"timing method must be 'query' or 'finish', not {self.method!r}")
+        if self.method not in ("query", "finish", "off"):
+            raise ValueError(f"timing method must be 'query', 'finish' or 'off', not {self.method!r}")
         self._queries: dict[str, moderngl.Query] = {}
         self._pending: dict[str, float | None] = {}  # measured this frame, not yet collected
         self._samples: dict[str, deque] = {}
@@ -50,11 +52,14 @@ class PassTimer:
 
     @property
     def description(self) -> str:
-        return ("OpenGL timer queries" if self.method == "query"
-                else "wall clock between glFinish calls (software renderer)")
+        return {"query": "OpenGL timer queries", "finish": "wall clock between glFinish calls (software renderer)",
+                "off": "not timed"}[self.method]
 
     @contextmanager
     def __call__(self, name: str):
+        if self.method == "off":
+            yield
+            return
         if name in self._pending:  # measured twice in one frame: start a new frame
             self.collect()
         if self.method == "finish":

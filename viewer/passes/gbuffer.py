@@ -77,9 +77,10 @@ class GBufferPass:
         self.fbo = ctx.framebuffer([t[COLOUR_TARGETS[k]] for k in range(len(COLOUR_TARGETS))], t["depth"])
         self.size = size
 
-    def run(self, camera: ViewCamera, aspect: float, hidden=()) -> None:
+    def run(self, camera: ViewCamera, aspect: float, hidden=(), min_radius_ndc: float = 0.0) -> None:
         """Draw every object in view except those whose index is in `hidden` (a cube map leaves
-        out its own object); `draws.record(REGION)` says afterwards what was drawn and skipped."""
+        out its own object) and, with min_radius_ndc > 0, non-emitters that project smaller
+        (viewer/draw_list.py); `draws.record(REGION)` says afterwards what was drawn and skipped."""
         ctx = self.ctx
         self.fbo.use()
         self.fbo.viewport = (0, 0, *self.size)
@@ -87,7 +88,8 @@ class GBufferPass:
         ctx.depth_func = "<"
         self.fbo.clear(depth=1.0)  # colour targets need no clear: depth 1 marks the empty pixels
         set_uniforms(self.program, eye=tuple(map(float, camera.eye)))
-        self.draws.draw(self.program, camera.view_projection(aspect), region=self.REGION, hidden=hidden)
+        self.draws.draw(self.program, camera.view_projection(aspect), region=self.REGION, hidden=hidden,
+                        min_radius_ndc=min_radius_ndc)
 
     def _release_targets(self) -> None:
         if self.fbo is not None:
