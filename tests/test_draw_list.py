@@ -194,3 +194,39 @@ def test_gl_calls_per_frame_do_not_grow_with_objects(ctx, tmp_path):
         calls[objects] = sum(n for (f, _, name), (_, n, *_) in pstats.Stats(profile).stats.items()
                              if f == "~" and "mgl." in name)
     assert calls[1000] == calls[10], calls
+
+
+def test_small_objects_are_dropped_as_numpy_projects_them(ctx):
+    """With min_radius_ndc > 0 (the bake's cube-map faces), an object in view whose bounding sphere,
+    wholly in front of the eye, projects to a radius under it is TOO_SMALL, unless it emits
+    (lo.w = 1); numpy projects the same spheres (radius x cot(yfov / 2) / (depth - radius)).
+
+    Deliberate bugs this catches (tried): the sphere's centre depth instead of its nearest point
+    (w - radius): 27 states differ; emitters dropped too: 101 differ."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    lo = rng.uniform(-10, 10, (n, 3)) + np.array([0.0, 0.0, -12.0])
+    bounds = np.stack([lo, lo + rng.uniform(0.005, 0.6, (n, 3))], axis=1)
+    scene = BoxesOnly(ctx, bounds, np.ones(n, np.int64), np.zeros(n, np.int64))
+    emitters = rng.random(n) < 0.1
+    table = np.frombuffer(scene.object_buffer.read(), SCENE_OBJECT_DTYPE).copy()
+    table["lo"][:, 3] = emitters
+    scene.object_buffer.write(table.tobytes())
+    draws = DrawList(ctx, scene)
+    camera = ViewCamera(eye=(0.0, 0.0, 2.0), forward=(0.0, 0.0, -1.0), yfov=math.radians(60), znear=0.05, zfar=40.0)
+    view_proj = camera.view_projection(1.0)
+    limit = 2.0 * 0.5 / 32  # half a texel of a 32-texel face
+    draws.cull(view_proj, min_radius_ndc=limit)
+    states = draws.states(0)
+
+    centre, radius = bounds.mean(axis=1), np.linalg.norm(bounds[:, 1] - bounds[:, 0], axis=1) / 2
+    depth = (centre - camera.eye) @ camera.forward - radius
+    projected = radius / np.tan(camera.yfov / 2) / np.where(depth > 0, depth, np.nan)
+    visible = np.array([in_frustum(b, view_proj) for b in bounds])
+    small = visible & ~emitters & (depth > 0) & (projected < limit)
+    clear = visible & ~((depth > 0) & (np.abs(projected / limit - 1) < 1e-3))
+    expected = np.where(small, DRAW_STATES["TOO_SMALL"], np.where(visible, DRAW_STATES["DRAWN"],
+                                                                  DRAW_STATES["OUTSIDE_VIEW"]))
+    assert small.sum() > 100 and (visible & ~small).sum() > 100 and (emitters & visible & (projected < limit)).sum() > 10
+    assert np.array_equal(states[clear], expected[clear]), f"{(states != expected)[clear].sum()} states differ"
+    draws.release()
