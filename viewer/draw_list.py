@@ -125,14 +125,17 @@ class DrawList:
         self._set_hidden(region, hidden)
         self._records.pop(region, None)
         n = self.count
-        planes = frustum_planes(view_proj)
-        planes /= np.maximum(np.linalg.norm(planes[:, :3], axis=1, keepdims=True), 1e-30)
-        clip = np.zeros(4) if clip_plane is None else np.asarray(clip_plane, np.float64)
         vp = np.asarray(view_proj, np.float64)
+        planes = frustum_planes(vp)
+        planes /= np.sqrt(np.maximum(np.einsum("ij,ij->i", planes[:, :3], planes[:, :3]), 1e-60))[:, None]
+        clip = np.zeros(4) if clip_plane is None else np.asarray(clip_plane, np.float64)
+        small = {}
+        if min_radius_ndc > 0:  # the projection's larger axis scale (rows 0 and 1 of P V, V orthonormal)
+            small = {"proj_scale": float(np.sqrt(max(vp[0, :3] @ vp[0, :3], vp[1, :3] @ vp[1, :3]))),
+                     "view_row": tuple(map(float, vp[3]))}
         set_uniforms(self.cull_program, first_command=region * n, object_count=n,
                      use_clip=int(clip_plane is not None), clip_plane=tuple(map(float, clip)),
-                     min_radius_ndc=float(min_radius_ndc), proj_scale=float(max(np.linalg.norm(vp[0, :3]), np.linalg.norm(vp[1, :3]))),
-                     view_row=tuple(map(float, vp[3])))
+                     min_radius_ndc=float(min_radius_ndc), **small)
         self.cull_program["planes"].write(planes.astype(np.float32).tobytes())
         self.scene.object_buffer.bind_to_storage_buffer(self.scene.object_binding)
         self.order_buffer.bind_to_storage_buffer(DRAW_ORDER_BINDING)
