@@ -11,10 +11,13 @@ after --warmup frames and reports:
 - the renderer's per-pass times and their sum (viewer/timing.py: on llvmpipe the glFinish-bracketed
   wall clock), and the wall time per frame (frames back to back, one glFinish at the end);
 - the *Python* time per frame: the same frames again under cProfile, the summed own time of every
-  Python function (the time spent inside C calls -- moderngl, the GL driver, numpy -- excluded); the
+  Python function (the time spent inside C calls -- moderngl, the GL driver, numpy -- excluded), in
+  the main thread's CPU time (time.thread_time: llvmpipe's raster threads, which take the other
+  core while Python runs, do not count as Python's time); the
   profiler's own overhead makes it an upper bound ("cProfile"), and "net" takes off that overhead,
   measured on this machine as the cost per profiled call of an empty function, once per call the
-  frame made;
+  frame made; each of 5 blocks of --frames frames is profiled on its own and the median block's
+  figures are reported (the others in the JSON);
 - the GL calls per frame and the time in them (cProfile's built-in calls of moderngl's objects).
 
 Writes DIR/many_objects.json and .md.
@@ -47,46 +50,50 @@ def profiler_overhead_s(calls: int = 200_000) -> float:
 
     tries = []
     for _ in range(5):
-        t = time.perf_counter()
+        t = time.thread_time()
         for _ in range(calls):
             empty()
-        plain = time.perf_counter() - t
-        profile = cProfile.Profile()
+        plain = time.thread_time() - t
+        profile = cProfile.Profile(time.thread_time)
         profile.enable()
-        t = time.perf_counter()
+        t = time.thread_time()
         for _ in range(calls):
             empty()
-        profiled = time.perf_counter() - t
+        profiled = time.thread_time() - t
         profile.disable()
         tries.append(max(profiled - plain, 0.0) / calls)
     return sorted(tries)[2]
 
 
-def python_time(renderer, camera, size, frames: int) -> dict:
-    """cProfile over `frames` walkthrough frames: Python's own time and the C calls, per frame."""
-    profile = cProfile.Profile()
-    profile.enable()
-    for _ in range(frames):
-        renderer.render(camera, *size)
-    profile.disable()
-    renderer.ctx.finish()
-    stats = pstats.Stats(profile).stats
-    python = builtin = 0.0
-    calls = every_call = 0
-    for (filename, _, name), (_, ncalls, tottime, _, _) in stats.items():
-        every_call += ncalls
-        if filename == "~":  # a built-in (C) function or method
-            builtin += tottime
-            if "mgl" in name or "moderngl" in name:
-                calls += ncalls
-        else:
-            python += tottime
-    net = max(python - every_call * profiler_overhead_s(), 0.0)
-    return {"python_ms_per_frame": round(python * 1e3 / frames, 3),
-            "python_ms_per_frame_net": round(net * 1e3 / frames, 3),
-            "calls_per_frame": round(every_call / frames, 1),
-            "c_calls_ms_per_frame": round(builtin * 1e3 / frames, 3),
-            "moderngl_calls_per_frame": round(calls / frames, 1)}
+def python_time(renderer, camera, size, frames: int, blocks: int = 5) -> dict:
+    """cProfile over `blocks` runs of `frames` walkthrough frames: Python's own time and the C calls,
+    per frame, the median block's (see the module docstring)."""
+    overhead = profiler_overhead_s()
+    rows = []
+    for _ in range(blocks):
+        profile = cProfile.Profile(time.thread_time)
+        profile.enable()
+        for _ in range(frames):
+            renderer.render(camera, *size)
+        profile.disable()
+        renderer.ctx.finish()
+        python = builtin = 0.0
+        calls = every_call = 0
+        for (filename, _, name), (_, ncalls, tottime, _, _) in pstats.Stats(profile).stats.items():
+            every_call += ncalls
+            if filename == "~":  # a built-in (C) function or method
+                builtin += tottime
+                if "mgl" in name or "moderngl" in name:
+                    calls += ncalls
+            else:
+                python += tottime
+        rows.append({"python_ms_per_frame": round(python * 1e3 / frames, 3),
+                     "python_ms_per_frame_net": round(max(python - every_call * overhead, 0.0) * 1e3 / frames, 3),
+                     "calls_per_frame": round(every_call / frames, 1),
+                     "c_calls_ms_per_frame": round(builtin * 1e3 / frames, 3),
+                     "moderngl_calls_per_frame": round(calls / frames, 1)})
+    rows.sort(key=lambda r: r["python_ms_per_frame_net"])
+    return {**rows[len(rows) // 2], "python_ms_per_frame_net_blocks": [r["python_ms_per_frame_net"] for r in rows]}
 
 
 def measure(root: Path, n: int, kind: str, size, frames: int, warmup: int, ctx) -> dict:
@@ -103,7 +110,7 @@ def measure(root: Path, n: int, kind: str, size, frames: int, warmup: int, ctx) 
         camera = ViewCamera.from_manifest(find_named(bake.manifest.get("cameras") or [], "view"))
         timed = time_view(renderer, camera, size, frames, warmup, "walkthrough")
         stats = renderer.stats
-        profiled = python_time(renderer, camera, size, max(frames // 2, 1))
+        profiled = python_time(renderer, camera, size, frames)
     return {"scene": name, "objects": stats["objects"], "objects_drawn": stats["objects_drawn"],
             "triangles": stats["triangles"], "bake_seconds_this_run": round(time.perf_counter() - t0, 2),
             "bake_seconds": round(sum((statistics.get(stage) or {}).get("seconds") or 0.0
