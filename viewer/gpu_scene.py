@@ -142,7 +142,7 @@ def _clean(a, lo=0.0, hi=None) -> np.ndarray:
     input stays float32 (texture images: half the memory and time), anything else is float64."""
     a = np.asarray(a)
     a = np.nan_to_num(a if a.dtype == np.float32 else a.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-    return a if lo is None and hi is None else np.clip(a, lo, hi, out=a)
+    return a if lo is None and hi is None else np.clip(a, lo, hi)
 
 
 @dataclass
