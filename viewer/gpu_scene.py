@@ -437,7 +437,7 @@ class GpuScene:
     def _texture(self, rgb: np.ndarray, what: str, *, mipmaps: bool, alpha: np.ndarray | None = None) -> moderngl.Texture:
         h, w = rgb.shape[:2]
         check_texture_size(self.ctx, w, h, what, fix="scale it down in the modelling tool and export again")
-        rgba = np.concatenate([rgb, np.ones((h, w, 1)) if alpha is None else alpha.reshape(h, w, 1)], axis=-1)
+        rgba = np.concatenate([rgb, np.ones((h, w, 1), rgb.dtype) if alpha is None else alpha.reshape(h, w, 1)], axis=-1)
         with self._gl.checked(f"upload {what}"):
             tex = self.ctx.texture((w, h), 4, rgba.astype(np.float16).tobytes(), dtype="f2")
             if mipmaps:
