@@ -291,3 +291,22 @@ def test_probes_rendered_by_several_processes_are_the_bytes_of_one(tmp_path):
     assert len(counted) == len(plans)
     for plan in plans:
         assert filecmp.cmp(one / plan.file, two / plan.file, shallow=False), plan.file
+
+
+def test_python_m_glint_bake_with_worker_processes(tmp_path):
+    """`python -m glint bake -j 2` of a scene whose probes go to worker processes (software
+    renderer, more than 2 x PROBES_PER_TASK probes): exit 0, two processes, every probe written.
+    Deliberate bug tried: the bake's --jobs not handed to the cube-map stage (workers=1 in
+    bake/pipeline.py): one process. (glint/__main__.py's `__name__` guard is not what this
+    catches: multiprocessing's spawn never re-runs a package's __main__ module.)"""
+    import subprocess
+    import sys
+
+    path = _scene(tmp_path, 72, 3, "probe_sharing = 0\nsamples = 8\n")
+    out = tmp_path / "m.bake"
+    run = subprocess.run([sys.executable, "-m", "glint", "bake", str(path), "-o", str(out), "-j", "2", "--no-denoise"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    stats = Bake(out).manifest["statistics"]["cubemaps"]
+    assert stats["processes"] == 2 and stats["rendered"] == 24
+    assert len(list((out / "cubemaps").glob("*.exr"))) == 24
