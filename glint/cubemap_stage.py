@@ -10,10 +10,9 @@ Batches: reading a frame back right after rendering it makes the CPU wait for th
 face. Instead every face's radiance and depth are packed into one GPU buffer (`Texture.read_into`
 a pixel-pack buffer, which queues the copy and returns), for all six faces of as many probes as
 `BATCH_MIB` holds, and the buffer is read once per batch; radiance, distances and the files are
-then made from it. The distance of a texel (`face_distances`) is the eye-space depth of the
-face's pixel (the inverse of the perspective depth mapping of camera.glsl) times the length of its
-ray per unit of depth, hypot(1, x, y) at the face's 90-degree field of view, averaged over the
-pixels of the texel (bake/cubemap.py `supersample` per side) that hit something.
+then made from it. The distance of a texel is viewer/camera.py `depth_distances` of the face's
+depth, as the renderer's `read_distance`: the mean over the pixels of the texel
+(bake/cubemap.py `supersample` per side) that hit something.
 
 Processes: a software renderer (Mesa's llvmpipe) processes vertices on the thread that issues the
 draw and rasterises on others, so one GL context keeps about one core busy with a probe's many
@@ -47,7 +46,7 @@ from glint.bake.cubemap import (
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
-from glint.viewer.camera import ViewCamera
+from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
 from glint.viewer.gl import describe, software_renderer
 from glint.viewer.renderer import Renderer
@@ -208,22 +207,9 @@ def unpack_faces(data: bytes, offset: int, size: int, *, far: float) -> tuple[np
     for k in range(6):
         faces[k, ..., :3] = np.frombuffer(data, np.float32, size * size * 4, offset).reshape(size, size, 4)[..., :3]
         d = np.frombuffer(data, np.float32, n * n, offset + colour).reshape(n, n)
-        faces[k, ..., 3] = face_distances(d, NEAR_PER_FAR * far, FAR_MARGIN * far, size)
+        faces[k, ..., 3] = depth_distances(d, face_camera(np.zeros(3), k, far), 1.0, n // size, SKY_DISTANCE)
         offset += colour + depth
     return faces, offset
-
-
-def face_distances(depth: np.ndarray, znear: float, zfar: float, size: int) -> np.ndarray:
-    """(size, size) distances from the centre (module docstring) of a face's (n, n) window-space
-    depths, n = supersample(size) x size, rows from t = 0; SKY_DISTANCE where no pixel hit."""
-    n = depth.shape[0]
-    z = 2.0 * znear * zfar / np.maximum(zfar + znear - (2.0 * depth.astype(np.float64) - 1.0) * (zfar - znear), 1e-30)
-    s = (np.arange(n) + 0.5) / n * 2.0 - 1.0  # tan of the angle off the face's axis, per pixel
-    r = z * np.sqrt(1.0 + s[:, None] ** 2 + s[None, :] ** 2)
-    hit = (depth < 1.0).reshape(size, n // size, size, n // size)
-    total = np.where(hit, r.reshape(hit.shape), 0.0).sum(axis=(1, 3))
-    count = hit.sum(axis=(1, 3))
-    return np.where(count > 0, total / np.maximum(count, 1), SKY_DISTANCE).astype(np.float32)
 
 
 def write_cubemap(path: Path, faces: np.ndarray) -> str:

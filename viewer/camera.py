@@ -128,6 +128,26 @@ def gl_bytes(m: np.ndarray) -> bytes:
     return np.ascontiguousarray(np.asarray(m, np.float32).T).tobytes()
 
 
+def depth_distances(depth: np.ndarray, camera: "ViewCamera", aspect: float, k: int, empty: float) -> np.ndarray:
+    """(H / k, W / k) float64 distances in metres from the eye, of an (H, W) window-space depth
+    buffer of `camera` (GL rows: row 0 at the bottom, kept), each the mean over the k x k pixels of
+    its block that hit a surface (depth < 1), `empty` where none did. A pixel's distance is the
+    eye-space depth of camera.glsl's `eye_depth` times the length of its ray per unit of depth,
+    |forward + x right' + y up'| (the three orthogonal, |forward| = 1; `ray_basis`)."""
+    d = np.asarray(depth, np.float64)
+    h, w = d.shape
+    n, f = camera.znear, camera.zfar
+    z_eye = 2.0 * n * f / np.maximum(f + n - (2.0 * d - 1.0) * (f - n), 1e-30)
+    _, right, up = camera.ray_basis(aspect)
+    x = (np.arange(w) + 0.5) / w * 2.0 - 1.0
+    y = (np.arange(h) + 0.5) / h * 2.0 - 1.0
+    per_depth = np.hypot(1.0, np.hypot(y[:, None] * np.linalg.norm(up), x[None, :] * np.linalg.norm(right)))
+    hit = (d < 1.0).reshape(h // k, k, w // k, k)
+    total = np.where(hit, (z_eye * per_depth).reshape(hit.shape), 0.0).sum(axis=(1, 3))
+    count = hit.sum(axis=(1, 3))
+    return np.divide(total, count, out=np.full(count.shape, float(empty)), where=count > 0)
+
+
 # -- frustum culling ----------------------------------------------------------------------------------
 def frustum_planes(view_proj: np.ndarray) -> np.ndarray:
     """The six planes (6, 4) of an OpenGL view-projection (Gribb & Hartmann), inside where

@@ -42,7 +42,7 @@ import moderngl
 import numpy as np
 
 from glint.core.errors import GlintError
-from glint.viewer.camera import ViewCamera
+from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.draw_list import DrawList
 from glint.viewer.gl import check_context, describe, max_texture_size
 from glint.viewer.gpu_scene import GpuScene, shader_defines
@@ -272,26 +272,13 @@ class Renderer:
         """(H, W) float32 distance in metres from the eye to the visible surface, the mean over the
         pixel's N x N supersamples that hit one; inf where only sky shows. Row 0 is the top.
 
-        From the depth buffer: the eye-space depth of camera.glsl's `eye_depth`, times the length
-        of the pixel's ray per unit of depth along the view axis."""
+        From the depth buffer (viewer/camera.py `depth_distances`)."""
         self._require_frame()
         camera, aspect = self._view
         depth = self.gbuffer.targets["depth"]
         w, h = depth.size
-        d = np.frombuffer(depth.read(alignment=1), np.float32).reshape(h, w).astype(np.float64)
-        n, f = camera.znear, camera.zfar
-        z_eye = 2.0 * n * f / np.maximum(f + n - (2.0 * d - 1.0) * (f - n), 1e-30)
-        _, right, up = camera.ray_basis(aspect)
-        x = (np.arange(w) + 0.5) / w * 2.0 - 1.0
-        y = (np.arange(h) + 0.5) / h * 2.0 - 1.0  # GL rows: row 0 at the bottom
-        # |forward + x right' + y up'| with the three orthogonal and |forward| = 1
-        per_depth = np.hypot(1.0, np.hypot(y[:, None] * np.linalg.norm(up), x[None, :] * np.linalg.norm(right)))
-        distance = np.where(d < 1.0, z_eye * per_depth, np.nan)
-        k = w // self.size[0]  # the supersampling of that frame
-        blocks = distance.reshape(h // k, k, w // k, k)
-        hits = np.isfinite(blocks).sum(axis=(1, 3))
-        total = np.nansum(blocks, axis=(1, 3))
-        mean = np.divide(total, hits, out=np.full(hits.shape, np.inf), where=hits > 0)
+        d = np.frombuffer(depth.read(alignment=1), np.float32).reshape(h, w)
+        mean = depth_distances(d, camera, aspect, w // self.size[0], np.inf)
         return np.ascontiguousarray(mean[::-1], np.float32)
 
     @property
