@@ -179,6 +179,7 @@ class GpuScene:
                        if drawn else np.zeros((2, 3)))
         self.white = ctx.texture((1, 1), 4, np.ones(4, np.float32).tobytes(), dtype="f4")
         self._materials(bake)
+        self._upload_objects()
         self._lightmaps(bake)
         self._sky(bake)
         self.cubemaps = CubeMaps(ctx, bake)
@@ -195,28 +196,34 @@ class GpuScene:
         self.objects = [obj for obj, _, _ in parts]
         self.triangles = sum(o.triangles for o in self.objects)
         table = np.zeros(max(len(parts), 1), SCENE_OBJECT_DTYPE)
-        emitters = [bool(np.any(_clean(m.get("emission", (0, 0, 0))) > 0)) for m in manifest["materials"]]
         vertices, indices = [], []
         first_vertex = first_index = 0
         for k, (obj, v, idx) in enumerate(parts):
             obj.first_index = first_index
             table[k]["lo"][:3], table[k]["hi"][:3] = obj.bounds
-            table[k]["lo"][3] = float(emitters[obj.material])
             table[k]["info"] = (obj.material, obj.back_layer, first_index, 3 * obj.triangles)
             vertices.append(v)
             indices.append(idx.reshape(-1) + np.uint32(first_vertex))
             first_vertex += len(v)
             first_index += 3 * obj.triangles
-        self.object_table = table
+        self.object_table = table  # uploaded by _upload_objects once the materials say which emit
         what = f"the meshes ({len(parts)} objects, {self.triangles} triangles)"
         with self._gl.checked(f"upload {what}"):
             v = np.concatenate(vertices) if vertices else np.zeros(1, VERTEX_DTYPE)
             i = np.concatenate(indices) if indices and first_index else np.zeros(3, np.uint32)
             self.vertex_buffer = self.ctx.buffer(v.tobytes())
             self.index_buffer = self.ctx.buffer(i.astype(np.uint32).tobytes())
-            self.object_buffer = self.ctx.buffer(table.tobytes())
         self.object_binding = SCENE_OBJECT_BINDING
         self._vaos: dict = {}
+
+    def _upload_objects(self) -> None:
+        """The object table, lo.w marking the objects whose material emits (MAT_EMISSIVE)."""
+        table = self.object_table
+        if self.objects:
+            flags = self.material_table["info"][table["info"][:len(self.objects), 0], 0]
+            table["lo"][:len(self.objects), 3] = (flags & MATERIAL_FLAGS["MAT_EMISSIVE"]) != 0
+        with self._gl.checked(f"upload the object table ({len(self.objects)} objects)"):
+            self.object_buffer = self.ctx.buffer(table.tobytes())
 
     def vertex_array(self, program: moderngl.Program) -> moderngl.VertexArray:
         """The scene's vertex array for `program` (made once; attributes it lacks are skipped)."""
