@@ -471,6 +471,11 @@ def test_budget_and_shared_planes(ctx, tmp_path):
     r.render(camera, 64, 48)
     s = r.stats["mirror"]
     assert s["passes_run"] == 2 and s["skipped_reflectors"] == {} and s["layers"] == 2
+    # Already in the first frame, each pass drew the objects on the mirror's side but its own
+    # reflectors: the floor's pass the wall panel, the wall's pass the two floor tiles. (Caught:
+    # the draw list growing its buffers at the second pass, which lost the first pass's states.)
+    drawn = {tuple(sorted(p["reflectors"])): p["objects_drawn"] for p in s["passes"]}
+    assert drawn == {("object0", "object1"): 1, ("object2",): 2}, drawn
     r.release()
 
 

@@ -87,10 +87,12 @@ class DrawList:
         self.command_buffer = self.state_buffer = self.hidden_buffer = None
         self._hidden: list = []   # per region: the hidden set its slice of hidden_buffer holds
         self._records: dict = {}  # region -> the record, once read back this frame
-        self._grow(1)
+        self.reserve(1)
 
-    def _grow(self, regions: int) -> None:
-        """Room for `regions` regions' commands, states and hidden flags (kept: none are in use)."""
+    def reserve(self, regions: int) -> None:
+        """Room for `regions` regions' commands, states and hidden flags. Growing replaces the
+        buffers, losing what earlier regions hold (their states for `record`), so the renderer
+        reserves every pass's region before its first frame (viewer/passes/mirror.py)."""
         if regions <= self.regions:
             return
         n = max(self.count, 1)
@@ -121,7 +123,7 @@ class DrawList:
         bounding sphere projects to a radius under min_radius_ndc."""
         if self.count == 0:
             return
-        self._grow(region + 1)
+        self.reserve(region + 1)
         self._set_hidden(region, hidden)
         self._records.pop(region, None)
         n = self.count

@@ -146,6 +146,7 @@ class MirrorPasses:
         self.object_of = {r.name: i for i, r in self.objects}
         planes = group_coplanar([(r.name, r.point, r.normal) for r in self.reflectors]) if self.reflectors else []
         self.layers = min(self.budget, len(planes))  # passes one frame can ever need
+        draws.reserve(GBufferPass.REGION + 1 + self.layers)  # pass k draws into region 1 + k
         self.occlusion = OcclusionResults()
         self.frame = 0
         self.plan_: MirrorPlan | None = None
