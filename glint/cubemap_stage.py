@@ -48,7 +48,7 @@ from glint.core.errors import GlintError
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
-from glint.viewer.gl import describe, software_renderer
+from glint.viewer.gl import GL, describe, software_renderer
 from glint.viewer.renderer import Renderer
 
 BATCH_MIB = 64  # GPU pack buffer per batch: all six faces of at least one probe, however large
@@ -128,11 +128,14 @@ def _render_groups(ctx, bake_dir, groups: list[list[CubeMapPlan]], progress, ren
     renderer = _diffuse_renderer(ctx, bake_dir) if own else renderer
     try:
         lo, hi = renderer.scene.bounds
-        pack = ctx.buffer(reserve=max(6 * sum(face_bytes(p.size)) for g in groups for p in g)) if groups else None
+        gl = GL(ctx)
+        with gl.checked("allocate the cube maps' read-back buffer"):
+            pack = ctx.buffer(reserve=max(6 * sum(face_bytes(p.size)) for g in groups for p in g)) if groups else None
         for group in groups:
             need = sum(6 * sum(face_bytes(p.size)) for p in group)
             if need > pack.size:
-                pack.orphan(need)
+                with gl.checked(f"grow the cube maps' read-back buffer to {need / 2 ** 20:.0f} MiB"):
+                    pack.orphan(need)
             offset = 0
             for plan in group:
                 renderer.supersample = supersample(plan.size)

@@ -82,7 +82,8 @@ class DrawList:
         order, self.batches = batches([scene.material_textures(m) for m in range(scene.material_count)],
                                       np.array([o.material for o in scene.objects], np.int64))
         self.order = order
-        self.order_buffer = ctx.buffer(np.ascontiguousarray(order if len(order) else np.zeros(1, np.int32)).tobytes())
+        with self._gl.checked(f"upload the draw order of {self.count} objects"):
+            self.order_buffer = ctx.buffer(np.ascontiguousarray(order if len(order) else np.zeros(1, np.int32)).tobytes())
         self.regions = 0
         self.command_buffer = self.state_buffer = self.hidden_buffer = None
         self._hidden: list = []   # per region: the hidden set its slice of hidden_buffer holds
