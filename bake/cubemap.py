@@ -92,7 +92,8 @@ settings here: a re-bake renders only the probes whose hash changed and carries 
 The probes are rendered by glint/cubemap_stage.py, not on the executor's forked workers (a GL
 context does not survive fork): on one GL context where there is a GPU, on --jobs spawned
 processes with a context each on a software renderer; in batches read back at once. Objects under
-SMALL_OBJECT_TEXELS of a face are left out of it.
+SMALL_OBJECT_TEXELS of a face are left out of it; the others are drawn at the coarsest level of
+detail that keeps LOD_TRIANGLES_PER_PIXEL.
 """
 from __future__ import annotations
 
@@ -133,6 +134,10 @@ SUPERSAMPLED_FACE_MAX = 256
 # left out of a face (viewer/draw_list.py): they would cover under a texel, and their triangles are
 # most of a probe's cost on a software renderer.
 SMALL_OBJECT_TEXELS = 0.5
+# The faces draw each object at the coarsest level of detail (viewer/lod.py: halvings of its mesh)
+# that keeps this many triangles per rendered pixel (supersamples) of the disc it covers seen from
+# the probe: near objects whole, far detail (turned balusters, leaves) coarse, at a sub-pixel error.
+LOD_TRIANGLES_PER_PIXEL = 1.0
 # Clip planes of the faces, from the distance `far` to the scene's farthest corner (so a 1 mm and
 # a 10 km scene get the same picture): zfar = FAR_MARGIN x far, znear = NEAR_PER_FAR x far.
 # 24-bit depth then resolves d^2 / (znear 2^24), 6e-4 of far at far; 1 mm at 6 m on a room
@@ -352,7 +357,8 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
             "object": [p.index, p.name], "size": p.size, "centre": p.centre,
             "hidden": [[k, scene.objects[k].name] for k in p.hidden],
             "render": {"supersample": supersample(p.size), "near_per_far": NEAR_PER_FAR, "far_margin": FAR_MARGIN,
-                       "sky_distance": SKY_DISTANCE, "small_object_texels": SMALL_OBJECT_TEXELS}})
+                       "sky_distance": SKY_DISTANCE, "small_object_texels": SMALL_OBJECT_TEXELS,
+                       "lod_triangles_per_pixel": LOD_TRIANGLES_PER_PIXEL}})
     return plans
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from glint.bake.cubemap import (
     FACES,
     FAR_MARGIN,
+    LOD_TRIANGLES_PER_PIXEL,
     NEAR_PER_FAR,
     SKY_DISTANCE,
     SMALL_OBJECT_TEXELS,
@@ -116,10 +117,12 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
 
 
 def _diffuse_renderer(ctx, bake_dir) -> Renderer:
-    """The renderer the probes are rendered with: the bake's diffuse view, untimed, small objects left out."""
+    """The renderer the probes are rendered with: the bake's diffuse view, untimed, small objects left
+    out, the others at their level of detail."""
     bake = Bake(bake_dir)
     bake.manifest = diffuse_view(bake.manifest)
-    return Renderer(ctx, bake, supersample=SUPERSAMPLE, timing=False, small_objects=SMALL_OBJECT_TEXELS, display=False)
+    return Renderer(ctx, bake, supersample=SUPERSAMPLE, timing=False, small_objects=SMALL_OBJECT_TEXELS, display=False,
+                    lod=LOD_TRIANGLES_PER_PIXEL)
 
 
 def _render_groups(ctx, bake_dir, groups: list[list[CubeMapPlan]], progress, renderer: Renderer | None = None) -> None:

@@ -2,8 +2,10 @@
 // command in this region's part of the command buffer -- instance count 1 when the object may be
 // seen, 0 when it is hidden, has no triangles, lies wholly outside a frustum plane or wholly behind
 // the clip plane -- and the reason, for the stats. Commands follow the draw order (objects batched
-// by the textures of their material), so each batch is one contiguous multi-draw.
+// by the textures of their material), so each batch is one contiguous multi-draw. With DRAW_LOD
+// (a scene with levels of detail, viewer/lod.py) a drawn object's command draws the level `detail` picks.
 
+#include "common.glsl"
 #include "scene_objects.glsl"
 
 layout(local_size_x = CULL_GROUP) in;
@@ -32,6 +34,38 @@ uniform int object_count;
 uniform float min_radius_ndc;
 uniform float proj_scale;
 uniform vec4 view_row;     // the view-projection's last row: w of a point = depth along the view axis
+
+#ifdef DRAW_LOD
+// Levels of detail (viewer/lod.py), finest first: per object the index range of each coarser version.
+struct ObjectLod {
+    int first[LOD_LEVELS];
+    int count[LOD_LEVELS];  // indices; 0: no such level
+};
+layout(std430, binding = OBJECT_LOD_BINDING) readonly buffer ObjectLods { ObjectLod object_lods[]; };
+uniform vec3 lod_eye;
+// Pixels per radian at the view's centre times sqrt(triangles per pixel); 0: every object whole.
+uniform float lod_scale;
+
+// The index range to draw: the coarsest level with at least as many triangles as the disc that
+// the box's bounding sphere covers seen from lod_eye, pi (asin(r / d) lod_scale)^2. The disc's
+// angle depends on the eye only, not on the view direction, so the six faces of a cube map pick
+// the same level of an object that spans several.
+uvec2 detail(int i, SceneObject o) {
+    uvec2 range = uvec2(o.info.z, o.info.w);
+    vec3 centre = 0.5 * (o.lo.xyz + o.hi.xyz);
+    float radius = 0.5 * length(o.hi.xyz - o.lo.xyz), d = length(centre - lod_eye);
+    if (lod_scale <= 0.0 || d <= radius)
+        return range;
+    float disc = asin(radius / d) * lod_scale;
+    float indices = 3.0 * PI * disc * disc;
+    for (int k = 0; k < LOD_LEVELS; ++k) {
+        int count = object_lods[i].count[k];
+        if (count > 0 && float(count) >= indices)
+            range = uvec2(object_lods[i].first[k], count);
+    }
+    return range;
+}
+#endif
 
 // Whether the box lies wholly on the negative side of the plane: its corner farthest along the
 // plane's normal is behind it (viewer/camera.py in_frustum, the test this replaces).
@@ -69,6 +103,11 @@ void main() {
             if (beyond(planes[k], o.lo.xyz, o.hi.xyz))
                 state = OUTSIDE_VIEW;
     }
-    commands[first_command + c] = DrawCommand(uint(o.info.w), state == DRAWN ? 1u : 0u, uint(o.info.z), 0, uint(i));
+    uvec2 range = uvec2(o.info.z, o.info.w);  // first index, index count
+#ifdef DRAW_LOD
+    if (state == DRAWN)
+        range = detail(i, o);
+#endif
+    commands[first_command + c] = DrawCommand(range.y, state == DRAWN ? 1u : 0u, range.x, 0, uint(i));
     draw_states[first_command + i] = state;
 }

@@ -24,6 +24,10 @@ reads back only when asked (the stats), never per frame.
 Culling: an object is left out when its world box lies wholly outside one frustum plane (the
 test of viewer/camera.py `in_frustum`, which this pass replaces: the box corner farthest along
 the plane's normal), wholly behind the clip plane (mirror passes), or its id is hidden.
+
+Levels of detail: in a scene uploaded with them (viewer/gpu_scene.py `lod`, viewer/lod.py) a draw
+given `detail` draws each object at the coarsest level that still has about the triangles its
+pixels can show (the bake's cube-map renders); the others draw every object whole.
 """
 from __future__ import annotations
 
@@ -43,7 +47,9 @@ from glint.viewer.gl_bindings import (
     LIGHTMAP_UNIT,
     METALLIC_ROUGHNESS_TEXTURE_UNIT,
     NORMAL_TEXTURE_UNIT,
+    OBJECT_LOD_BINDING,
 )
+from glint.viewer.lod import LOD_LEVELS
 from glint.viewer.shader_source import compute_program, set_uniforms
 
 # Why an object was or was not drawn (shaders/cull.comp writes one per object and region).
@@ -55,7 +61,7 @@ TEXTURE_UNITS = (KD_TEXTURE_UNIT, EMISSION_TEXTURE_UNIT, METALLIC_ROUGHNESS_TEXT
 
 
 def draw_defines() -> dict:
-    return {**DRAW_STATES, "CULL_GROUP": CULL_GROUP}
+    return {**DRAW_STATES, "CULL_GROUP": CULL_GROUP, "LOD_LEVELS": LOD_LEVELS}
 
 
 def batches(textures_of_material: list[tuple], materials: np.ndarray) -> tuple[np.ndarray, list]:
@@ -77,8 +83,9 @@ class DrawList:
         self.scene = scene
         self._gl = GL(ctx)
         self.count = len(scene.objects)
-        self.cull_program = compute_program(ctx, "cull.comp", {**(defines or {}), **draw_defines()})
-        self.triangles = np.array([o.triangles for o in scene.objects], np.int64)
+        self.lod = getattr(scene, "lod_buffer", None) is not None  # levels of detail to pick from (viewer/lod.py)
+        self.cull_program = compute_program(ctx, "cull.comp", {**(defines or {}), **draw_defines(),
+                                                               **({"DRAW_LOD": 1} if self.lod else {})})
         order, self.batches = batches([scene.material_textures(m) for m in range(scene.material_count)],
                                       np.array([o.material for o in scene.objects], np.int64))
         self.order = order
@@ -117,11 +124,14 @@ class DrawList:
         self._hidden[region] = hidden
 
     def cull(self, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None,
-             min_radius_ndc: float = 0.0) -> None:
+             min_radius_ndc: float = 0.0, detail: tuple | None = None) -> None:
         """Write region's draw commands and states (shaders/cull.comp): every object whose box may
         lie in the frustum of `view_proj` and, when `clip_plane` (a, b, c, d) is given, on its
         positive side, unless its index is in `hidden` or (min_radius_ndc > 0, non-emitters) its
-        bounding sphere projects to a radius under min_radius_ndc."""
+        bounding sphere projects to a radius under min_radius_ndc. `detail` = (eye, scale), in a
+        scene with levels of detail: each object at the coarsest level that keeps pi (asin(r / d)
+        scale)^2 triangles for the disc its bounding sphere covers seen from the eye (scale: pixels
+        per radian times the square root of the triangles wanted per pixel); None: all whole."""
         if self.count == 0:
             return
         self.reserve(region + 1)
@@ -140,6 +150,10 @@ class DrawList:
                      use_clip=int(clip_plane is not None), clip_plane=tuple(map(float, clip)),
                      min_radius_ndc=float(min_radius_ndc), **small)
         self.cull_program["planes"].write(planes.astype(np.float32).tobytes())
+        if self.lod:
+            eye, scale = detail if detail is not None else ((0.0, 0.0, 0.0), 0.0)
+            set_uniforms(self.cull_program, lod_eye=tuple(map(float, eye)), lod_scale=float(scale))
+            self.scene.lod_buffer.bind_to_storage_buffer(OBJECT_LOD_BINDING)
         self.scene.object_buffer.bind_to_storage_buffer(self.scene.object_binding)
         self.order_buffer.bind_to_storage_buffer(DRAW_ORDER_BINDING)
         self.command_buffer.bind_to_storage_buffer(DRAW_COMMAND_BINDING)
@@ -149,12 +163,12 @@ class DrawList:
         self.ctx.memory_barrier(moderngl.COMMAND_BARRIER_BIT | moderngl.SHADER_STORAGE_BARRIER_BIT)
 
     def draw(self, program, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None,
-             min_radius_ndc: float = 0.0) -> None:
+             min_radius_ndc: float = 0.0, detail: tuple | None = None) -> None:
         """Draw every object in view with `program` (its framebuffer and state set by the caller):
         `cull`, then one multi-draw per texture batch."""
         if self.count == 0:
             return
-        self.cull(view_proj, region, hidden, clip_plane, min_radius_ndc)
+        self.cull(view_proj, region, hidden, clip_plane, min_radius_ndc, detail)
         scene, first_command = self.scene, region * self.count
         program["view_proj"].write(gl_bytes(view_proj))
         scene.bind_materials()
@@ -179,12 +193,16 @@ class DrawList:
             return self._records[region]
         out = {"objects_drawn": 0, "triangles": 0, "objects_culled": [], "objects_empty": [],
                "objects_hidden": [], "objects_behind_plane": [], "objects_too_small": []}
-        if self.count and region < self.regions:
+        n = self.count
+        if n and region < self.regions:
             states = self.states(region)
             objects = self.scene.objects
             drawn = states == DRAW_STATES["DRAWN"]
             out["objects_drawn"] = int(drawn.sum())
-            out["triangles"] = int(self.triangles[drawn].sum())
+            # what the commands draw: an object's level of detail may have fewer than its triangles
+            commands = np.frombuffer(self.command_buffer.read(size=COMMAND_BYTES * n, offset=COMMAND_BYTES * region * n),
+                                     np.uint32).reshape(n, COMMAND_BYTES // 4)
+            out["triangles"] = int((commands[:, 0].astype(np.int64) * commands[:, 1]).sum() // 3)
             for key, state in (("objects_culled", "OUTSIDE_VIEW"), ("objects_empty", "EMPTY"),
                                ("objects_hidden", "HIDDEN"), ("objects_behind_plane", "BEHIND_PLANE"),
                                ("objects_too_small", "TOO_SMALL")):

@@ -37,6 +37,7 @@ DRAW_ORDER_BINDING = 14     # cull.comp: the object of each draw command (viewer
 DRAW_COMMAND_BINDING = 15   # cull.comp: the indirect draw commands it writes
 DRAW_STATE_BINDING = 16     # cull.comp: why each object was drawn or not
 DRAW_HIDDEN_BINDING = 17    # cull.comp: per object, 1 = left out
+OBJECT_LOD_BINDING = 18     # cull.comp: per object its levels of detail (viewer/gpu_scene.py OBJECT_LOD_DTYPE)
 
 # -- raster passes over the bake's meshes (raster_surface.glsl: G-buffer and mirror passes) -----------
 LIGHTMAP_UNIT = 0

@@ -54,6 +54,7 @@ import numpy as np
 from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
 from glint.core.image_io import read_image
+from glint.viewer import lod
 from glint.viewer.cubemaps import CubeMaps
 from glint.viewer.gl import GL, check_texture_size, software_renderer
 from glint.viewer.gl_bindings import (
@@ -65,6 +66,7 @@ from glint.viewer.gl_bindings import (
     SCENE_OBJECT_BINDING,
 )
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
+from glint.viewer.lod import LOD_LEVELS
 
 
 def _sampler_flags(sampler: dict) -> int:
@@ -127,6 +129,9 @@ VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i 3f"
 # Per object (std430; shaders/scene_objects.glsl): world box (lo, hi; lo.w 1 for emitters) and (material,
 # back-side light-map layer offset, first index, index count).
 SCENE_OBJECT_DTYPE = np.dtype([("lo", "<f4", 4), ("hi", "<f4", 4), ("info", "<i4", 4)])
+# Per object its levels of detail, finest first (viewer/lod.py; std430, shaders/cull.comp): first
+# index in the scene's index buffer and index count of each; count 0 = no such level.
+OBJECT_LOD_DTYPE = np.dtype([("first", "<i4", LOD_LEVELS), ("count", "<i4", LOD_LEVELS)])
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object",
                      "in_color")
 
@@ -157,10 +162,12 @@ class GpuObject:
 
 
 class GpuScene:
-    def __init__(self, ctx: moderngl.Context, bake, planar_pattern: str = "auto"):
+    def __init__(self, ctx: moderngl.Context, bake, planar_pattern: str = "auto", lod: bool = False):
         """planar_pattern: the pattern of isotropic lobes on planar reflectors: "auto" (the
         multi-ring of section 4.5.3, viewer/lobe_patterns.py), or "ring" / "multi_ring" forced
-        (for comparisons: `glint bench --methods patterns-ring`); anisotropic lobes keep their line."""
+        (for comparisons: `glint bench --methods patterns-ring`); anisotropic lobes keep their line.
+        lod: also upload each object's levels of detail (viewer/lod.py) and their table
+        (`lod_buffer`, OBJECT_LOD_DTYPE), which viewer/draw_list.py then picks from."""
         if planar_pattern not in PLANAR_PATTERNS:
             raise GlintError(f"unknown planar pattern {planar_pattern!r}; use one of {', '.join(PLANAR_PATTERNS)}")
         self.planar_pattern = planar_pattern
@@ -173,6 +180,7 @@ class GpuScene:
             if not 0 <= int(entry["material"]) < count:  # the shaders index the material buffer with it
                 raise GlintError(f"{bake.path}: object '{entry['name']}' has material {entry['material']} "
                                  f"of {count}; run `glint bake --force`")
+        self.lod = bool(lod)
         self._meshes(bake)
         drawn = [o.bounds for o in self.objects if o.triangles]
         self.bounds = (np.stack([np.min([b[0] for b in drawn], axis=0), np.max([b[1] for b in drawn], axis=0)])
@@ -207,12 +215,25 @@ class GpuScene:
             first_vertex += len(v)
             first_index += 3 * obj.triangles
         self.object_table = table  # uploaded by _upload_objects once the materials say which emit
+        self.lod_table = None
+        if self.lod:  # the levels' vertices and triangles follow every object's own
+            self.lod_table = np.zeros(max(len(parts), 1), OBJECT_LOD_DTYPE)
+            for k, (obj, v, idx) in enumerate(parts):
+                for level, (source, positions, tris) in enumerate(lod.levels(v["position"], idx)):
+                    self.lod_table[k]["first"][level], self.lod_table[k]["count"][level] = first_index, tris.size
+                    moved = v[source]
+                    moved["position"] = positions
+                    vertices.append(moved)
+                    indices.append(tris.reshape(-1) + np.uint32(first_vertex))
+                    first_vertex += len(moved)
+                    first_index += tris.size
         what = f"the meshes ({len(parts)} objects, {self.triangles} triangles)"
         with self._gl.checked(f"upload {what}"):
             v = np.concatenate(vertices) if vertices else np.zeros(1, VERTEX_DTYPE)
             i = np.concatenate(indices) if indices and first_index else np.zeros(3, np.uint32)
             self.vertex_buffer = self.ctx.buffer(v.tobytes())
             self.index_buffer = self.ctx.buffer(i.astype(np.uint32).tobytes())
+            self.lod_buffer = None if self.lod_table is None else self.ctx.buffer(self.lod_table.tobytes())
         self.object_binding = SCENE_OBJECT_BINDING
         self._vaos: dict = {}
 
@@ -513,8 +534,9 @@ class GpuScene:
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
-        for buf in (self.vertex_buffer, self.index_buffer, self.object_buffer):
-            buf.release()
+        for buf in (self.vertex_buffer, self.index_buffer, self.object_buffer, self.lod_buffer):
+            if buf is not None:
+                buf.release()
         for t in [*self.kd_textures, *self.emission_textures, *self.metallic_roughness_textures,
                   *self.normal_textures, *self.anisotropy_textures, self.lightmaps, self.white]:
             if t is not None:

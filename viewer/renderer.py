@@ -78,7 +78,7 @@ class Renderer:
                  samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
                  blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto",
                  footprint: str = "moment", timing: bool = True, small_objects: float = 0.0,
-                 display: bool = True):
+                 display: bool = True, lod: float = 0.0):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "eq4.25" or "eq4.24" (walkthrough); walkthrough: a key of
         WALKTHROUGH_METHODS; samples_per_frame, max_frames, blend_frames: the still camera's
@@ -91,7 +91,10 @@ class Renderer:
         has no per-pass times); small_objects: the G-buffer leaves out objects (not emitters) whose
         bounding sphere projects to a radius under this many output pixels (0: none; the bake's
         cube-map renders, where such an object covers under a texel); display: False skips the tone
-        map (no display_texture or read_srgb: for renderers read with read_linear only)."""
+        map (no display_texture or read_srgb: for renderers read with read_linear only); lod: > 0
+        uploads levels of detail (viewer/lod.py) and draws each object in the G-buffer at the
+        coarsest that keeps `lod` triangles per G-buffer pixel it covers (0: every object whole;
+        the bake's cube-map renders, whose texels are larger than most triangles)."""
         check_context(ctx)
         if walkthrough not in WALKTHROUGH_METHODS:
             raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
@@ -101,7 +104,8 @@ class Renderer:
         self.bake = bake
         self.supersample = supersample
         self.exposure = float(exposure)  # EV: the tone-mapped image is scaled by 2^exposure
-        self.scene = GpuScene(ctx, bake, planar_pattern=planar_pattern)
+        self.lod = max(float(lod), 0.0)
+        self.scene = GpuScene(ctx, bake, planar_pattern=planar_pattern, lod=self.lod > 0)
         if lobe_samples is not None:
             self.scene.set_lobe_samples(lobe_samples)
         if not (isinstance(mirror_budget, (int, np.integer)) and mirror_budget >= 0):
@@ -217,7 +221,8 @@ class Renderer:
                 plan = mirror.plan(camera, aspect, hidden)
                 mirror.run(plan, camera, aspect, hidden, timer)
             with timer("gbuffer"):
-                self.gbuffer.run(camera, aspect, hidden, min_radius_ndc=2.0 * self.small_objects / height)
+                self.gbuffer.run(camera, aspect, hidden, min_radius_ndc=2.0 * self.small_objects / height,
+                                 triangles_per_pixel=self.lod)
             if mirror.active and plan.queries:
                 with timer("occlusion_queries"):
                     mirror.query_occlusion(plan, self.gbuffer.fbo, camera, aspect)

@@ -8,6 +8,8 @@ single-sided materials, as in Mitsuba).
 """
 from __future__ import annotations
 
+import math
+
 import moderngl
 import numpy as np
 
@@ -77,10 +79,13 @@ class GBufferPass:
         self.fbo = ctx.framebuffer([t[COLOUR_TARGETS[k]] for k in range(len(COLOUR_TARGETS))], t["depth"])
         self.size = size
 
-    def run(self, camera: ViewCamera, aspect: float, hidden=(), min_radius_ndc: float = 0.0) -> None:
+    def run(self, camera: ViewCamera, aspect: float, hidden=(), min_radius_ndc: float = 0.0,
+            triangles_per_pixel: float = 0.0) -> None:
         """Draw every object in view except those whose index is in `hidden` (a cube map leaves
         out its own object) and, with min_radius_ndc > 0, non-emitters that project smaller
-        (viewer/draw_list.py); `draws.record(REGION)` says afterwards what was drawn and skipped."""
+        (viewer/draw_list.py); with triangles_per_pixel > 0, in a scene with levels of detail, each
+        object at the coarsest level with that many triangles per pixel it covers.
+        `draws.record(REGION)` says afterwards what was drawn and skipped."""
         ctx = self.ctx
         self.fbo.use()
         self.fbo.viewport = (0, 0, *self.size)
@@ -88,8 +93,12 @@ class GBufferPass:
         ctx.depth_func = "<"
         self.fbo.clear(depth=1.0)  # colour targets need no clear: depth 1 marks the empty pixels
         set_uniforms(self.program, eye=tuple(map(float, camera.eye)))
+        detail = None
+        if triangles_per_pixel > 0:  # pixels per radian at the centre: cot(yfov / 2) x half the height
+            scale = self.size[1] / 2 / math.tan(camera.yfov / 2) * math.sqrt(triangles_per_pixel)
+            detail = (camera.eye, scale)
         self.draws.draw(self.program, camera.view_projection(aspect), region=self.REGION, hidden=hidden,
-                        min_radius_ndc=min_radius_ndc)
+                        min_radius_ndc=min_radius_ndc, detail=detail)
 
     def _release_targets(self) -> None:
         if self.fbo is not None:
