@@ -40,8 +40,8 @@ def capture(scene: Path, out: Path, *extra: str) -> np.ndarray:
 # -- (a) parsing, applying, one-line errors --------------------------------------------------------
 def test_parse_assignment_reads_toml_keys_and_values():
     """Keys and values are TOML's (tomllib): quoted keys may hold '=' and dots, values any TOML
-    value; format_assignment writes text that reads back the same. A split at the first '='
-    (the obvious hand-written parser) gives ('materials', '"a') for the second case."""
+    value; format_assignment writes text that reads back the same. Splitting at the first '='
+    (the obvious hand-written parser) refused the second case ("expected KEY=VALUE")."""
     assert parse_assignment('materials."Floor".kd=[0.3,0.2,0.1]') == (("materials", "Floor", "kd"), [0.3, 0.2, 0.1])
     assert parse_assignment('materials."a=b.c".emission = 2') == (("materials", "a=b.c", "emission"), 2)
     assert parse_assignment('bake = { samples = 4 }') == (("bake",), {"samples": 4})
@@ -64,7 +64,8 @@ def test_parse_assignment_reads_toml_keys_and_values():
 ])
 def test_apply_refuses_what_the_sidecar_refuses_naming_the_set(text, says):
     """The edited sidecar goes through parse_sidecar: each bad value is one GlintError that names
-    the --set text and says what is wrong. A sidecar typo only warns; a --set typo is refused."""
+    the --set text and says what is wrong. A sidecar typo only warns; a --set typo is refused
+    (with apply_assignments' check for new warnings removed, the 'kdd' case raised nothing)."""
     with pytest.raises(GlintError) as err:
         apply_assignments({"bake": {"samples": 8}}, ['materials."Floor".kd=0.5', text])
     message = str(err.value)
@@ -115,7 +116,8 @@ role = "diffuse"
 def test_save_sidecar_keeps_comments_and_other_keys(tmp_path):
     """save_sidecar edits the file in place: every comment line, the other keys and their order
     stay; read_sidecar of the result equals parse_sidecar of apply_assignments (what --set gives).
-    Written without tomlkit (tomllib + a TOML writer) the comments would all be lost."""
+    Written from the edited dict (tomlkit.dumps of apply_assignments' result) instead of the
+    parsed document, every comment was lost and the test failed on the first one."""
     scene = write_room(tmp_path / "room.glb", sidecar=SIDECAR)
     edits = ['materials."Floor".kd=[0.3, 0.2, 0.1]', 'materials."Wall".lobes=[{ kind = "reflect", m = 0.05 }]',
              'bake.seed=7', 'objects."Box".role="curved"', 'sky.radiance=0.5']
@@ -153,8 +155,8 @@ def test_material_assignments_round_trip_through_the_loader(tmp_path):
     gives the entry back exactly (kd, emission and lobes, float32 colours written as 0.7, not
     0.699999988079071); an edited entry (another kd, a lobe with another mx: (d), the lobe edit
     through the manifest entry it produces) comes back as edited, the other materials unchanged.
-    With `float(v)` instead of the float32 shortest form the saved text showed 0.699999988079071
-    but still round-tripped; with `ks` left out, the lobe came back with ks = [1, 1, 1]."""
+    With the edits dropped in bake/edits.py edited_sidecar (the unedited sidecar parsed) the
+    edited lobe came back with mx 0.05, not 0.3."""
     lobes = [{"kind": "reflect", "ks": [0.5, 0.4, 0.3], "mx": 0.05, "my": 0.2, "r0": 0.04, "alpha": 0.5}]
     scene = write_room(tmp_path / "room.glb", floor_lobes=lobes)
     entries = describe(load_scene(scene))["materials"]
@@ -182,17 +184,24 @@ def test_set_kd_scales_the_floor_as_kd_over_pi_times_e(tmp_path):
     caps paths at one bounce ([bake] max_depth = 1: the light map is the direct irradiance, which
     no kd changes) and the test checks that: the edited bake's light-map pages equal the
     unedited bake's exactly. Then every floor pixel's ratio edited / unedited is the kd ratio
-    (0.5, 1, 0.2); measured within 2e-7 (float32), tolerance 1e-4. The edited scene bakes
-    beside the unedited one (room.edit-<hash>.bake), starting from it: the unwrap is reused,
-    the light maps re-baked (a kd edit changes the transport hash), room.bake untouched.
-    With the edits dropped in bake/edits.py edited_sidecar (returning the unedited sidecar) the
-    ratio was (1, 1, 1)."""
+    (0.5, 1, 0.2): measured within 1.8e-8 (float32 rounding), tolerance 1e-4; with all bounces
+    (max_depth 64) the floor's own kd changes E and the deviation was 0.118. The edited scene
+    bakes beside the unedited one (room.edit-<hash>.bake), starting from it: the unwrap is
+    reused, the light maps re-baked (a kd edit changes the transport hash), room.bake untouched.
+    With the edits dropped in bake/edits.py edited_sidecar (the unedited sidecar parsed) the
+    deviation was 0.8 (blue ratio 1, not 0.2); with glint.services.run_bake passing no `seed`,
+    the edited bake redid the unwrap ("redone", not "reused")."""
     scene = write_room(tmp_path / "room.glb", sidecar="[bake]\nmax_depth = 1\n")
     plain = capture(scene, tmp_path / "plain.exr")
     base = default_bake_dir(scene)
     before = {p.name: p.stat().st_mtime_ns for p in base.rglob("*")}
     edited = capture(scene, tmp_path / "edited.exr", "--set", FLOOR_EDIT)
     assert {p.name: p.stat().st_mtime_ns for p in base.rglob("*")} == before  # the unedited bake untouched
+
+    centre = (slice(12, 36), slice(12, 36))
+    ratio = edited[centre] / plain[centre]
+    assert plain[centre].min() > 1e-3  # lit floor, no black
+    assert np.abs(ratio - np.array([0.5, 1.0, 0.2])).max() < 1e-4, ratio.reshape(-1, 3)[:3]
 
     edit_dir = edited_bake_dir(base, load_scene(scene, [FLOOR_EDIT]).edits)
     record = read_manifest(edit_dir)["statistics"]["last_bake"]
@@ -201,25 +210,23 @@ def test_set_kd_scales_the_floor_as_kd_over_pi_times_e(tmp_path):
     for page in range(len(a.manifest["lightmaps"])):
         assert np.array_equal(a.lightmap(page), b.lightmap(page))
 
-    centre = (slice(12, 36), slice(12, 36))
-    ratio = edited[centre] / plain[centre]
-    assert plain[centre].min() > 1e-3  # lit floor, no black
-    assert np.abs(ratio - np.array([0.5, 1.0, 0.2])).max() < 1e-4, ratio.reshape(-1, 3)[:3]
-
 
 # -- (e) --set, saved, then a plain capture: the same bytes ---------------------------------------
 @pytest.mark.slow
 def test_saved_edits_capture_as_the_set_capture(tmp_path):
     """--set, then save_sidecar of the same assignments, then a plain `glint capture` (which
     re-bakes room.bake from the saved sidecar): the PNG is byte-identical to the --set capture's.
-    The edits include a lobe on the floor (glossy: cube maps, patterns) and a role. With
-    save_sidecar writing float values rounded to 3 digits (0.123 for 0.1234) the PNGs differed."""
+    The edits include a lobe on the floor (glossy: cube maps, patterns), an emission and a role;
+    the --set bake starts from the unedited room.bake. With the edits dropped in bake/edits.py
+    edited_sidecar, the --set PNG equalled the unedited one and differed from the saved one."""
     scene = write_room(tmp_path / "room.glb", sidecar="# mine\n[bake]\nseed = 2\n")
     edits = ['materials."Floor".kd=[0.35, 0.5, 0.1234]',
              'materials."Floor".lobes=[{ kind = "reflect", ks = [0.9, 0.9, 0.9], mx = 0.08, my = 0.2 }]',
              'materials."Lamp".emission=[6, 5, 4]', 'objects."Box".role="curved"']
     set_edits = [arg for text in edits for arg in ("--set", text)]
+    unedited = capture(scene, tmp_path / "plain.png")  # so the --set bake starts from room.bake
     with_set = capture(scene, tmp_path / "set.png", *set_edits)
+    assert with_set != unedited
     save_sidecar(scene, edits)
     assert sidecar_path(scene).read_text().startswith("# mine\n")
     assert capture(scene, tmp_path / "saved.png") == with_set
@@ -231,8 +238,8 @@ def test_saved_edits_capture_as_the_set_capture(tmp_path):
 def test_role_edit_reuses_the_light_maps_by_hard_link(tmp_path):
     """A role edit (`objects."Box".role`) is outside the transport hash (bake/hashing.py): the
     edited bake reuses the unedited bake's light maps and meshes by hard link (same inode) and
-    re-bakes nothing. Without the seed (pipeline.bake_scene's `seed` ignored) the edited bake
-    re-did the unwrap and the light maps (last_bake status "full")."""
+    re-bakes nothing. With glint.services.run_bake passing no `seed`, the edited bake re-baked
+    the light maps ("re-baked", not "reused")."""
     scene = write_room(tmp_path / "room.glb")
     assert main(["bake", str(scene), *BAKE_ARGS]) == 0
     edit = 'objects."Box".role="planar"'
