@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from glint.bake.edits import edited_sidecar
 from glint.bake.material_mapping import MATERIAL_EXTENSIONS, apply_override, material_from_gltf
 from glint.bake.roles import assign_roles
 from glint.bake.sidecar import read_sidecar
@@ -129,14 +130,16 @@ class GltfDocument:
 # --------------------------------------------------------------------------- public
 
 
-def load_scene(path: Path) -> Scene:
-    """Read a .glb/.gltf and its sidecar `<stem>.glint.toml` into a checked Scene."""
+def load_scene(path: Path, edits: list = ()) -> Scene:
+    """Read a .glb/.gltf and its sidecar `<stem>.glint.toml` into a checked Scene; `edits`:
+    `KEY=VALUE` assignments applied on top of the sidecar (bake/edits.py, `--set`)."""
     path = Path(path)
     # Repeated warnings are summarised when loading ends, or fails (the error comes last).
     with summarised() as record:
         doc = _guarded(path, read_gltf, path)
-        side = read_sidecar(path)
+        side, texts = edited_sidecar(path, edits) if edits else (read_sidecar(path), ())
         scene = _guarded(path, lambda: _SceneBuilder(doc, side).build())
+        scene.edits = texts
         scene.ignored_features = record.ignored_features()
     return scene
 
@@ -1007,6 +1010,8 @@ class _SceneBuilder:
         hits = [o.name for o in scene.objects if o.name == key]
         hits = hits or [o.name for o in scene.objects if aliases[o.name][0] == key]
         hits = hits or [o.name for o in scene.objects if aliases[o.name][1] == key]
+        if not hits and ("objects", key) in self.side.set_names:
+            raise GlintError(f"{self.side.set_names['objects', key]}: no object, node or mesh is called {key!r}")
         if not hits and warn:  # once per table
             self.warn(f"{self.side.path.name}: [objects.\"{key}\"]: no object, node or "
                       "mesh has that name")
@@ -1014,6 +1019,11 @@ class _SceneBuilder:
 
     def _check_material_names(self) -> None:
         for key in self.side.materials:
+            if key not in self._material_names and ("materials", key) in self.side.set_names:
+                names = sorted(self._material_names)
+                known = ", ".join(repr(n) for n in names[:6]) + (", ..." if len(names) > 6 else "")
+                raise GlintError(f"{self.side.set_names['materials', key]}: no material is called {key!r} "
+                                 f"(the scene has {known})")
             if key not in self._material_names:
                 self.warn(f"{self.side.path.name}: [materials.\"{key}\"]: no material has "
                           "that name")

@@ -10,6 +10,7 @@ Stages and what invalidates them (bake/hashing.py):
 from __future__ import annotations
 
 import hashlib
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -63,11 +64,14 @@ def probe_line(cm: dict) -> str:
     return f"{cm['probes']} probes for {cm['objects']} objects, {cm['mib']:.1f} MiB, faces {sizes}"
 
 
-def source_hash(scene: Scene) -> str:
+def source_hash(scene: Scene, *, edits: bool = True) -> str:
+    """Hash of the glTF and sidecar files' bytes and (unless `edits` is False) the `--set` edits."""
     h = hashlib.sha256()
     for path in (scene.source, scene.sidecar):
         if path is not None and Path(path).exists():
             h.update(Path(path).read_bytes())
+    if edits and scene.edits:  # only then: unedited scenes keep the hashes of existing bakes
+        h.update(json.dumps(list(scene.edits)).encode())
     return h.hexdigest()[:32]
 
 
@@ -187,8 +191,12 @@ CubeMapRenderer = Callable[..., dict]
 
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
                progress: bool = True, render_cubemaps: CubeMapRenderer | None = None,
-               announce: Callable[[str], None] | None = None) -> BakeReport:
+               announce: Callable[[str], None] | None = None, seed: Path | None = None) -> BakeReport:
     """Bake `scene` into `bake_dir`, redoing only the stages whose inputs changed.
+
+    `seed`: a bake directory to start from when `bake_dir` holds none (an edited scene's bake
+    starts from the unedited one, bake/edits.py): its unchanged stages are carried over, by hard
+    link, as from a previous bake in `bake_dir`, and the seed itself is left as it was.
 
     `render_cubemaps` renders the cube maps that need rendering (glint.services.bake_scene passes
     glint.cubemap_stage.render_cubemaps); a scene that needs a new cube map without one is an error.
@@ -196,6 +204,9 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     (why: the changed inputs, as glint.core.skipped.stale_reason words them).
     """
     old = None if force else read_manifest(bake_dir)
+    old_dir = bake_dir
+    if old is None and not force and seed is not None:
+        old, old_dir = read_manifest(seed), seed
     geometry = hashing.geometry_hash(scene, settings)
     transport = hashing.transport_hash(scene, settings, geometry)
     rules = ProbeRules.of(settings)
@@ -218,7 +229,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         manifest["lightmaps"] = old["lightmaps"]
         manifest["lightmaps_back"] = old.get("lightmaps_back", [])
         manifest["statistics"] = dict(old["statistics"])
-        if {k: v for k, v in old.items() if k != "statistics"} == \
+        if old_dir == bake_dir and {k: v for k, v in old.items() if k != "statistics"} == \
                 {k: v for k, v in manifest.items() if k != "statistics"}:
             return BakeReport(bake_dir, "up-to-date", old)
 
@@ -227,15 +238,15 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     with BakeDirWriter(bake_dir) as out:
         _write_textures(scene, out.path)
         if reuse_lightmaps:
-            out.reuse(bake_dir, "meshes.npz")
+            out.reuse(old_dir, "meshes.npz")
             for name in old["lightmaps"] + old.get("lightmaps_back", []):
-                out.reuse(bake_dir, name)
+                out.reuse(old_dir, name)
             status, redone = "manifest", []
         else:
             manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
-                                                          bake_dir if reuse_geometry else None))
+                                                          old_dir if reuse_geometry else None))
             status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
-        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, bake_dir, out, manifest, progress, settings.workers,
+        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, old_dir, out, manifest, progress, settings.workers,
                                                          render_cubemaps), **budget_statistics(cubemaps, rules)}
         if manifest["statistics"]["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status

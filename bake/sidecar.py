@@ -95,6 +95,9 @@ class Sidecar:
     cameras: list[Camera] = field(default_factory=list)
     camera_paths: list[CameraPath] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    # (table, name) -> the `--set` assignment that names it (bake/edits.py): the loader refuses
+    # such a material or object name when it matches nothing, where the file's would only warn.
+    set_names: dict[tuple[str, str], str] = field(default_factory=dict)
 
 
 def sidecar_path(scene_path: Path) -> Path:
@@ -106,17 +109,26 @@ def sidecar_path(scene_path: Path) -> Path:
 def read_sidecar(scene_path: Path) -> Sidecar:
     """Read and check the sidecar beside `scene_path`; defaults when there is none."""
     path = sidecar_path(scene_path)
+    text = read_sidecar_text(path)
+    return Sidecar() if text is None else parse_sidecar(parse_toml(text, path), path)
+
+
+def read_sidecar_text(path: Path) -> str | None:
+    """The text of the sidecar file `path`, None when there is none."""
     if not path.exists():
-        return Sidecar()
+        return None
     try:
-        text = path.read_text(encoding="utf-8")
+        return path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
         raise GlintError(f"{path.name}: cannot read: {err}") from None
+
+
+def parse_toml(text: str, path: Path) -> dict:
+    """The sidecar's text as tomllib reads it; invalid TOML is one line naming the file."""
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise GlintError(f"{path.name}: invalid TOML: {err}") from None
-    return parse_sidecar(data, path)
+        raise GlintError(f"{Path(path).name}: invalid TOML: {err}") from None
 
 
 def parse_sidecar(data: dict, path: Path) -> Sidecar:

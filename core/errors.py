@@ -75,6 +75,7 @@ class WarningRecord:
 
 
 _verbose = False
+_quiet = 0  # > 0 inside quiet()
 _open: list[WarningRecord] = []
 _pending: dict[WarningKind, list[Warned]] = {}
 
@@ -89,6 +90,8 @@ def warn(message: str, kind: WarningKind | None = None, subject: str | None = No
     `ignored`: the glTF features the warning says glint ignores (names, each counting once,
     or {name: count}), kept in the enclosing `summarised()` blocks' records.
     """
+    if _quiet:
+        return
     if not isinstance(ignored, Mapping):
         ignored = {name: 1 for name in ignored}
     item = Warned(message, kind, subject, detail, dict(counts or {}), dict(ignored))
@@ -120,6 +123,18 @@ def summarised(verbose: bool | None = None) -> Iterator[WarningRecord]:
         _open.remove(record)
         flush()
         _verbose = was
+
+
+@contextmanager
+def quiet() -> Iterator[None]:
+    """Drop the warnings given inside (neither printed nor recorded): for trial runs whose
+    warnings the real run that follows gives again (bake/edits.py tries each --set this way)."""
+    global _quiet
+    _quiet += 1
+    try:
+        yield
+    finally:
+        _quiet -= 1
 
 
 def flush() -> None:

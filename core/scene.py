@@ -245,6 +245,9 @@ class Scene:
     camera_paths: list[CameraPath] = field(default_factory=list)
     bake_settings: dict = field(default_factory=dict)  # [bake] table of the sidecar
     sidecar: Path | None = None
+    # `--set` assignments applied on top of the sidecar, as TOML text (bake/edits.py): part of the
+    # bake's source hash; an edited scene bakes into a directory of its own (edited_bake_dir).
+    edits: tuple[str, ...] = ()
     warnings: list[str] = field(default_factory=list)
     # glTF features the loader ignored, with how many materials, objects, cameras or uses
     # had each ("normalTexture": 12): what the viewer will show wrong (manifest statistics).

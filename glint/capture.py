@@ -5,6 +5,7 @@
     glint capture living-room -o v.png --eye 1.6,1.6,1.6 --target -1,1,-0.8 --fov 55
     glint capture living-room -o tour.png --path tour --frames 120   # tour_0000.png ...
     glint capture living-room -o still.png --converge 64             # the still camera's image
+    glint capture room.glb -o red.png --set 'materials."Floor".kd=[0.6,0.1,0.1]'   # an edited material
 
 Without --converge a frame is what the walkthrough shows (regular lobe patterns,
 section 4.4.3); with --converge N it is the mean of N still-camera frames of
@@ -32,7 +33,16 @@ from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
-from glint.services import SCENE_HELP, add_bake_options, check_writable, number, parse_size, parse_vector, run_bake
+from glint.services import (
+    SCENE_HELP,
+    add_bake_options,
+    add_edit_option,
+    check_writable,
+    number,
+    parse_size,
+    parse_vector,
+    run_bake,
+)
 from glint.viewer.camera import (
     DEFAULT_YFOV,
     ViewCamera,
@@ -112,6 +122,7 @@ def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> ar
     image.add_argument("--stats", type=Path, metavar="FILE.json",
                        help="write time per pass and what was drawn and skipped as JSON")
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
+    add_edit_option(p.add_argument_group("edits (the sidecar's keys, docs/SCENES.md)"))
     p.set_defaults(run=cmd_capture)
     return p
 

@@ -15,7 +15,7 @@ from glint.capture import add_capture_parser
 from glint.core.errors import GlintError, summarised
 from glint.core.skipped import summary_line
 from glint.scenes import BUILTIN
-from glint.services import SCENE_HELP, add_bake_options, fidelity_line, run_bake
+from glint.services import SCENE_HELP, add_bake_options, add_edit_option, fidelity_line, run_bake
 from glint.view import add_view_parser
 
 EXIT_ERROR = 2
@@ -51,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "so an interrupted bake leaves the previous one intact.")
     p.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
     add_bake_options(p, keeps_existing=False)
+    add_edit_option(p)
     p.set_defaults(run=cmd_bake)
     add_view_parser(sub, common)
     add_capture_parser(sub, common)

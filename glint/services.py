@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from glint.bake import pipeline
+from glint.bake.edits import edited_bake_dir, edited_bake_keys
 from glint.bake.gltf_loader import load_scene
 from glint.bake.lightmap import INVALID_WARN_SHARE, UNLIT_WARN_SHARE
 from glint.bake.pipeline import BakeReport
@@ -74,18 +75,28 @@ def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_e
     p.add_argument("--force", action="store_true", help="bake everything again even if up to date")
 
 
-def open_scene(scene_arg: str) -> tuple[Scene, str | None]:
-    """SCENE argument -> (Scene, builtin name or None)."""
-    return load_scene(resolve(scene_arg)), (scene_arg if scene_arg in BUILTIN else None)
+def add_edit_option(p) -> None:
+    """`--set KEY=VALUE` (repeatable), for `bake`, `capture` and `view` (bake/edits.py)."""
+    p.add_argument("--set", dest="edits", action="append", default=[], metavar="KEY=VALUE",
+                   help="change one sidecar key for this run, on top of NAME.glint.toml (repeatable): KEY a "
+                        "TOML key path, VALUE a TOML value, checked as the sidecar is, e.g. "
+                        "--set 'materials.\"Floor\".kd=[0.3, 0.2, 0.1]' --set 'bake.quality=\"draft\"'. "
+                        "The edited scene bakes into NAME.edit-<hash>.bake beside the bake directory, "
+                        "starting from the unedited bake, which stays as it is (docs/SCENES.md)")
+
+
+def open_scene(scene_arg: str, edits: list = ()) -> tuple[Scene, str | None]:
+    """SCENE argument (and `--set` assignments) -> (Scene, builtin name or None)."""
+    return load_scene(resolve(scene_arg), edits), (scene_arg if scene_arg in BUILTIN else None)
 
 
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
-               progress: bool = True, announce=None) -> BakeReport:
+               progress: bool = True, announce=None, seed: Path | None = None) -> BakeReport:
     """The whole bake of glint.bake.pipeline, with the cube-map stage that renders on the GPU.
     Repeated warnings of the stages (e.g. objects short of texels) are summarised when it ends."""
     with summarised():
         return pipeline.bake_scene(scene, settings, bake_dir, force=force, progress=progress,
-                                   render_cubemaps=render_cubemaps, announce=announce)
+                                   render_cubemaps=render_cubemaps, announce=announce, seed=seed)
 
 
 def fidelity_line(manifest: dict) -> str | None:
@@ -135,8 +146,10 @@ def settings_for(scene: Scene, args, existing: dict | None) -> BakeSettings:
         return resolve_settings(scene.bake_settings, **cli)
     made_with = {k: v for k, v in existing["settings"].items() if k in BakeSettings.__dataclass_fields__}
     sidecar = {k: v for k, v in (scene.bake_settings or {}).items() if k != "quality"}
-    if existing["scene"].get("hash") == pipeline.source_hash(scene):
-        sidecar = {k: v for k, v in sidecar.items() if k == "jobs"}  # jobs never changes a result
+    # The files unchanged (an edited scene's bake starts from the unedited one's manifest): only
+    # the [bake] keys that `--set` gives apply; jobs never changes a result.
+    if existing["scene"].get("hash") in (pipeline.source_hash(scene), pipeline.source_hash(scene, edits=False)):
+        sidecar = {k: v for k, v in sidecar.items() if k == "jobs" or k in edited_bake_keys(scene.edits)}
     return resolve_settings({**made_with, **sidecar}, **cli)
 
 
@@ -160,16 +173,24 @@ def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool =
     stderr says why before the work starts. `explain`: after a bake that did work, one line on
     stderr says what the scene will look like wrong (fidelity_line); `glint bake` passes False
     and prints it last itself."""
-    scene, builtin = open_scene(args.scene)
+    scene, builtin = open_scene(args.scene, getattr(args, "edits", None) or ())
     check_view_names(scene, args)  # before the bake: a typo costs nothing
-    bake_dir = args.out or default_bake_dir(scene.source, builtin)
-    existing = read_manifest(bake_dir) if reuse and not args.force else None
+    bake_dir = seed = args.out or default_bake_dir(scene.source, builtin)
+    if scene.edits:  # never the unedited scene's directory: it stays valid (bake/edits.py)
+        bake_dir = edited_bake_dir(seed, scene.edits)
+    existing = (read_manifest(bake_dir) or (read_manifest(seed) if scene.edits else None)
+                if reuse and not args.force else None)
+    seeded = scene.edits and read_manifest(bake_dir) is None and read_manifest(seed) is not None
     settings = settings_for(scene, args, existing)
 
     def announce(why: str) -> None:
-        print(f"glint: {bake_dir} is stale ({why}): re-baking what changed", file=sys.stderr)
+        if seeded:
+            print(f"glint: baking the edited scene into {bake_dir}, starting from {seed} ({why})", file=sys.stderr)
+        else:
+            print(f"glint: {bake_dir} is stale ({why}): re-baking what changed", file=sys.stderr)
 
-    report = bake_scene(scene, settings, bake_dir, force=args.force, progress=progress, announce=announce)
+    report = bake_scene(scene, settings, bake_dir, force=args.force, progress=progress, announce=announce,
+                        seed=seed if scene.edits else None)
     line = fidelity_line(report.manifest) if explain and report.status != "up-to-date" else None
     if line:
         print(f"glint: {line}", file=sys.stderr)

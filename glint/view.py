@@ -13,7 +13,7 @@ import textwrap
 
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
-from glint.services import SCENE_HELP, add_bake_options, parse_size, run_bake
+from glint.services import SCENE_HELP, add_bake_options, add_edit_option, parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 from glint.viewer.controls import KEY_HELP, WalkControls
 
@@ -37,6 +37,7 @@ def add_view_parser(subparsers, common_parent: argparse.ArgumentParser) -> argpa
     p.add_argument("--vsync", action=argparse.BooleanOptionalAction, default=True,
                    help="wait for the monitor's refresh (default: on); --no-vsync shows the real frame rate")
     add_bake_options(p, out_flags=("--bake-dir", "-o", "--out"))  # --bake-dir as capture and bench; -o kept
+    add_edit_option(p)
     p.set_defaults(run=cmd_view)
     return p
 
