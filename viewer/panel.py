@@ -73,6 +73,13 @@ class MaterialPanel:
         self.message = ""  # the last refusal, shown in red until the next successful edit
         self.status = ""   # the last Save's outcome
         self._gltf: dict[int, dict] = {}
+        self.button_centres: dict[str, tuple[float, float]] = {}  # window coordinates, as last drawn
+        self.rect: tuple[float, float, float, float] | None = None  # the panel's (x0, y0, x1, y1), as last drawn
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether window position (x, y) lies on the panel as last drawn (a click there is not a pick)."""
+        r = self.rect
+        return self.visible and r is not None and r[0] <= x < r[2] and r[1] <= y < r[3]
 
     # -- selection -------------------------------------------------------------------------------
     def select_object(self, index: int | None) -> None:
@@ -202,12 +209,18 @@ class MaterialPanel:
         imgui.set_next_window_pos(imgui.ImVec2(8, 8), imgui.Cond_.first_use_ever)
         imgui.set_next_window_size(imgui.ImVec2(340, 520), imgui.Cond_.first_use_ever)
         _, self.visible = imgui.begin("Material", self.visible)
+        pos, size = imgui.get_window_pos(), imgui.get_window_size()
+        self.rect = (pos.x, pos.y, pos.x + size.x, pos.y + size.y)
+        self._draw_actions(imgui)
         self._draw_selection(imgui)
         if self.entry is not None:
             if self.message:
                 imgui.text_colored(imgui.ImVec4(*ERROR_COLOUR), self.message)
             self._draw_material(imgui)
-        imgui.separator()
+        imgui.end()
+
+    def _draw_actions(self, imgui) -> None:
+        """Undo, Redo, Revert, Save in one row at the top, and the last Save's outcome."""
         for label, action, enabled in (("Undo", self.undo, bool(self.edits.undo_stack)),
                                        ("Redo", self.redo, bool(self.edits.redo_stack)),
                                        ("Revert", self.revert, bool(self.edits.edited)),
@@ -215,12 +228,13 @@ class MaterialPanel:
             imgui.begin_disabled(not enabled)
             if imgui.button(label):
                 action()
+            lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+            self.button_centres[label] = ((lo.x + hi.x) / 2, (lo.y + hi.y) / 2)
             imgui.end_disabled()
             imgui.same_line()
         imgui.new_line()
         if self.status:
             imgui.text(self.status)
-        imgui.end()
 
     def _draw_selection(self, imgui) -> None:
         picked = self.objects[self.picked][0] if self.picked is not None else "none (click an object, or M over it)"

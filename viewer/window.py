@@ -239,7 +239,8 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.mouse = (x, y)
         if self.ui is not None:
             self.ui.mouse_press_event(x, y, button)
-        over_panel = self._ui_wants("mouse")
+        # ImGui's flag is a frame late for a press that comes with its first move over the panel
+        over_panel = self._ui_wants("mouse") or (self.ui is not None and self.panel.contains(x, y))
         self._press = (x, y) if button == self.wnd.mouse.left and not over_panel else None
 
     def on_mouse_release_event(self, x: int, y: int, button: int) -> None:
