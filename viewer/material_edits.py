@@ -127,20 +127,18 @@ class MaterialEdits:
             self.undo_stack[-1] = (index, before, after, None)
 
     def undo(self) -> bool:
-        if not self.undo_stack:
-            return False
-        step = self.undo_stack.pop()
-        self._show(step[0], step[1])
-        self.redo_stack.append(step)
-        self._notify()
-        return True
+        return self._step(self.undo_stack, self.redo_stack, 1)  # show the step's `before`
 
     def redo(self) -> bool:
-        if not self.redo_stack:
+        return self._step(self.redo_stack, self.undo_stack, 2)  # show the step's `after`
+
+    def _step(self, source: list, target: list, side: int) -> bool:
+        """Move the last step of `source` to `target`, showing its entry number `side`."""
+        if not source:
             return False
-        step = self.redo_stack.pop()
-        self._show(step[0], step[2])
-        self.undo_stack.append(step)
+        step = source.pop()
+        self._show(step[0], step[side])
+        target.append(step)
         self._notify()
         return True
 
