@@ -11,6 +11,7 @@ import os
 import sys
 import textwrap
 
+from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.services import SCENE_HELP, add_bake_options, add_edit_option, parse_size, run_bake
@@ -60,6 +61,21 @@ def home_camera(manifest: dict, aspect: float):
     return ViewCamera.framing(*scene_bounds(manifest), aspect)
 
 
+def pbr_mapping(*, base_color, metallic: float, roughness: float, transmission: float) -> tuple[list, list]:
+    """The material panel's glTF-style controls -> (kd, lobes as manifest dicts), by the bake's rule
+    (bake/material_mapping.py `map_pbr`; the viewer may not import the bake, so it is handed in)."""
+    kd, lobes, _ = map_pbr(GltfPbr(base_color=tuple(float(c) for c in base_color[:3]), metallic=float(metallic),
+                                   roughness=float(roughness), transmission=float(transmission)))
+    return [float(c) for c in kd], [lobe.to_dict() for lobe in lobes]
+
+
+def log_save(materials: list[dict]) -> None:
+    """The panel's Save for now: says what it would write (the sidecar writer, bake/edits.py
+    `save_sidecar`, is wired here when it lands)."""
+    print(f"glint: save: {len(materials)} materials received; nothing written yet (the sidecar writer is "
+          "not part of this build)", flush=True)
+
+
 def cmd_view(args) -> int:
     width, height = parse_size(args.size)
     reason = missing_display()
@@ -87,6 +103,7 @@ def cmd_view(args) -> int:
     except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
         detail = " ".join(str(e).split()) or type(e).__name__
         raise no_window(args.scene, f"{type(e).__name__}: {detail}") from e
-    viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name)
+    viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
+                          pbr_mapping=pbr_mapping, on_save=log_save)
     run(viewer)
     return 0

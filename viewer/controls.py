@@ -30,6 +30,12 @@ KEY_HELP = """\
                     any walking key or mouse look stops it where it is
     F12, Ctrl+S     screenshot            F1    overlay on/off
     F, F11          fullscreen            Esc   quit
+  editing materials (the material panel; needs the `panel` extra: imgui-bundle):
+    click           pick the object under the cursor: the panel shows its material
+                    (a click is a press and release without dragging; dragging looks)
+    M               pick what is under the cursor       F2    panel on/off
+    Ctrl+Z, Ctrl+Y  undo / redo an edit (Ctrl+Shift+Z: redo); the panel has Undo,
+                    Redo, Revert (to the bake's materials) and Save
 """
 
 MOVE_KEYS = {  # name -> (forward, right, up) direction in the walker's frame
@@ -37,7 +43,8 @@ MOVE_KEYS = {  # name -> (forward, right, up) direction in the walker's frame
     "e": (0, 0, 1), "space": (0, 0, 1), "q": (0, 0, -1), "c": (0, 0, -1),
     "up": (1, 0, 0), "down": (-1, 0, 0), "right": (0, 1, 0), "left": (0, -1, 0),  # arrow keys
 }
-ACTIONS = {"f12": "screenshot", "f1": "overlay", "f": "fullscreen", "f11": "fullscreen", "escape": "quit"}
+ACTIONS = {"f12": "screenshot", "f1": "overlay", "f": "fullscreen", "f11": "fullscreen", "escape": "quit",
+           "m": "pick", "f2": "panel"}
 
 WALK_SPEED = 1.4  # m/s, a person walking
 RUN_FACTOR = 4.0  # while Shift is held
@@ -96,9 +103,13 @@ class WalkControls:
     # -- events ----------------------------------------------------------------------------------
     def key_press(self, name: str, *, ctrl: bool = False, shift: bool = False) -> str | None:
         """Handle a key going down. Returns an action for the window ("screenshot", "overlay",
-        "fullscreen", "quit") or None when the controls dealt with it."""
+        "fullscreen", "quit", "pick", "panel", "undo", "redo") or None when the controls dealt with it."""
         if name == "s" and ctrl:
             return "screenshot"  # Ctrl+S is not "walk back"
+        if name == "z" and ctrl:
+            return "redo" if shift else "undo"
+        if name == "y" and ctrl:
+            return "redo"
         if name in ACTIONS:
             return ACTIONS[name]
         if name == "shift":

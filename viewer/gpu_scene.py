@@ -67,6 +67,7 @@ from glint.viewer.gl_bindings import (
 )
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 from glint.viewer.lod import LOD_LEVELS
+from glint.viewer.material_edits import checked_material
 
 
 def _sampler_flags(sampler: dict) -> int:
@@ -297,33 +298,19 @@ class GpuScene:
 
     # -- materials -------------------------------------------------------------------------------
     def _materials(self, bake) -> None:
+        """Every material's textures (kept per material), then its rows (`_material_rows`)."""
         entries = bake.manifest["materials"]
-        mats = np.zeros(max(len(entries), 1), MATERIAL_DTYPE)
-        lobe_rows = []
+        self.materials = [dict(m) for m in entries]  # as shown; GpuScene.set_material replaces one
+        self._surface = np.zeros(max(len(entries), 1), MATERIAL_DTYPE)["surface"]
+        self._texture_flags: list[int] = []
         self.kd_textures: list[moderngl.Texture | None] = []
         self.emission_textures: list[moderngl.Texture | None] = []
         self.metallic_roughness_textures: list[moderngl.Texture | None] = []
         self.normal_textures: list[moderngl.Texture | None] = []
         self.anisotropy_textures: list[moderngl.Texture | None] = []
-        lobe_mr = []
         for i, m in enumerate(entries):
             flags = 0
-            lobes = m.get("lobes") or []
-            kinds = {lobe.get("kind", "reflect") for lobe in lobes}
-            if m.get("double_sided") or "transmit" in kinds:
-                flags |= MATERIAL_FLAGS["MAT_TWO_SIDED"]
-            if "transmit" in kinds:
-                flags |= MATERIAL_FLAGS["MAT_TRANSMISSIVE"]
-            if lobes:
-                flags |= MATERIAL_FLAGS["MAT_SPECULAR"]
-            emission = _clean(m.get("emission", (0, 0, 0)))
-            if np.any(emission > 0):
-                flags |= MATERIAL_FLAGS["MAT_EMISSIVE"]
             mode = m.get("alpha_mode", "OPAQUE")
-            if mode in ("MASK", "BLEND"):
-                flags |= MATERIAL_FLAGS[f"MAT_ALPHA_{mode}"]
-                mats[i]["kd"][3] = float(np.clip(_clean(m.get("alpha", 1.0)), 0.0, 1.0))
-                mats[i]["emission"][3] = float(_clean(m.get("alpha_cutoff", 0.5)))
             texture = None
             if m.get("kd_texture"):
                 image = read_image(bake.path / m["kd_texture"])
@@ -335,7 +322,7 @@ class GpuScene:
                 flags |= MATERIAL_FLAGS["MAT_KD_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.kd_textures.append(texture)
             emission_texture = None
-            if m.get("emission_texture") and np.any(emission > 0):
+            if m.get("emission_texture") and np.any(_clean(m.get("emission", (0, 0, 0))) > 0):
                 # linear RGB >= 0 (glTF 3.9.3: it multiplies emissiveFactor); read with the
                 # base colour's uv and sampler flags (the loader's choice, bake/gltf_loader.py)
                 image = read_image(bake.path / m["emission_texture"])
@@ -343,28 +330,89 @@ class GpuScene:
                                                  f"the emissive texture of material '{m['name']}'", mipmaps=True)
                 flags |= MATERIAL_FLAGS["MAT_EMISSION_TEXTURE"] | _sampler_flags(m.get("kd_sampler") or {})
             self.emission_textures.append(emission_texture)
-            flags |= self._surface_detail(m, mats[i], bake.path)
-            mats[i]["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
-            mats[i]["emission"][:3] = emission
-            mats[i]["info"] = (flags, i if texture is not None else -1, len(lobe_rows), len(lobes))
-            for lobe in lobes:
-                row = np.zeros((), LOBE_DTYPE)
-                row["ks"][:3] = np.clip(_clean(lobe.get("ks", (1, 1, 1))), 0.0, 1.0)
-                row["ks"][3] = LOBE_KINDS["LOBE_TRANSMIT" if lobe.get("kind") == "transmit" else "LOBE_REFLECT"]
-                row["shape"] = (lobe.get("mx", 0.1), lobe.get("my", 0.1), lobe.get("r0", 0.04),
-                                lobe.get("alpha", 0.0))
-                lobe_rows.append(row)
-                textured = self.metallic_roughness_textures[i] is not None
-                lobe_mr.append(LOBE_MR[f"LOBE_MR_{lobe.get('mr') or 'none'}".upper()] if textured else 0)
-        lobes = np.array(lobe_rows, LOBE_DTYPE) if lobe_rows else np.zeros(1, LOBE_DTYPE)
-        self.material_table = mats
-        self.lobe_table = lobes
-        self.lobe_count = len(lobe_rows)
-        self.material_buffer = self.ctx.buffer(mats.tobytes())
-        self.lobe_buffer = self.ctx.buffer(lobes.tobytes())
-        self.lobe_mr_buffer = self.ctx.buffer(np.array(lobe_mr or [0], np.int32).tobytes())
+            row = np.zeros((), MATERIAL_DTYPE)
+            flags |= self._surface_detail(m, row, bake.path)
+            self._surface[i] = row["surface"]
+            self._texture_flags.append(flags)
+        self.material_buffer = self.lobe_buffer = self.lobe_mr_buffer = None
         self.pattern_buffer = self.lobe_pattern_buffer = None
-        self.set_lobe_samples(None)
+        self.lobe_samples: int | None = None
+        self._upload_materials()
+
+    def _material_rows(self, i: int, m: dict) -> tuple[np.ndarray, list, list]:
+        """Material i's row of MATERIAL_DTYPE (its lobes' first row left 0), its LOBE_DTYPE rows and
+        their LOBE_MR values, from its manifest entry and the textures loaded for it."""
+        mat = np.zeros((), MATERIAL_DTYPE)
+        flags = self._texture_flags[i]
+        lobes = m.get("lobes") or []
+        kinds = {lobe.get("kind", "reflect") for lobe in lobes}
+        if m.get("double_sided") or "transmit" in kinds:
+            flags |= MATERIAL_FLAGS["MAT_TWO_SIDED"]
+        if "transmit" in kinds:
+            flags |= MATERIAL_FLAGS["MAT_TRANSMISSIVE"]
+        if lobes:
+            flags |= MATERIAL_FLAGS["MAT_SPECULAR"]
+        emission = _clean(m.get("emission", (0, 0, 0)))
+        if np.any(emission > 0):
+            flags |= MATERIAL_FLAGS["MAT_EMISSIVE"]
+        mode = m.get("alpha_mode", "OPAQUE")
+        if mode in ("MASK", "BLEND"):
+            flags |= MATERIAL_FLAGS[f"MAT_ALPHA_{mode}"]
+            mat["kd"][3] = float(np.clip(_clean(m.get("alpha", 1.0)), 0.0, 1.0))
+            mat["emission"][3] = float(_clean(m.get("alpha_cutoff", 0.5)))
+        mat["kd"][:3] = np.clip(_clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
+        mat["emission"][:3] = emission
+        rotation = float(_clean(m.get("anisotropy_rotation", 0.0), None))  # editable: the panel's direction
+        mat["surface"] = (self._surface[i][0], np.cos(rotation), np.sin(rotation), 0.0)
+        mat["info"] = (flags, i if self.kd_textures[i] is not None else -1, 0, len(lobes))
+        rows, lobe_mr = [], []
+        textured = self.metallic_roughness_textures[i] is not None
+        for lobe in lobes:
+            row = np.zeros((), LOBE_DTYPE)
+            row["ks"][:3] = np.clip(_clean(lobe.get("ks", (1, 1, 1))), 0.0, 1.0)
+            row["ks"][3] = LOBE_KINDS["LOBE_TRANSMIT" if lobe.get("kind") == "transmit" else "LOBE_REFLECT"]
+            row["shape"] = (lobe.get("mx", 0.1), lobe.get("my", 0.1), lobe.get("r0", 0.04), lobe.get("alpha", 0.0))
+            rows.append(row)
+            lobe_mr.append(LOBE_MR[f"LOBE_MR_{lobe.get('mr') or 'none'}".upper()] if textured else 0)
+        return mat, rows, lobe_mr
+
+    def _upload_materials(self) -> None:
+        """The material, lobe and LOBE_MR tables of `self.materials` and the lobes' sampling patterns
+        (`lobe_samples`), (re)uploaded whole: the lobe rows of a material follow those before it, so
+        a material whose lobe count changes moves every later one."""
+        mats = np.zeros(max(len(self.materials), 1), MATERIAL_DTYPE)
+        lobe_rows, lobe_mr = [], []
+        for i, m in enumerate(self.materials):
+            row, rows, mr = self._material_rows(i, m)
+            row["info"][2] = len(lobe_rows)
+            mats[i] = row
+            lobe_rows += rows
+            lobe_mr += mr
+        self.material_table = mats
+        self.lobe_table = np.array(lobe_rows, LOBE_DTYPE) if lobe_rows else np.zeros(1, LOBE_DTYPE)
+        self.lobe_count = len(lobe_rows)
+        for buf in (self.material_buffer, self.lobe_buffer, self.lobe_mr_buffer):
+            if buf is not None:
+                buf.release()
+        with self._gl.checked(f"upload the materials ({len(self.materials)}, {self.lobe_count} lobes)"):
+            self.material_buffer = self.ctx.buffer(mats.tobytes())
+            self.lobe_buffer = self.ctx.buffer(self.lobe_table.tobytes())
+            self.lobe_mr_buffer = self.ctx.buffer(np.array(lobe_mr or [0], np.int32).tobytes())
+        self.set_lobe_samples(self.lobe_samples)
+
+    def set_material(self, index: int, entry: dict) -> None:
+        """Show material `index` as the manifest entry `entry` from the next frame on: kd, emission,
+        lobes (their count may change), double_sided; its textures stay those of the bake.
+        The entry is checked first (viewer/material_edits.py `checked_material`: GlintError for a
+        NaN, infinite or negative value, roughness raised to M_MIN), so no NaN reaches a frame.
+        The object table's emitter column follows the new emission. The caller restarts what
+        depends on the materials (Renderer.set_material: the G-buffer, the still-camera sum)."""
+        if not 0 <= index < len(self.materials):
+            raise GlintError(f"no material {index} (the scene has {len(self.materials)})")
+        self.materials[index] = checked_material({**entry, "name": entry.get("name", self.materials[index]["name"])})
+        self._upload_materials()
+        self.object_buffer.release()
+        self._upload_objects()  # its emitter column (viewer/draw_list.py never culls emitters as too small)
 
     def _surface_detail(self, m: dict, row, path) -> int:
         """A material's metallic-roughness texture (G roughness multiplier, B metallic M'), normal map
@@ -393,6 +441,7 @@ class GpuScene:
         (viewer/lobe_patterns.py) when None."""
         if samples is not None and not (isinstance(samples, (int, np.integer)) and samples >= 1):
             raise GlintError(f"samples per lobe must be a whole number of at least 1 (got {samples!r})")
+        self.lobe_samples = samples  # kept for the patterns of edited materials (set_material)
         count = self.lobe_count
         table = np.zeros(max(2 * count, 1), PATTERN_DTYPE)
         points, self.lobe_patterns = [], []
@@ -416,8 +465,9 @@ class GpuScene:
         for buf in (self.pattern_buffer, self.lobe_pattern_buffer):
             if buf is not None:
                 buf.release()
-        self.pattern_buffer = self.ctx.buffer(np.ascontiguousarray(xi, np.float32).tobytes())
-        self.lobe_pattern_buffer = self.ctx.buffer(table.tobytes())
+        with self._gl.checked(f"upload the lobes' sampling patterns ({len(xi)} samples)"):
+            self.pattern_buffer = self.ctx.buffer(np.ascontiguousarray(xi, np.float32).tobytes())
+            self.lobe_pattern_buffer = self.ctx.buffer(table.tobytes())
 
     def bind_materials(self) -> None:
         self.material_buffer.bind_to_storage_buffer(MATERIAL_BINDING)

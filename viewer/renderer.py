@@ -249,6 +249,33 @@ class Renderer:
         if previous is not None:  # a standalone context has none bound
             previous.use()
 
+    # -- live material edits ---------------------------------------------------------------------
+    def set_material(self, index: int, entry: dict) -> None:
+        """Show material `index` as the manifest entry `entry` from the next frame on
+        (GpuScene.set_material checks it: GlintError for values it cannot show). The G-buffer
+        holds kd/pi E and the mirror buffers kd and emission, so both are drawn again; the next
+        `mode="auto"` frame is a walkthrough frame of the new material and the still-camera
+        refinement starts over from it."""
+        self.scene.set_material(index, entry)
+        self.shading.update_specular(self.scene)
+        self.invalidate()
+
+    def invalidate(self) -> None:
+        """Forget every image of earlier frames: the next frame draws the G-buffer and mirror buffers
+        again, and a still camera refines from scratch (after one walkthrough frame in mode "auto")."""
+        self.progressive.invalidate()
+        self._last_key = self._walkthrough_key = self._gbuffer_key = None
+        self._has_base = False
+
+    def pick(self, x: float, y: float) -> tuple[int, int] | None:
+        """(object, material) seen at output pixel (x, y) of the last frame, x from the left and y
+        from the top (window coordinates), or None where no object is (sky, outside). Reads one
+        G-buffer pixel (the centre supersample of that output pixel)."""
+        if self.size is None or not (0 <= x < self.size[0] and 0 <= y < self.size[1]):
+            return None
+        n = self.supersample
+        return self.gbuffer.pick(int(x) * n + n // 2, (self.size[1] - 1 - int(y)) * n + n // 2)
+
     # -- results ---------------------------------------------------------------------------------
     def _require_frame(self) -> None:
         if self._linear is None:
@@ -353,14 +380,14 @@ class Renderer:
         """The planar reflectors' mirror passes of the last frame (viewer/passes/mirror.py)."""
         manifest, scene = self.bake.manifest, self.scene
         lobed = {i: o["name"] for i, o in enumerate(manifest["objects"])
-                 if manifest["materials"][o["material"]].get("lobes")}
+                 if scene.materials[o["material"]].get("lobes")}
         cube_mapped = {i for i in lobed if scene.cubemaps.has_cubemap(i)}
         return self.mirror.stats(lobed, cube_mapped)
 
     def _specular_stats(self) -> dict:
         """The specular work of the last frame (reads the shading pass's counters: waits for the GPU)."""
         manifest, scene = self.bake.manifest, self.scene
-        materials = manifest["materials"]
+        materials = scene.materials  # as edited (set_material)
         lobed = [i for i, m in enumerate(materials) if m.get("lobes")]
         counts = (self.shading.specular_counts() if self.size else
                   {"pixels": 0, "tiles": 0, "tiles_skipped": 0, "lookups": 0, "mirror_lookups": 0})

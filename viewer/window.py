@@ -11,8 +11,15 @@ soon as it stands still the renderer keeps refining the same view with
 quasi-random samples (mode "auto", viewer/progressive.py), fading from the last
 walkthrough image over `BLEND_FRAMES` frames, until `MAX_STILL_FRAMES` frames.
 
+With the `panel` extra (imgui-bundle) the window has the material panel (viewer/panel.py,
+drawn with Dear ImGui: viewer/imgui_backend.py): a click (press and release without dragging)
+or M picks the object under the cursor (`pick`: one G-buffer pixel read back) and the panel
+edits its material live (`Renderer.set_material`); `on_edit(materials)` hears of every change
+and Save calls `on_save(materials)` (both optional, given by the command layer, glint/view.py).
+
     window = create_window(size=(1280, 720), title="glint", vsync=True)
-    viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls)
+    viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls,
+                          on_edit=None, on_save=None, pbr_mapping=None)
     run(viewer)   # until Esc or the window is closed
 """
 from __future__ import annotations
@@ -30,7 +37,9 @@ from glint.core.errors import warn
 from glint.viewer.controls import WalkControls
 from glint.viewer.gl import GL_REQUIRED, check_context
 from glint.viewer.gl_bindings import BLIT_UNIT
+from glint.viewer.material_edits import MaterialEdits
 from glint.viewer.overlay import Overlay
+from glint.viewer.panel import MaterialPanel
 from glint.viewer.renderer import Renderer
 from glint.viewer.shader_source import raster_program
 from glint.viewer.skipping import frame_section, one_line
@@ -38,12 +47,13 @@ from glint.viewer.skipping import frame_section, one_line
 GL_VERSION = (GL_REQUIRED // 100, GL_REQUIRED % 100 // 10)
 BLEND_FRAMES = 4  # from the walkthrough image to the running mean when the camera stops
 MAX_STILL_FRAMES = 512  # then the image is final: 4096 samples per lobe and pixel
+CLICK_PIXELS = 4  # a press and release closer than this (window pixels) is a click (pick), not a look
 
 # moderngl-window key constant (attribute of the backend's Keys class) -> controls' key name
 KEY_NAMES = {
     **{chr(c): chr(c).lower() for c in range(ord("A"), ord("Z") + 1)},
     **{f"NUMBER_{d}": str(d) for d in range(1, 10)},
-    "SPACE": "space", "TAB": "tab", "ESCAPE": "escape", "F1": "f1", "F11": "f11", "F12": "f12",
+    "SPACE": "space", "TAB": "tab", "ESCAPE": "escape", "F1": "f1", "F2": "f2", "F11": "f11", "F12": "f12",
     "LEFT_SHIFT": "shift", "RIGHT_SHIFT": "shift",
     "UP": "up", "DOWN": "down", "LEFT": "left", "RIGHT": "right",
 }
@@ -92,7 +102,12 @@ class ViewerWindow(moderngl_window.WindowConfig):
     resizable = True
 
     def __init__(self, *, bake, controls: WalkControls, supersample: int = 1, name: str = "glint",
-                 screenshot_dir: Path | None = None, **kwargs):
+                 screenshot_dir: Path | None = None, panel: bool = True, on_edit=None, on_save=None,
+                 pbr_mapping=None, **kwargs):
+        """panel: the material panel when imgui-bundle is installed (else a warning, and the window
+        without it); on_edit(materials), on_save(materials): the command layer's callbacks with the
+        whole list of manifest material entries as edited; pbr_mapping: the glTF-style controls'
+        mapping (viewer/panel.py)."""
         super().__init__(**kwargs)
         check_context(self.ctx)
         self.controls = controls
@@ -109,6 +124,30 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.wnd.exit_key = None
         self.wnd.fullscreen_key = None
         self.camera = None  # the last frame's, for tests and screenshots
+        self.on_edit = on_edit
+        self.edits = MaterialEdits(self.renderer.scene.materials, self.renderer.set_material, on_edit=self._edited)
+        self.panel = MaterialPanel(self.edits, [(o.name, o.material) for o in self.renderer.scene.objects],
+                                   pbr_mapping=pbr_mapping, on_save=on_save)
+        self.ui = self._imgui() if panel else None
+        self.mouse = (0, 0)  # last cursor position, window coordinates (for M)
+        self._press: tuple[int, int] | None = None  # where a left-button press began (a click picks)
+
+    def _imgui(self):
+        """ImGui's context and renderer, or None (with a warning) without imgui-bundle."""
+        try:
+            from imgui_bundle import imgui
+
+            from glint.viewer.imgui_backend import ImguiRenderer
+        except ImportError as e:
+            warn(f"no material panel: {e.name or 'imgui-bundle'} is not installed (pip install 'glint[panel]')")
+            return None
+        self._imgui_context = imgui.create_context()
+        imgui.get_io().set_ini_filename("")  # no imgui.ini written into the working directory
+        return ImguiRenderer(self.wnd)
+
+    def _edited(self, materials: list[dict]) -> None:
+        if self.on_edit is not None:
+            self.on_edit(materials)
 
     # -- drawing ---------------------------------------------------------------------------------
     def on_render(self, time: float, frame_time: float) -> None:
@@ -130,12 +169,50 @@ class ViewerWindow(moderngl_window.WindowConfig):
             stats = self.renderer.stats
             self.overlay.update(stats["gpu_ms_median"], self.controls.status, [one_line(frame_section(stats))])
         self.overlay.draw(height)
+        if self.ui is not None:
+            self.draw_panel(frame_time)
+
+    def draw_panel(self, frame_time: float) -> None:
+        """The ImGui frame: the panel's widgets (which apply their edits at once, for the next
+        frame), drawn over the picture."""
+        from imgui_bundle import imgui
+
+        io = imgui.get_io()
+        io.display_size = self.wnd.size
+        io.delta_time = max(float(frame_time), 1e-4)  # ImGui asserts on 0
+        imgui.new_frame()
+        self.panel.draw()
+        imgui.render()
+        self.ui.draw(imgui.get_draw_data())
 
     def on_resize(self, width: int, height: int) -> None:
         pass  # every frame renders at the current framebuffer size; the renderer follows it
 
+    # -- picking ---------------------------------------------------------------------------------
+    def pick(self, x: float, y: float) -> int | None:
+        """The object drawn at window position (x, y) (from the top left, in window coordinates) in
+        the last frame, selected in the panel; None where there is none."""
+        if self.renderer.size is None:
+            return None
+        width, height = self.wnd.size
+        bw, bh = self.renderer.size
+        hit = self.renderer.pick(x * bw / max(width, 1), y * bh / max(height, 1))
+        self.panel.select_object(None if hit is None else hit[0])
+        return None if hit is None else hit[0]
+
+    def _ui_wants(self, what: str) -> bool:
+        if self.ui is None:
+            return False
+        from imgui_bundle import imgui
+
+        return bool(getattr(imgui.get_io(), f"want_capture_{what}"))
+
     # -- input -----------------------------------------------------------------------------------
     def on_key_event(self, key, action, modifiers) -> None:
+        if self.ui is not None:
+            self.ui.key_event(key, action, modifiers)
+            if self._ui_wants("keyboard"):
+                return  # typing into a field of the panel
         name = self.keys.get(key)
         if name is None:
             return
@@ -147,9 +224,43 @@ class ViewerWindow(moderngl_window.WindowConfig):
             self.controls.key_release(name)
 
     def on_unicode_char_entered(self, char: str) -> None:
+        if self.ui is not None:
+            self.ui.unicode_char_entered(char)
+            if self._ui_wants("keyboard"):
+                return
         self.controls.text(char)
 
+    def on_mouse_position_event(self, x: int, y: int, dx: int, dy: int) -> None:
+        self.mouse = (x, y)
+        if self.ui is not None:
+            self.ui.mouse_position_event(x, y, dx, dy)
+
+    def on_mouse_press_event(self, x: int, y: int, button: int) -> None:
+        self.mouse = (x, y)
+        if self.ui is not None:
+            self.ui.mouse_press_event(x, y, button)
+        # ImGui's flag is a frame late for a press that comes with its first move over the panel
+        over_panel = self._ui_wants("mouse") or (self.ui is not None and self.panel.contains(x, y))
+        self._press = (x, y) if button == self.wnd.mouse.left and not over_panel else None
+
+    def on_mouse_release_event(self, x: int, y: int, button: int) -> None:
+        if self.ui is not None:
+            self.ui.mouse_release_event(x, y, button)
+        press, self._press = self._press, None
+        if press is not None and button == self.wnd.mouse.left and \
+                abs(x - press[0]) + abs(y - press[1]) < CLICK_PIXELS:
+            self.pick(x, y)
+
+    def on_mouse_scroll_event(self, x_offset: float, y_offset: float) -> None:
+        if self.ui is not None:
+            self.ui.mouse_scroll_event(x_offset, y_offset)
+
     def on_mouse_drag_event(self, x: int, y: int, dx: int, dy: int) -> None:
+        self.mouse = (x, y)
+        if self.ui is not None:
+            self.ui.mouse_drag_event(x, y, dx, dy)
+        if self._press is None and self._ui_wants("mouse"):
+            return  # dragging a slider of the panel
         self.controls.mouse_look(dx, dy)
 
     def on_iconify(self, iconified: bool) -> None:
@@ -164,6 +275,12 @@ class ViewerWindow(moderngl_window.WindowConfig):
             self.wnd.fullscreen = not self.wnd.fullscreen
         elif action == "quit":
             self.wnd.close()
+        elif action == "pick":
+            self.pick(*self.mouse)
+        elif action == "panel":
+            self.panel.visible = not self.panel.visible
+        elif action in ("undo", "redo"):
+            getattr(self.panel, action)()
 
     def save_screenshot(self) -> Path | None:
         """The last frame, tone-mapped, without the overlay, as a PNG in `screenshot_dir`."""
@@ -184,6 +301,12 @@ class ViewerWindow(moderngl_window.WindowConfig):
         return path
 
     def release(self) -> None:
+        if self.ui is not None:
+            from imgui_bundle import imgui
+
+            self.ui.release()
+            imgui.destroy_context(self._imgui_context)
+            self.ui = None
         self.overlay.release()
         self.renderer.release()
         self.triangle.release()

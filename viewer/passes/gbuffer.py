@@ -32,9 +32,15 @@ def read_gbuffer(targets: dict) -> dict[str, np.ndarray]:
     ids = np.frombuffer(shade.read(alignment=1), np.uint32).reshape(h, w, 4)[..., 3]
     frame_words = np.frombuffer(frame.read(alignment=1), np.uint32).reshape(h, w, 4)
     depth = np.frombuffer(targets["depth"].read(alignment=1), np.float32).reshape(h, w)
-    return {"material": (ids & ((1 << GB_ID_BITS) - 1)).astype(np.int64), "object": (ids >> GB_ID_BITS).astype(np.int64),
-            "drawn": depth < 1.0, "dark": (frame_words[..., 2] & GB_DARK_BIT) != 0,
+    material, obj = decode_ids(ids)
+    return {"material": material, "object": obj, "drawn": depth < 1.0, "dark": (frame_words[..., 2] & GB_DARK_BIT) != 0,
             "normal": oct_decode(frame_words[..., 0])}
+
+
+def decode_ids(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ids word of the shade target (gbuffer_layout.glsl) -> (material, object) as int64."""
+    ids = np.asarray(ids, np.uint32)
+    return (ids & ((1 << GB_ID_BITS) - 1)).astype(np.int64), (ids >> GB_ID_BITS).astype(np.int64)
 
 
 def oct_decode(words: np.ndarray) -> np.ndarray:
@@ -99,6 +105,22 @@ class GBufferPass:
             detail = (camera.eye, scale)
         self.draws.draw(self.program, camera.view_projection(aspect), region=self.REGION, hidden=hidden,
                         min_radius_ndc=min_radius_ndc, detail=detail)
+
+    def pick(self, x: int, y: int) -> tuple[int, int] | None:
+        """(object, material) drawn at G-buffer pixel (x, y) (GL rows: y = 0 at the bottom) of the
+        last frame, or None for the sky, a back face of a single-sided material or outside. Reads
+        that one pixel back (its ids word and depth), not the frame."""
+        if self.fbo is None or not (0 <= x < self.size[0] and 0 <= y < self.size[1]):
+            return None
+        viewport = (int(x), int(y), 1, 1)
+        attachment = next(k for k, name in COLOUR_TARGETS.items() if name == "shade")
+        shade = np.frombuffer(self.fbo.read(viewport=viewport, components=4, attachment=attachment, dtype="u4"),
+                              np.uint32)
+        depth = np.frombuffer(self.fbo.read(viewport=viewport, components=1, attachment=-1, dtype="f4"), np.float32)
+        if not depth[0] < 1.0:  # cleared to 1: nothing drawn there
+            return None
+        material, obj = decode_ids(shade[3:4])
+        return int(obj[0]), int(material[0])
 
     def _release_targets(self) -> None:
         if self.fbo is not None:

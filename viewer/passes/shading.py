@@ -78,13 +78,8 @@ class ShadingPass:
                                                    f"face sizes{', split-sum' if split_sum is not None else ''})")
         self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
         self.specular = compute_program(ctx, "specular.comp", {**defines, **extra})
-        # Specular work is possible only where a material with lobes meets an object with a cube map
-        # or a planar reflector that can get a mirror pass.
-        planar = {i for i, _ in mirror.objects} if mirror is not None and mirror.active else set()
-        self.has_specular = any((scene.cubemaps.has_cubemap(i) or i in planar)
-                                and scene.material_table[o.material]["info"][3] > 0
-                                for i, o in enumerate(scene.objects))
-        self.has_planar = bool(planar)
+        self.has_planar = bool(self._planar())
+        self.update_specular(scene)
         self.planes: tuple[moderngl.Texture, moderngl.Texture] | None = None
         self.radiance: moderngl.Texture | None = None
         self.work: moderngl.Buffer | None = None
@@ -92,6 +87,19 @@ class ShadingPass:
         self.tiles = (0, 0)
         self.cube_maps_bound = 0
         self.specular_ran = False
+
+    def update_specular(self, scene) -> None:
+        """Whether any specular work is possible (again after a material edit): only where a material
+        with lobes meets an object with a cube map or a planar reflector that can get a mirror pass."""
+        planar = self._planar()
+        self.has_specular = any((scene.cubemaps.has_cubemap(i) or i in planar)
+                                and scene.material_table[o.material]["info"][3] > 0
+                                for i, o in enumerate(scene.objects))
+
+    def _planar(self) -> set[int]:
+        """The planar reflectors' object indices (those that can get a mirror pass)."""
+        mirror = self.mirror
+        return {i for i, _ in mirror.objects} if mirror is not None and mirror.active else set()
 
     def resize(self, size: tuple[int, int]) -> None:
         if self.radiance is not None and self.radiance.size == size:

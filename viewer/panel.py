@@ -1,0 +1,315 @@
+"""The material panel of `glint view`: the picked object's material (section 3.3), edited live.
+
+It shows the picked object's name and material and the scene's materials (picking one edits
+every object that shares it): `kd` (the base-colour texture, where there is one, still
+multiplies it), emission, each lobe (kind, ks, one m while mx = my or mx and my, r0, alpha),
+the anisotropy direction, and glTF-style controls (base colour, metallic, roughness,
+transmission) mapped to kd and lobes by the bake's own rule, which the command layer hands in as
+`pbr_mapping` (the viewer does not import the bake: docs/ARCHITECTURE.md). Buttons: Undo, Redo,
+Revert (to the bake's materials), Save (the window's `on_save(materials)`).
+
+Every widget calls one of the panel's methods (`set_kd`, `set_lobe`, `set_gltf`, ...), which
+the tests call directly too; the methods build the new manifest entry and hand it to
+viewer/material_edits.py `MaterialEdits.edit` (checked there: a refused value leaves the
+material as it was and its message shows in red in the panel). A slider dragged over many
+frames is one undo step (`group`).
+
+    panel = MaterialPanel(edits, objects, pbr_mapping=mapping, on_save=save)
+    panel.select_object(7)
+    panel.set_lobe(0, m=0.2)
+    imgui.new_frame(); panel.draw(); imgui.render()   # the widgets, once per frame
+"""
+from __future__ import annotations
+
+import math
+from typing import Callable
+
+from glint.core.bsdf import M_MIN
+from glint.core.errors import GlintError
+from glint.viewer.material_edits import LOBE_KINDS, MaterialEdits
+
+GLTF_KEYS = ("base_color", "metallic", "roughness", "transmission")
+NEW_LOBE = {"kind": "reflect", "ks": [0.5, 0.5, 0.5], "mx": 0.1, "my": 0.1, "r0": 0.04, "alpha": 0.0}
+ERROR_COLOUR = (1.0, 0.35, 0.3, 1.0)
+
+
+def gltf_guess(entry: dict) -> dict:
+    """glTF-style values that map (bake/material_mapping.py's rule) to this entry as closely as a
+    metallic-roughness material can: the rule gives kd = b (1 - M)(1 - t), a metal lobe (r0 = 1)
+    ks = b M and a transmit lobe ks = b (1 - M) t, so b = kd + metal ks + transmit ks, M and t
+    follow, and the roughness is sqrt(m) of the first lobe (1 without lobes)."""
+    kd = [float(c) for c in entry.get("kd", (0.8, 0.8, 0.8))[:3]]
+    lobes = entry.get("lobes") or []
+    metal = next((lobe for lobe in lobes if lobe.get("kind", "reflect") == "reflect" and lobe.get("r0", 0) >= 1.0),
+                 None)
+    transmit = next((lobe for lobe in lobes if lobe.get("kind") == "transmit"), None)
+    mks = [float(c) for c in metal["ks"][:3]] if metal else [0.0] * 3
+    tks = [float(c) for c in transmit["ks"][:3]] if transmit else [0.0] * 3
+    base = [min(k + m + t, 1.0) for k, m, t in zip(kd, mks, tks)]
+    mean = lambda v: sum(v) / 3.0  # noqa: E731
+    metallic = mean(mks) / mean(base) if mean(base) > 0 else 0.0
+    dielectric = mean(base) * (1.0 - metallic)
+    transmission = mean(tks) / dielectric if dielectric > 0 else 0.0
+    roughness = math.sqrt(max(float(lobes[0].get("my", 1.0)), 0.0)) if lobes else 1.0
+    return {"base_color": base, "metallic": min(max(metallic, 0.0), 1.0), "roughness": min(roughness, 1.0),
+            "transmission": min(max(transmission, 0.0), 1.0)}
+
+
+class MaterialPanel:
+    def __init__(self, edits: MaterialEdits, objects: list, *,
+                 pbr_mapping: Callable[..., tuple[list, list]] | None = None,
+                 on_save: Callable[[list[dict]], None] | None = None):
+        """edits: the scene's MaterialEdits; objects: (name, material index) per object (the bake's
+        order, the G-buffer's object ids); pbr_mapping(base_color=, metallic=, roughness=,
+        transmission=) -> (kd, lobes as manifest dicts), or None (no glTF controls); on_save: the
+        window's callback (None: Save is disabled)."""
+        self.edits = edits
+        self.objects = [(str(name), int(material)) for name, material in objects]
+        self.pbr_mapping = pbr_mapping
+        self.on_save = on_save
+        self.visible = False
+        self.picked: int | None = None  # object index
+        self.material: int | None = None  # material index being edited
+        self.message = ""  # the last refusal, shown in red until the next successful edit
+        self.status = ""   # the last Save's outcome
+        self._gltf: dict[int, dict] = {}
+        self.button_centres: dict[str, tuple[float, float]] = {}  # window coordinates, as last drawn
+        self.rect: tuple[float, float, float, float] | None = None  # the panel's (x0, y0, x1, y1), as last drawn
+
+    def contains(self, x: float, y: float) -> bool:
+        """Whether window position (x, y) lies on the panel as last drawn (a click there is not a pick)."""
+        r = self.rect
+        return self.visible and r is not None and r[0] <= x < r[2] and r[1] <= y < r[3]
+
+    # -- selection -------------------------------------------------------------------------------
+    def select_object(self, index: int | None) -> None:
+        """The picked object (None: nothing under the cursor) and its material; shows the panel."""
+        if index is None or not 0 <= index < len(self.objects):
+            self.picked = None
+            return
+        self.picked = int(index)
+        self.select_material(self.objects[index][1])
+
+    def select_material(self, index: int) -> None:
+        if 0 <= index < len(self.edits.materials):
+            self.material = int(index)
+            self.visible = True
+
+    def sharing(self, material: int) -> list[str]:
+        """Names of the objects that use `material` (all change with one edit)."""
+        return [name for name, m in self.objects if m == material]
+
+    @property
+    def entry(self) -> dict | None:
+        return None if self.material is None else self.edits.materials[self.material]
+
+    # -- edits (what the widgets call) -------------------------------------------------------------
+    def _edit(self, changes: dict, group=None) -> bool:
+        if self.material is None:
+            return False
+        try:
+            self.edits.edit(self.material, {**self.entry, **changes}, group=group)
+        except GlintError as e:
+            self.message = str(e)
+            return False
+        self.message = ""
+        return True
+
+    def set_kd(self, rgb, group=None) -> bool:
+        return self._edit({"kd": list(rgb)}, group)
+
+    def set_emission(self, rgb, group=None) -> bool:
+        return self._edit({"emission": list(rgb)}, group)
+
+    def set_lobe(self, k: int, group=None, **fields) -> bool:
+        """Change lobe k's fields (kind, ks, mx, my, r0, alpha; `m` sets mx = my)."""
+        lobes = [dict(lobe) for lobe in self.entry.get("lobes") or []]
+        if not 0 <= k < len(lobes):
+            self.message = f"no lobe {k}"
+            return False
+        if "m" in fields:
+            m = fields.pop("m")
+            fields["mx"] = fields["my"] = m
+        lobes[k].update(fields)
+        return self._edit({"lobes": lobes}, group)
+
+    def add_lobe(self) -> bool:
+        return self._edit({"lobes": [*(self.entry.get("lobes") or []), dict(NEW_LOBE)]})
+
+    def remove_lobe(self, k: int) -> bool:
+        lobes = list(self.entry.get("lobes") or [])
+        return 0 <= k < len(lobes) and self._edit({"lobes": lobes[:k] + lobes[k + 1:]})
+
+    def set_anisotropy_rotation(self, radians: float, group=None) -> bool:
+        try:
+            value = float(radians)
+        except (TypeError, ValueError):
+            value = math.nan
+        if not math.isfinite(value):
+            self.message = f"the anisotropy direction must be a finite angle (got {radians!r})"
+            return False
+        return self._edit({"anisotropy_rotation": value}, group)
+
+    def gltf(self) -> dict:
+        """The glTF-style values shown for the material (last set, else `gltf_guess`)."""
+        if self.material not in self._gltf:
+            self._gltf[self.material] = gltf_guess(self.entry)
+        return self._gltf[self.material]
+
+    def set_gltf(self, group=None, **values) -> bool:
+        """Change glTF-style values (GLTF_KEYS) and replace kd and the lobes by the bake's mapping of them."""
+        if self.pbr_mapping is None:
+            self.message = "no glTF mapping in this viewer"
+            return False
+        unknown = set(values) - set(GLTF_KEYS)
+        if unknown:
+            raise TypeError(f"unknown glTF values {sorted(unknown)}")
+        state = {**self.gltf(), **values}
+        try:
+            kd, lobes = self.pbr_mapping(**state)
+        except GlintError as e:
+            self.message = str(e)
+            return False
+        if self._edit({"kd": list(kd), "lobes": list(lobes)}, group):
+            self._gltf[self.material] = state
+            return True
+        return False
+
+    def undo(self) -> bool:
+        self._gltf.clear()  # the glTF values are guessed again from what is shown
+        return self.edits.undo()
+
+    def redo(self) -> bool:
+        self._gltf.clear()
+        return self.edits.redo()
+
+    def revert(self) -> bool:
+        self._gltf.clear()
+        return self.edits.revert()
+
+    def save(self) -> bool:
+        if self.on_save is None:
+            self.status = "nothing to save to"
+            return False
+        try:
+            self.on_save([dict(m) for m in self.edits.materials])
+        except GlintError as e:
+            self.status = f"not saved: {e}"
+            return False
+        self.status = f"saved ({len(self.edits.edited)} materials edited)"
+        return True
+
+    # -- the widgets --------------------------------------------------------------------------------
+    def draw(self) -> None:
+        """The panel's ImGui window (between imgui.new_frame() and imgui.render())."""
+        if not self.visible:
+            return
+        from imgui_bundle import imgui  # only the window with a panel needs it (pyproject's `panel` extra)
+
+        imgui.set_next_window_pos(imgui.ImVec2(8, 8), imgui.Cond_.first_use_ever)
+        imgui.set_next_window_size(imgui.ImVec2(340, 520), imgui.Cond_.first_use_ever)
+        _, self.visible = imgui.begin("Material", self.visible)
+        pos, size = imgui.get_window_pos(), imgui.get_window_size()
+        self.rect = (pos.x, pos.y, pos.x + size.x, pos.y + size.y)
+        self._draw_actions(imgui)
+        self._draw_selection(imgui)
+        if self.entry is not None:
+            if self.message:
+                imgui.text_colored(imgui.ImVec4(*ERROR_COLOUR), self.message)
+            self._draw_material(imgui)
+        imgui.end()
+
+    def _draw_actions(self, imgui) -> None:
+        """Undo, Redo, Revert, Save in one row at the top, and the last Save's outcome."""
+        for label, action, enabled in (("Undo", self.undo, bool(self.edits.undo_stack)),
+                                       ("Redo", self.redo, bool(self.edits.redo_stack)),
+                                       ("Revert", self.revert, bool(self.edits.edited)),
+                                       ("Save", self.save, self.on_save is not None)):
+            imgui.begin_disabled(not enabled)
+            if imgui.button(label):
+                action()
+            lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+            self.button_centres[label] = ((lo.x + hi.x) / 2, (lo.y + hi.y) / 2)
+            imgui.end_disabled()
+            imgui.same_line()
+        imgui.new_line()
+        if self.status:
+            imgui.text(self.status)
+
+    def _draw_selection(self, imgui) -> None:
+        picked = self.objects[self.picked][0] if self.picked is not None else "none (click an object, or M over it)"
+        imgui.text(f"object: {picked}")
+        names = [m.get("name", f"material {i}") for i, m in enumerate(self.edits.materials)]
+        current = self.material if self.material is not None else 0
+        changed, index = imgui.combo("material", current, names)
+        if changed:
+            self.select_material(index)
+        if self.material is not None:
+            users = self.sharing(self.material)
+            imgui.text_wrapped(f"used by {len(users)} object{'s' * (len(users) != 1)}: {', '.join(users[:6])}"
+                               + (" ..." if len(users) > 6 else ""))
+
+    def _widget(self, imgui, changed: bool, apply, key) -> None:
+        """After one widget: apply its change as part of the undo group `key`; a released slider
+        closes the group."""
+        if changed:
+            apply(group=(self.material, key))
+        if imgui.is_item_deactivated():
+            self.edits.end_group()
+
+    def _draw_material(self, imgui) -> None:
+        m = self.entry
+        changed, kd = imgui.color_edit3("kd", list(m.get("kd", (0.8, 0.8, 0.8)))[:3], imgui.ColorEditFlags_.float)
+        self._widget(imgui, changed, lambda group: self.set_kd(kd, group), "kd")
+        if m.get("kd_texture"):
+            imgui.text_disabled("(times the base-colour texture)")
+        changed, emission = imgui.drag_float3("emission", list(m.get("emission", (0, 0, 0)))[:3], 0.05, 0.0, 1e4)
+        self._widget(imgui, changed, lambda group: self.set_emission(emission, group), "emission")
+        lobes = m.get("lobes") or []
+        for k, lobe in enumerate(lobes):
+            imgui.push_id(f"lobe{k}")
+            if imgui.tree_node_ex(f"lobe {k}: {lobe.get('kind', 'reflect')}", imgui.TreeNodeFlags_.default_open):
+                self._draw_lobe(imgui, k, lobe)
+                imgui.tree_pop()
+            imgui.pop_id()
+        if imgui.button("add lobe"):
+            self.add_lobe()
+        if "anisotropy_rotation" in m or any(lb.get("mx") != lb.get("my") for lb in lobes):
+            changed, angle = imgui.slider_angle("anisotropy direction", float(m.get("anisotropy_rotation", 0.0)),
+                                                -180.0, 180.0)
+            self._widget(imgui, changed, lambda group: self.set_anisotropy_rotation(angle, group), "rotation")
+        if self.pbr_mapping is not None and imgui.collapsing_header("glTF-style"):
+            g = self.gltf()
+            changed, base = imgui.color_edit3("base colour", list(g["base_color"]), imgui.ColorEditFlags_.float)
+            self._widget(imgui, changed, lambda group: self.set_gltf(group, base_color=base), "base_color")
+            for key in ("metallic", "roughness", "transmission"):
+                changed, value = imgui.slider_float(key, float(g[key]), 0.0, 1.0)
+                self._widget(imgui, changed, lambda group, key=key, value=value: self.set_gltf(group, **{key: value}),
+                             key)
+
+    def _draw_lobe(self, imgui, k: int, lobe: dict) -> None:
+        kind = lobe.get("kind", "reflect")
+        changed, choice = imgui.combo("kind", LOBE_KINDS.index(kind) if kind in LOBE_KINDS else 0, list(LOBE_KINDS))
+        if changed:
+            self.set_lobe(k, kind=LOBE_KINDS[choice])
+        changed, ks = imgui.color_edit3("ks", list(lobe.get("ks", (1, 1, 1)))[:3], imgui.ColorEditFlags_.float)
+        self._widget(imgui, changed, lambda group: self.set_lobe(k, group, ks=ks), ("ks", k))
+        mx, my = float(lobe.get("mx", 0.1)), float(lobe.get("my", 0.1))
+        flags = imgui.SliderFlags_.logarithmic
+        if mx == my:
+            changed, m = imgui.slider_float("m", mx, M_MIN, 1.0, "%.4f", flags)
+            self._widget(imgui, changed, lambda group: self.set_lobe(k, group, m=m), ("m", k))
+        else:
+            changed, mx = imgui.slider_float("mx", mx, M_MIN, 1.0, "%.4f", flags)
+            self._widget(imgui, changed, lambda group: self.set_lobe(k, group, mx=mx), ("mx", k))
+            changed, my = imgui.slider_float("my", my, M_MIN, 1.0, "%.4f", flags)
+            self._widget(imgui, changed, lambda group: self.set_lobe(k, group, my=my), ("my", k))
+        changed, anisotropic = imgui.checkbox("anisotropic", mx != my)
+        if changed:
+            self.set_lobe(k, mx=mx, my=min(2.0 * mx, 1.0) if anisotropic else mx)
+        changed, r0 = imgui.slider_float("r0", float(lobe.get("r0", 0.04)), 0.0, 1.0)
+        self._widget(imgui, changed, lambda group: self.set_lobe(k, group, r0=r0), ("r0", k))
+        changed, alpha = imgui.slider_float("alpha", float(lobe.get("alpha", 0.0)), 0.0, 1.0)
+        self._widget(imgui, changed, lambda group: self.set_lobe(k, group, alpha=alpha), ("alpha", k))
+        if imgui.small_button("remove lobe"):
+            self.remove_lobe(k)
