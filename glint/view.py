@@ -8,12 +8,16 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 import textwrap
+from pathlib import Path
 
+from glint.bake.edits import format_assignment, material_assignments, parse_assignment, save_sidecar
 from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
+from glint.scenes import BUILTIN, resolve
 from glint.services import SCENE_HELP, add_bake_options, add_edit_option, parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 from glint.viewer.controls import KEY_HELP, WalkControls
@@ -69,11 +73,23 @@ def pbr_mapping(*, base_color, metallic: float, roughness: float, transmission: 
     return [float(c) for c in kd], [lobe.to_dict() for lobe in lobes]
 
 
-def log_save(materials: list[dict]) -> None:
-    """The panel's Save for now: says what it would write (the sidecar writer, bake/edits.py
-    `save_sidecar`, is wired here when it lands)."""
-    print(f"glint: save: {len(materials)} materials received; nothing written yet (the sidecar writer is "
-          "not part of this build)", flush=True)
+def sidecar_saver(scene_arg: str, scene_path: Path, original: list[dict], edits=()):
+    """The panel's Save: the run's `--set` edits and every material the panel changed (against the
+    bake's `original` entries), as assignments (bake/edits.py `material_assignments`) written into
+    the scene's NAME.glint.toml (`save_sidecar`: comments kept, checked, atomic), so `glint bake`
+    and `glint capture` reproduce the window. A built-in scene's file is part of glint, not the
+    user's: there Save refuses, and prints the `--set` options that reproduce the edits."""
+    def save(materials: list[dict]) -> None:
+        changed = [m for m, o in zip(materials, original) if m != o]
+        assignments = list(edits) + [a for m in changed for a in material_assignments(m["name"], m)]
+        if scene_arg in BUILTIN:
+            texts = (format_assignment(*(parse_assignment(a) if isinstance(a, str) else a)) for a in assignments)
+            options = " ".join(f"--set {shlex.quote(t)}" for t in texts)
+            print(f"glint: {scene_arg} is a built-in scene; its edits as options: {options}", flush=True)
+            raise GlintError(f"{scene_arg} is built in and not saved; the --set options are printed in the terminal")
+        path = save_sidecar(scene_path, assignments)
+        print(f"glint: saved {len(changed)} edited materials to {path}", flush=True)
+    return save
 
 
 def cmd_view(args) -> int:
@@ -103,7 +119,8 @@ def cmd_view(args) -> int:
     except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
         detail = " ".join(str(e).split()) or type(e).__name__
         raise no_window(args.scene, f"{type(e).__name__}: {detail}") from e
+    save = sidecar_saver(args.scene, resolve(args.scene), [dict(m) for m in manifest["materials"]], args.edits)
     viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
-                          pbr_mapping=pbr_mapping, on_save=log_save)
+                          pbr_mapping=pbr_mapping, on_save=save)
     run(viewer)
     return 0

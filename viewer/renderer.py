@@ -257,6 +257,7 @@ class Renderer:
         `mode="auto"` frame is a walkthrough frame of the new material and the still-camera
         refinement starts over from it."""
         self.scene.set_material(index, entry)
+        self.mirror.set_material(index, self.scene.materials[index])  # the guard band follows the lobes
         self.shading.update_specular(self.scene)
         self.invalidate()
 

@@ -42,6 +42,7 @@ moderngl lacks) sharing one depth buffer.
 from __future__ import annotations
 
 import ctypes
+from dataclasses import replace
 
 import moderngl
 import numpy as np
@@ -99,6 +100,13 @@ def mirror_defines(first_unit: int) -> dict:
     return mirror_units(first_unit)
 
 
+def mirror_reach(material: dict) -> float | None:
+    """How far the widest reflection lobe of a manifest material turns from the mirror direction
+    (viewer/reflectors.py `lobe_reach`: the guard band); None without reflection lobes."""
+    lobes = [lobe for lobe in material.get("lobes") or [] if lobe.get("kind", "reflect") == "reflect"]
+    return max(lobe_reach(lobe.get("mx", 0.0), lobe.get("my", 0.0)) for lobe in lobes) if lobes else None
+
+
 def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
     """(object index, Reflector) of every `planar` object of the bake with a reflection lobe (the
     others have nothing to read a mirror buffer for: the cube-map bake renders without lobes):
@@ -109,9 +117,8 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
     for i, entry in enumerate(bake.manifest["objects"]):
         if entry.get("role") != "planar" or not entry.get("triangles", 1):
             continue
-        lobes = [lobe for lobe in materials[int(entry["material"])].get("lobes") or []
-                 if lobe.get("kind", "reflect") == "reflect"]
-        if not lobes:
+        reach = mirror_reach(materials[int(entry["material"])])  # the guard band
+        if reach is None:
             continue
         plane = entry.get("plane")
         if plane:
@@ -124,7 +131,6 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
             continue
         name = entry["name"] if entry["name"] not in seen else f"{entry['name']} #{i}"
         seen.add(name)
-        reach = max(lobe_reach(lobe.get("mx", 0.0), lobe.get("my", 0.0)) for lobe in lobes)  # the guard band
         out.append((i, Reflector(name, point, normal, np.asarray(entry["bounds"], np.float64), reach=reach)))
     return out
 
@@ -186,6 +192,16 @@ class MirrorPasses:
         for tex in t.values():
             tex.repeat_x = tex.repeat_y = False  # clamp to edge: a sample leaving the buffer reads its edge
         return t
+
+    def set_material(self, material: int, entry: dict) -> None:
+        """A material edit (Renderer.set_material): the reflectors made of `material` widen or narrow
+        their guard band to its lobes' reach (one that lost every reflection lobe keeps its last)."""
+        reach = mirror_reach(entry)
+        if reach is None:
+            return
+        self.objects = [(i, replace(r, reach=reach) if self.scene.objects[i].material == material else r)
+                        for i, r in self.objects]
+        self.reflectors = [r for _, r in self.objects]
 
     def resize(self, size: tuple[int, int]) -> None:
         if size == self.size or not self.active:
