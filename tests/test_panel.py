@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+import imgui_bundle  # noqa: F401  (a dependency of glint: the panel must work wherever glint installs)
 import numpy as np
 import pytest
 from test_specular import cube_file, lobe, material, pinhole_rays, quad, specular_bake
@@ -21,8 +22,6 @@ from glint.core import bsdf
 from glint.core.errors import GlintError
 from glint.viewer.controls import WalkControls
 from glint.viewer.material_edits import MaterialEdits, checked_material
-
-pytest.importorskip("imgui_bundle")  # the `panel` extra; part of the `test` extra, so CI has it
 
 SIZE = (80, 60)  # window pixels (the panel's Undo button lies inside)
 E = (2.0, 1.0, 0.5)  # the light map's irradiance, W/m^2

@@ -139,7 +139,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
 
             from glint.viewer.imgui_backend import ImguiRenderer
         except ImportError as e:
-            warn(f"no material panel: {e.name or 'imgui-bundle'} is not installed (pip install 'glint[panel]')")
+            warn(f"no material panel: {e.name or 'imgui-bundle'} is not installed (pip install imgui-bundle)")
             return None
         self._imgui_context = imgui.create_context()
         imgui.get_io().set_ini_filename("")  # no imgui.ini written into the working directory
