@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing as mp
+import os
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -162,7 +163,10 @@ _worker: dict = {}
 
 
 def _start_worker(bake_dir: str) -> None:
-    """A worker process's GL context and renderer, made once (ProcessPoolExecutor initializer)."""
+    """A worker process's GL context and renderer, made once (ProcessPoolExecutor initializer).
+    llvmpipe rasterises on the drawing thread (LP_NUM_THREADS=0, unless the user set it): the
+    processes already keep the cores busy, and its raster threads would only contend with them."""
+    os.environ.setdefault("LP_NUM_THREADS", "0")  # read when the first context opens, just below
     ctx = headless_context()
     _worker.update(ctx=ctx, bake_dir=bake_dir, renderer=_diffuse_renderer(ctx, bake_dir))
 

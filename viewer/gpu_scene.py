@@ -200,7 +200,11 @@ class GpuScene:
         and the culling read (viewer/draw_list.py)."""
         manifest = bake.manifest
         front_pages = len(manifest.get("lightmaps") or [])
-        parts = [self._object(i, entry, mesh, front_pages if bake.has_back(i) else 0)
+        # The tangent frame serves the lobes only (their anisotropy and the normal map's shading
+        # normal; the diffuse part is the light map's): a scene without lobes (the bake's diffuse
+        # cube-map renders) skips MikkTSpace.
+        frames = any(m.get("lobes") for m in manifest["materials"])
+        parts = [self._object(i, entry, mesh, front_pages if bake.has_back(i) else 0, frames)
                  for i, (entry, mesh) in enumerate(zip(manifest["objects"], bake.meshes))]
         self.objects = [obj for obj, _, _ in parts]
         self.triangles = sum(o.triangles for o in self.objects)
@@ -262,8 +266,9 @@ class GpuScene:
         if obj.triangles:
             self.vertex_array(program).render(moderngl.TRIANGLES, vertices=3 * obj.triangles, first=obj.first_index)
 
-    def _object(self, index: int, entry: dict, mesh: dict, back_layer: int) -> tuple:
-        """(GpuObject, its vertices as VERTEX_DTYPE, its (M, 3) local indices)."""
+    def _object(self, index: int, entry: dict, mesh: dict, back_layer: int, frames: bool = True) -> tuple:
+        """(GpuObject, its vertices as VERTEX_DTYPE, its (M, 3) local indices); frames: False leaves
+        the tangents 0 (no tangent frame: shaders/raster_surface.glsl)."""
         indices = np.asarray(mesh.get("indices", np.zeros((0, 3))), np.uint32).reshape(-1, 3)
         positions = np.asarray(mesh["positions"], np.float64).reshape(-1, 3)
         n = len(positions)
@@ -275,8 +280,11 @@ class GpuScene:
         uvs = None if uvs is None else _clean(uvs, None).reshape(-1, 2)
         supplied = mesh.get("tangents")  # glTF TANGENT
         # Tangents may split vertices (MikkTSpace's handedness): the other attributes follow `source`.
-        source, indices, frame = surface_tangents(positions, normals, uvs, indices,
-                                                  None if supplied is None else _clean(supplied, None).reshape(-1, 4))
+        if frames:
+            source, indices, frame = surface_tangents(positions, normals, uvs, indices,
+                                                      None if supplied is None else _clean(supplied, None).reshape(-1, 4))
+        else:
+            source, frame = np.arange(n), 0.0
         indices = indices.astype(np.uint32)
         positions = positions[source]
         v = np.zeros(len(source), VERTEX_DTYPE)
