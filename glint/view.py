@@ -10,7 +10,9 @@ import argparse
 import os
 import sys
 import textwrap
+from pathlib import Path
 
+from glint.bake.rebake import Rebaker
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.services import SCENE_HELP, add_bake_options, parse_size, run_bake
@@ -86,6 +88,22 @@ def cmd_view(args) -> int:
     except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
         detail = " ".join(str(e).split()) or type(e).__name__
         raise no_window(args.scene, f"{type(e).__name__}: {detail}") from e
-    viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name)
-    run(viewer)
+    rebaker = background_rebake(manifest, report.bake_dir)
+    try:
+        viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
+                              lightmap_source=rebaker, on_edit=None if rebaker is None else rebaker.edit)
+        run(viewer)
+    finally:
+        if rebaker is not None:
+            rebaker.close()
     return 0
+
+
+def background_rebake(manifest: dict, bake_dir: Path):
+    """The re-bake of the light maps after material edits (glint.bake.rebake.Rebaker: a worker
+    process, started now so that it has loaded the scene by the first edit); None for a bake
+    whose scene file is gone (nothing to re-bake from: edits then change only what kd shows)."""
+    source = manifest["scene"].get("source")
+    if not source or not Path(source).is_file():
+        return None
+    return Rebaker(Path(source), bake_dir)

@@ -92,8 +92,14 @@ class ViewerWindow(moderngl_window.WindowConfig):
     resizable = True
 
     def __init__(self, *, bake, controls: WalkControls, supersample: int = 1, name: str = "glint",
-                 screenshot_dir: Path | None = None, **kwargs):
+                 screenshot_dir: Path | None = None, lightmap_source=None, on_edit=None, **kwargs):
+        """lightmap_source: an object whose `poll()` returns None or new light-map pages (front, back)
+        for the bake's atlas, never blocking, and whose `status` is None or one line for the overlay
+        (glint/view.py gives the background re-bake, glint.bake.rebake.Rebaker); polled every frame.
+        on_edit(materials): called with the manifest's material entries after every material edit."""
         super().__init__(**kwargs)
+        self.lightmap_source = lightmap_source
+        self.on_edit = on_edit
         check_context(self.ctx)
         self.controls = controls
         self.name = name
@@ -113,6 +119,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
     # -- drawing ---------------------------------------------------------------------------------
     def on_render(self, time: float, frame_time: float) -> None:
         self.camera = self.controls.update(frame_time)
+        self.swap_lightmaps()
         width, height = self.wnd.buffer_size
         if width < 1 or height < 1:
             return  # minimised: some backends report a 0 x 0 framebuffer
@@ -128,8 +135,22 @@ class ViewerWindow(moderngl_window.WindowConfig):
         if self.overlay.visible and self.overlay.due(frame_time):
             # stats waits for the GPU's timer queries: read it only when the text is redrawn
             stats = self.renderer.stats
-            self.overlay.update(stats["gpu_ms_median"], self.controls.status, [one_line(frame_section(stats))])
+            status = getattr(self.lightmap_source, "status", None)
+            self.overlay.update(stats["gpu_ms_median"], self.controls.status,
+                                [one_line(frame_section(stats)), *([status] if status else [])])
         self.overlay.draw(height)
+
+    def swap_lightmaps(self) -> bool:
+        """Take the light-map source's newest pages, if any, into the GPU scene and restart the
+        still camera's refinement (its running mean holds the old light). True when swapped."""
+        if self.lightmap_source is None:
+            return False
+        pages = self.lightmap_source.poll()
+        if pages is None:
+            return False
+        self.renderer.scene.replace_lightmaps(*pages)
+        self.renderer.progressive.invalidate()
+        return True
 
     def on_resize(self, width: int, height: int) -> None:
         pass  # every frame renders at the current framebuffer size; the renderer follows it
