@@ -57,6 +57,7 @@ from glint.core.scene import Scene
 FIRST_SAMPLES = 8  # paths per texel of the first pass: the living room's in ~2 s (docs/VIEWER.md)
 PASS_GROWTH = 4  # samples of a pass over the one before: each pass halves the noise
 NICE = 10  # the worker's niceness: the viewer's frames come first
+PARENT_CHECK_SECONDS = 1.0  # how often an idle worker checks that the viewer's process still runs
 STOP_SECONDS = 5.0  # close(): how long the worker may take to stop before it is terminated
 
 
@@ -174,14 +175,20 @@ def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, result
     except Exception as e:  # noqa: BLE001 -- reported to the viewer as one line, never a traceback
         results.put(("error", 0, _one_line(e)))
         return
+    parent = mp.parent_process()
     while True:
-        command = _newest(commands, commands.get())
+        try:
+            command = _newest(commands, commands.get(timeout=PARENT_CHECK_SECONDS))
+        except queue.Empty:
+            if parent is not None and not parent.is_alive():
+                return  # the viewer ended without close(): no orphan left running
+            continue
         if command[0] == "stop":
             return
         _, generation, overrides, made = command
 
         def check(_texels, generation=generation):
-            if latest.value != generation:
+            if latest.value != generation or (parent is not None and not parent.is_alive()):
                 raise _Cancelled
 
         try:
@@ -234,6 +241,7 @@ class Rebaker:
         self.last: Update | None = None  # the newest pass delivered for the newest edit
         self.error: str | None = None
         self.cancelled = 0  # passes abandoned for a newer edit
+        self.dropped = 0  # passes of older edits that arrived after a newer edit (never returned)
         self._edited_at = 0.0
 
     # -- the viewer's side -------------------------------------------------------------------------
@@ -264,6 +272,8 @@ class Rebaker:
                 self.error = payload
             elif kind == "pass" and generation == self.generation:
                 newest = self.last = payload
+            elif kind == "pass":
+                self.dropped += 1
         return None if newest is None else (newest.front, newest.back)
 
     @property

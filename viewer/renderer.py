@@ -244,6 +244,14 @@ class Renderer:
         if previous is not None:  # a standalone context has none bound
             previous.use()
 
+    def replace_lightmaps(self, front: list, back: list) -> None:
+        """New light-map pages for the bake's atlas (GpuScene.replace_lightmaps); the next frame
+        draws with them: the G-buffer a still camera keeps (its diffuse is kd / pi x E) and the
+        running mean are redone."""
+        self.scene.replace_lightmaps(front, back)
+        self._gbuffer_key = None
+        self.progressive.invalidate()
+
     # -- results ---------------------------------------------------------------------------------
     def _require_frame(self) -> None:
         if self._linear is None:

@@ -148,8 +148,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
         pages = self.lightmap_source.poll()
         if pages is None:
             return False
-        self.renderer.scene.replace_lightmaps(*pages)
-        self.renderer.progressive.invalidate()
+        self.renderer.replace_lightmaps(*pages)
         return True
 
     def on_resize(self, width: int, height: int) -> None:
