@@ -162,10 +162,10 @@ def _newest(commands, command):
     return command
 
 
-def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, results, latest) -> None:
+def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, results, latest, nice: int) -> None:
     """The worker process: prepare once, then one progressive re-bake per edit (module docstring)."""
     with contextlib.suppress(OSError, AttributeError):
-        os.nice(NICE)
+        os.nice(nice)
     try:
         start = time.perf_counter()
         scene, settings, pages = _prepare(source, Path(bake_dir))
@@ -218,10 +218,12 @@ class Rebaker:
         update = rebaker.poll()                   # each frame: None, or the newest pass's pages
         rebaker.close()
 
-    `schedule`: paths per texel of each pass (default `pass_samples` of the bake's samples).
+    `schedule`: paths per texel of each pass (default `pass_samples` of the bake's samples);
+    `nice`: the worker's niceness (default NICE; 0: as urgent as the viewer).
     """
 
-    def __init__(self, scene: Scene | str | Path, bake_dir: Path, *, schedule: list[int] | None = None):
+    def __init__(self, scene: Scene | str | Path, bake_dir: Path, *, schedule: list[int] | None = None,
+                 nice: int = NICE):
         self.bake_dir = Path(bake_dir)
         manifest = read_manifest(self.bake_dir)
         if manifest is None:
@@ -234,7 +236,7 @@ class Rebaker:
         self._latest = ctx.Value("q", 0, lock=False)  # the newest edit's generation: the worker's cancel flag
         self._process = ctx.Process(target=_worker, name="glint-rebake", daemon=True,
                                     args=(scene, self.bake_dir, self.schedule, self._commands, self._results,
-                                          self._latest))
+                                          self._latest, int(nice)))
         self._process.start()
         self.generation = 0
         self.ready: dict | None = None  # the worker's set-up: seconds, schedule, texels
