@@ -54,7 +54,7 @@ from glint.core.bake_dir import read_manifest
 from glint.core.errors import GlintError
 from glint.core.scene import Scene
 
-FIRST_SAMPLES = 8  # paths per texel of the first pass: the living room's in ~2 s (docs/VIEWER.md)
+FIRST_SAMPLES = 8  # paths per texel of the first pass: seconds on the living room (docs/VIEWER.md)
 PASS_GROWTH = 4  # samples of a pass over the one before: each pass halves the noise
 NICE = 10  # the worker's niceness: the viewer's frames come first
 PARENT_CHECK_SECONDS = 1.0  # how often an idle worker checks that the viewer's process still runs
