@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import multiprocessing as mp
 import os
 import queue
@@ -75,10 +76,15 @@ def bake_settings(manifest: dict) -> BakeSettings:
     return replace(BakeSettings(), **{k: v for k, v in manifest["settings"].items() if k in names}, jobs=1)
 
 
+def _plain(value):
+    """numpy arrays and scalars (a panel's colours) as the lists and floats a manifest holds."""
+    return json.loads(json.dumps(value, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v)))
+
+
 def _override_table(entry: dict, keys) -> dict:
     """The sidecar-style table {kd, emission, lobes} of a manifest material entry, restricted to
     `keys` (lobes without the manifest-only `mr`, which no sidecar can give)."""
-    table = {k: entry[k] for k in keys if k in entry}
+    table = {k: _plain(entry[k]) for k in keys if k in entry}
     if "lobes" in table and isinstance(table["lobes"], list):
         table["lobes"] = [{k: v for k, v in lobe.items() if k in LOBE_KEYS} if isinstance(lobe, dict) else lobe
                           for lobe in table["lobes"]]

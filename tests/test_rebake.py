@@ -11,7 +11,7 @@ from conftest import FAST, write_room
 from test_renderer import KD, constant_page, front_camera, make_bake, material, quad
 from test_view import HOME, frame, headless_window
 
-from glint.bake.rebake import Rebaker, pass_samples
+from glint.bake.rebake import Rebaker, material_overrides, pass_samples
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.viewer.controls import WalkControls
@@ -141,6 +141,11 @@ def test_bad_edits_are_refused_naming_the_key(room):
         with pytest.raises(GlintError, match="entry 0 is not material"):
             rebaker.edit([{"name": "Other"}] + room.manifest["materials"][1:])
         assert rebaker.generation == 0 and rebaker.status is None
+    baked = room.manifest["materials"]
+    as_arrays = [{**m, "kd": np.array(m["kd"], np.float32)} for m in baked]  # a panel's colours
+    assert material_overrides(as_arrays, baked) == {}
+    as_arrays[0]["kd"] = np.array(RED_WALLS)
+    assert list(material_overrides(as_arrays, baked)) == [0]
 
 
 E = (2.0, 1.0, 0.5)
