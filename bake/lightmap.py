@@ -62,6 +62,13 @@ class LightmapPages:
     invalid_by_object: np.ndarray | None = None  # (objects,) int64 invalid texels (both sides)
     unlit_by_object: np.ndarray | None = None  # (objects,) int64 unlit surface texels
 
+    def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
+        """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
+        RGB the irradiance, A = 1 where path traced."""
+        return tuple([np.concatenate([image, baked[..., None].astype(np.float32)], axis=-1)
+                      for image, baked in zip(images, masks)]
+                     for images, masks in ((self.irradiance, self.baked), (self.back_irradiance, self.back_baked)))
+
 
 def _setup(scene: Scene) -> tuple[Scene, RayTracer]:
     return scene, RayTracer(scene)

@@ -320,11 +320,9 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
         result = bake_lightmaps(scene, pages, settings, progress=bar.update)
     warn_texels(result, scene)
     names, back_names = [], []
-    for images, masks, stem, files in ((result.irradiance, result.baked, "page", names),
-                                       (result.back_irradiance, result.back_baked, "back", back_names)):
-        for k, (image, baked) in enumerate(zip(images, masks)):
+    for images, stem, files in zip(result.rgba(), ("page", "back"), (names, back_names)):
+        for k, rgba in enumerate(images):
             name = f"lightmaps/{stem}_{k}.exr"
-            rgba = np.concatenate([image, baked[..., None].astype(np.float32)], axis=-1)
             write_image(path / name, rgba, channels=("R", "G", "B", "A"))
             files.append(name)
     t2 = time.perf_counter()
@@ -351,16 +349,22 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
     }
 
 
+def read_atlas(bake_dir: Path, count: int) -> Atlas:
+    """The charts of an existing bake of `count` objects (its manifest's atlas and meshes.npz): what a
+    bake whose geometry did not change reuses, and the background re-bake (bake/rebake.py) bakes into."""
+    old = read_manifest(bake_dir)["atlas"]
+    meshes = load_meshes(Path(bake_dir) / "meshes.npz", count)
+    charts = [ObjectCharts(vmapping=m["vmapping"].astype(np.int64), indices=m["indices"].astype(np.int64),
+                           uv=m["lm_uv"], page=m["lm_page"]) for m in meshes]
+    return Atlas(objects=charts, width=old["width"], height=old["height"], pages=old["pages"],
+                 texels_per_metre=old["texels_per_metre"], padding=old["padding"])
+
+
 def _atlas(scene: Scene, settings: BakeSettings, path: Path, old_dir: Path | None):
     """Unwrap with xatlas, or, when the geometry did not change, read the charts of the last bake."""
 
     if old_dir is not None:
-        old = read_manifest(old_dir)["atlas"]
-        meshes = load_meshes(old_dir / "meshes.npz", len(scene.objects))
-        charts = [ObjectCharts(vmapping=m["vmapping"].astype(np.int64), indices=m["indices"].astype(np.int64),
-                               uv=m["lm_uv"], page=m["lm_page"]) for m in meshes]
-        atlas = Atlas(objects=charts, width=old["width"], height=old["height"], pages=old["pages"],
-                      texels_per_metre=old["texels_per_metre"], padding=old["padding"])
+        atlas = read_atlas(old_dir, len(scene.objects))
     else:
         atlas = unwrap(scene.objects, settings.texels_per_metre, settings.padding, settings.max_page_size)
     meshes = []

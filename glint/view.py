@@ -15,6 +15,7 @@ from pathlib import Path
 
 from glint.bake.edits import format_assignment, material_assignments, parse_assignment, save_sidecar
 from glint.bake.material_mapping import GltfPbr, map_pbr
+from glint.bake.rebake import Rebaker
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.scenes import BUILTIN, resolve
@@ -120,7 +121,23 @@ def cmd_view(args) -> int:
         detail = " ".join(str(e).split()) or type(e).__name__
         raise no_window(args.scene, f"{type(e).__name__}: {detail}") from e
     save = sidecar_saver(args.scene, resolve(args.scene), [dict(m) for m in manifest["materials"]], args.edits)
-    viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
-                          pbr_mapping=pbr_mapping, on_save=save)
-    run(viewer)
+    rebaker = background_rebake(manifest, report.bake_dir)
+    try:
+        viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
+                              pbr_mapping=pbr_mapping, on_save=save, lightmap_source=rebaker,
+                              on_edit=None if rebaker is None else rebaker.edit)
+        run(viewer)
+    finally:
+        if rebaker is not None:
+            rebaker.close()
     return 0
+
+
+def background_rebake(manifest: dict, bake_dir: Path):
+    """The re-bake of the light maps after material edits (glint.bake.rebake.Rebaker: a worker
+    process, started now so that it has loaded the scene by the first edit); None for a bake
+    whose scene file is gone (nothing to re-bake from: edits then change only what kd shows)."""
+    source = manifest["scene"].get("source")
+    if not source or not Path(source).is_file():
+        return None
+    return Rebaker(Path(source), bake_dir)

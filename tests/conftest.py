@@ -11,13 +11,15 @@ from glint.viewer.context import headless_context
 
 
 def write_room(path: Path, *, kd=(0.7, 0.7, 0.7), floor_lobes=None, light=8.0, box_height=0.5,
-               sidecar: str | None = None) -> Path:
-    """A closed 2 x 2 x 2 m room (faces inwards), a ceiling light, a box on the floor."""
+               sidecar: str | None = None, double_sided=()) -> Path:
+    """A closed 2 x 2 x 2 m room (faces inwards), a ceiling light, a box on the floor; the materials
+    named in `double_sided` ("Wall", "Floor", "Lamp") are glTF doubleSided."""
     w = GltfWriter()
-    wall = w.add_material("Wall", base_color=kd, roughness=1.0)
+    wall = w.add_material("Wall", base_color=kd, roughness=1.0, double_sided="Wall" in double_sided)
     extras = None if floor_lobes is None else {"glint": {"lobes": floor_lobes}}
-    floor = w.add_material("Floor", base_color=kd, roughness=1.0, extras=extras)
-    lamp = w.add_material("Lamp", base_color=(0.8, 0.8, 0.8), emissive=(1, 1, 1), emissive_strength=light)
+    floor = w.add_material("Floor", base_color=kd, roughness=1.0, extras=extras, double_sided="Floor" in double_sided)
+    lamp = w.add_material("Lamp", base_color=(0.8, 0.8, 0.8), emissive=(1, 1, 1), emissive_strength=light,
+                          double_sided="Lamp" in double_sided)
     w.add_quads({**room_faces(1.0, 2.0, wall, floor), "Lamp": ((0, 1.99, 0), (0.25, 0, 0), (0, 0, 0.25), lamp)})
     h = box_height / 2
     box = np.array([[x, y, z] for x in (-.3, .3) for y in (0, 2 * h) for z in (-.3, .3)], float)

@@ -540,21 +540,13 @@ class GpuScene:
     # -- light maps ------------------------------------------------------------------------------
     def _lightmaps(self, bake) -> None:
         names = bake.manifest.get("lightmaps") or []
-        pages = [_clean(bake.lightmap(k)) for k in range(len(names))]
+        pages = [bake.lightmap(k) for k in range(len(names))]
         if names:  # the back sides' pages, layers len(names) on (GpuObject.back_layer)
-            pages += [_clean(bake.lightmap(k, back=True)) for k in range(len(bake.back_pages))]
+            pages += [bake.lightmap(k, back=True) for k in range(len(bake.back_pages))]
         if not pages:
             pages = [np.zeros((1, 1, 4))]
-        shapes = {p.shape[:2] for p in pages}
-        if len(shapes) != 1:
-            raise GlintError(f"{bake.path}: light-map pages differ in size ({sorted(shapes)}); "
-                             "run `glint bake --force`")
-        h, w = pages[0].shape[:2]
-        stack = np.zeros((len(pages), h, w, 4))
-        for k, p in enumerate(pages):
-            stack[k, :, :, :p.shape[2]] = p[..., :4]
-        self.lightmap_dtype = "f2" if stack.max(initial=0.0) <= HALF_MAX else "f4"
-        data = stack.astype(np.float16 if self.lightmap_dtype == "f2" else np.float32)
+        data, (w, h) = self._lightmap_stack(pages, f"{bake.path}: light-map pages", "run `glint bake --force`")
+        self.lightmap_dtype = "f2" if data.dtype == np.float16 else "f4"
         what = f"the light maps ({len(pages)} pages)"
         check_texture_size(self.ctx, w, h, what, layers=len(pages),
                            fix="bake with a lower --texels-per-metre or [bake] max_page_size")
@@ -562,6 +554,44 @@ class GpuScene:
             self.lightmaps = self.ctx.texture_array((w, h, len(pages)), 4, data.tobytes(), dtype=self.lightmap_dtype)
         self.lightmaps.filter = (moderngl.LINEAR, moderngl.LINEAR)
         self.lightmaps.repeat_x = self.lightmaps.repeat_y = False  # clamp to edge
+
+    @staticmethod
+    def _lightmap_stack(pages: list[np.ndarray], what: str, fix: str) -> tuple[np.ndarray, tuple[int, int]]:
+        """Pages (H, W, 3 or 4) -> one (layers, H, W, 4) array to upload, non-finite values 0 and
+        negatives 0 (`_clean`), in float16 where every value fits (|v| <= HALF_MAX), else float32."""
+        shapes = {np.shape(p)[:2] for p in pages}
+        if len(shapes) != 1:
+            raise GlintError(f"{what} differ in size ({sorted(shapes)}); {fix}")
+        h, w = shapes.pop()
+        stack = np.zeros((len(pages), h, w, 4), np.float32)
+        for k, p in enumerate(pages):
+            p = _clean(p)
+            stack[k, :, :, :p.shape[2]] = p[..., :4]
+        fits = stack.max(initial=0.0) <= HALF_MAX
+        return stack.astype(np.float16) if fits else stack, (w, h)
+
+    def replace_lightmaps(self, front: list[np.ndarray], back: list[np.ndarray]) -> None:
+        """New light maps for the same atlas (a re-bake after a material edit, bake/rebake.py): the
+        front pages and the back sides' pages as the bake directory stores them ((H, W, 4), A unused
+        by the shaders), as many and as large as the bake's. Written into the texture array in place;
+        a half-float array that the new values no longer fit becomes float32 (never Inf)."""
+        w, h, layers = self.lightmaps.size[0], self.lightmaps.size[1], self.lightmaps.layers
+        pages = [*front, *back]
+        if len(pages) != layers or any(np.shape(p)[:2] != (h, w) for p in pages):
+            raise GlintError(f"new light maps: {len(pages)} pages of {sorted({np.shape(p)[:2] for p in pages})} "
+                             f"for the bake's {layers} of {(h, w)}; re-bake into the same atlas")
+        data, _ = self._lightmap_stack(pages, "new light-map pages", "re-bake into the same atlas")
+        dtype = "f2" if data.dtype == np.float16 and self.lightmap_dtype == "f2" else "f4"
+        if dtype != self.lightmap_dtype:
+            with self._gl.checked(f"allocate the light maps ({layers} pages) in float32"):
+                texture = self.ctx.texture_array((w, h, layers), 4, data.astype(np.float32).tobytes(), dtype="f4")
+            texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
+            texture.repeat_x = texture.repeat_y = False
+            self.lightmaps.release()
+            self.lightmaps, self.lightmap_dtype = texture, "f4"
+            return
+        with self._gl.checked(f"upload the light maps ({layers} pages)"):
+            self.lightmaps.write(data.astype(np.float16 if dtype == "f2" else np.float32).tobytes())
 
     # -- sky -------------------------------------------------------------------------------------
     def _sky(self, bake) -> None:

@@ -54,6 +54,7 @@ class Overlay:
         self._frames = 0
         self._elapsed = 0.0
         self.fps = 0.0
+        self.lines: list[str] = []  # the text shown
 
     def due(self, dt: float) -> bool:
         """Count a frame of dt seconds; True when the text should be redrawn (every UPDATE_INTERVAL)."""
@@ -65,7 +66,8 @@ class Overlay:
         """Redraw the text, with the frame rate measured since the last update."""
         self.fps = self._frames / self._elapsed if self._elapsed > 0 else 0.0
         self._frames, self._elapsed = 0, 0.0
-        image = render_text(overlay_lines(self.fps, gpu_ms, status, extra))
+        self.lines = overlay_lines(self.fps, gpu_ms, status, extra)
+        image = render_text(self.lines)
         if self.texture is None or self.texture.size != image.size:
             if self.texture is not None:
                 self.texture.release()

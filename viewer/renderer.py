@@ -277,6 +277,14 @@ class Renderer:
         n = self.supersample
         return self.gbuffer.pick(int(x) * n + n // 2, (self.size[1] - 1 - int(y)) * n + n // 2)
 
+    def replace_lightmaps(self, front: list, back: list) -> None:
+        """New light-map pages for the bake's atlas (GpuScene.replace_lightmaps); the next frame
+        draws with them: the G-buffer a still camera keeps (its diffuse is kd / pi x E) and the
+        running mean are redone."""
+        self.scene.replace_lightmaps(front, back)
+        self._gbuffer_key = None
+        self.progressive.invalidate()
+
     # -- results ---------------------------------------------------------------------------------
     def _require_frame(self) -> None:
         if self._linear is None:

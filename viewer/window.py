@@ -103,12 +103,16 @@ class ViewerWindow(moderngl_window.WindowConfig):
 
     def __init__(self, *, bake, controls: WalkControls, supersample: int = 1, name: str = "glint",
                  screenshot_dir: Path | None = None, panel: bool = True, on_edit=None, on_save=None,
-                 pbr_mapping=None, **kwargs):
+                 pbr_mapping=None, lightmap_source=None, **kwargs):
         """panel: the material panel when imgui-bundle is installed (else a warning, and the window
         without it); on_edit(materials), on_save(materials): the command layer's callbacks with the
         whole list of manifest material entries as edited; pbr_mapping: the glTF-style controls'
-        mapping (viewer/panel.py)."""
+        mapping (viewer/panel.py); lightmap_source: an object whose `poll()` returns None or new
+        light-map pages (front, back) for the bake's atlas, never blocking, and whose `status` is
+        None or one line for the overlay (glint/view.py gives the background re-bake,
+        glint.bake.rebake.Rebaker); polled every frame."""
         super().__init__(**kwargs)
+        self.lightmap_source = lightmap_source
         check_context(self.ctx)
         self.controls = controls
         self.name = name
@@ -152,6 +156,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
     # -- drawing ---------------------------------------------------------------------------------
     def on_render(self, time: float, frame_time: float) -> None:
         self.camera = self.controls.update(frame_time)
+        self.swap_lightmaps()
         width, height = self.wnd.buffer_size
         if width < 1 or height < 1:
             return  # minimised: some backends report a 0 x 0 framebuffer
@@ -167,7 +172,9 @@ class ViewerWindow(moderngl_window.WindowConfig):
         if self.overlay.visible and self.overlay.due(frame_time):
             # stats waits for the GPU's timer queries: read it only when the text is redrawn
             stats = self.renderer.stats
-            self.overlay.update(stats["gpu_ms_median"], self.controls.status, [one_line(frame_section(stats))])
+            status = getattr(self.lightmap_source, "status", None)
+            self.overlay.update(stats["gpu_ms_median"], self.controls.status,
+                                [one_line(frame_section(stats)), *([status] if status else [])])
         self.overlay.draw(height)
         if self.ui is not None:
             self.draw_panel(frame_time)
@@ -184,6 +191,17 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.panel.draw()
         imgui.render()
         self.ui.draw(imgui.get_draw_data())
+
+    def swap_lightmaps(self) -> bool:
+        """Take the light-map source's newest pages, if any, into the GPU scene and restart the
+        still camera's refinement (its running mean holds the old light). True when swapped."""
+        if self.lightmap_source is None:
+            return False
+        pages = self.lightmap_source.poll()
+        if pages is None:
+            return False
+        self.renderer.replace_lightmaps(*pages)
+        return True
 
     def on_resize(self, width: int, height: int) -> None:
         pass  # every frame renders at the current framebuffer size; the renderer follows it

@@ -1,0 +1,339 @@
+"""The background re-bake of the light maps after a material edit (`glint view`, issue 14).
+
+The light maps store irradiance E (Eq. 4.1: diffuse radiance = kd / pi x E), so a surface's own
+kd shows at once without them; but every surface's kd, emission and lobes change the light that
+reaches all the others (the bake's paths scatter by the whole BSDF, bake/irradiance.py). A
+`Rebaker` re-bakes the light maps of an existing bake directory for edited materials in ONE
+worker process (spawned, not forked: the viewer's process holds an OpenGL context and threads),
+so the viewer keeps its frame rate while the bake's own integrator runs:
+
+- The worker loads the scene once (or is handed one), reads the bake's atlas and meshes
+  (`pipeline.read_atlas`: no re-unwrap) and rasterises the texels once, then waits for edits.
+- An edit is the list of the manifest's material entries (`bake.manifest["materials"]`: name,
+  kd, emission, lobes, ...) as the viewer's panel holds them. The entries that differ from the
+  bake's are checked exactly as the sidecar's [materials] tables (bake/material_mapping.py
+  `parse_material_override`, one-line GlintError naming the key) and applied as the loader applies
+  a sidecar override (`apply_override`), only the keys that differ.
+- Progressive passes (`pass_samples`): FIRST_SAMPLES paths per texel first, then PASS_GROWTH times
+  more each pass, the last at the bake's own sample count. Each pass is a complete bake of the
+  light maps (`bake_lightmaps`: the same texel order, seeds, dilation and denoiser as `glint bake`)
+  at that sample count, delivered as whole front and back pages, (H, W, 4) float32 as the bake
+  directory stores them (RGB = E, A = 1 where path traced). Every pass uses the bake's own seed,
+  so a pass is deterministic (the same edit gives the same bytes), and the last pass equals the
+  light maps `glint bake --force` makes of the edited sidecar, bit for bit before the EXR's half-
+  float rounding (tests/test_rebake.py). Passes are independent estimates, not accumulated: the
+  price is the earlier passes' samples, 1/PASS_GROWTH + 1/PASS_GROWTH^2 + ... = 1/3 more work.
+- A newer edit cancels the running pass (checked after every tile of bake/lightmap.py TILE
+  texels) and restarts from the newest materials; `poll()` never returns pages of an older edit
+  once a newer one was made.
+
+The worker runs at a lower priority (os.nice NICE): on a machine without a GPU (llvmpipe) it
+competes with the renderer for the same cores, and the frame rate matters more than the
+re-bake's speed. Cube maps are not re-rendered: they keep the bake's light.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import multiprocessing as mp
+import os
+import queue
+import time
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+import numpy as np
+
+from glint.bake.hashing import geometry_hash
+from glint.bake.lightmap import bake_lightmaps
+from glint.bake.material_mapping import LOBE_KEYS, OVERRIDE_KEYS, apply_override, parse_material_override
+from glint.bake.pipeline import read_atlas
+from glint.bake.settings import BakeSettings
+from glint.bake.texels import rasterize_texels
+from glint.core.bake_dir import read_manifest
+from glint.core.errors import GlintError
+from glint.core.scene import Scene
+
+FIRST_SAMPLES = 8  # paths per texel of the first pass: seconds on the living room (docs/VIEWER.md)
+PASS_GROWTH = 4  # samples of a pass over the one before: each pass halves the noise
+NICE = 10  # the worker's niceness: the viewer's frames come first
+PARENT_CHECK_SECONDS = 1.0  # how often an idle worker checks that the viewer's process still runs
+STOP_SECONDS = 5.0  # close(): how long the worker may take to stop before it is terminated
+
+
+def pass_samples(samples: int) -> list[int]:
+    """Paths per texel of each pass, the last `samples` (the bake's): e.g. 128 -> [8, 32, 128]."""
+    out = [max(int(samples), 1)]
+    while out[0] > FIRST_SAMPLES:
+        out.insert(0, max(FIRST_SAMPLES, out[0] // PASS_GROWTH))
+    return out
+
+
+def bake_settings(manifest: dict) -> BakeSettings:
+    """The settings the bake directory was made with (its manifest's `settings`), in one process."""
+    names = {f.name for f in fields(BakeSettings)}
+    return replace(BakeSettings(), **{k: v for k, v in manifest["settings"].items() if k in names}, jobs=1)
+
+
+def _plain(value):
+    """numpy arrays and scalars (a panel's colours) as the lists and floats a manifest holds."""
+    return json.loads(json.dumps(value, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v)))
+
+
+def _override_table(entry: dict, keys) -> dict:
+    """The sidecar-style table {kd, emission, lobes} of a manifest material entry, restricted to
+    `keys` (lobes without the manifest-only `mr`, which no sidecar can give)."""
+    table = {k: _plain(entry[k]) for k in keys if k in entry}
+    if "lobes" in table and isinstance(table["lobes"], list):
+        table["lobes"] = [{k: v for k, v in lobe.items() if k in LOBE_KEYS} if isinstance(lobe, dict) else lobe
+                          for lobe in table["lobes"]]
+    return table
+
+
+def material_overrides(materials: list[dict], baked: list[dict]) -> dict[int, dict]:
+    """Material index -> parsed override (bake/material_mapping.py) for every entry of `materials`
+    whose kd, emission or lobes differ from the bake's entry `baked`; only the keys that differ.
+    Checked as the sidecar is: a GlintError names the material and key."""
+    if len(materials) != len(baked):
+        raise GlintError(f"edited materials: {len(materials)} entries for the bake's {len(baked)}")
+    out = {}
+    for i, (entry, old) in enumerate(zip(materials, baked)):
+        if not isinstance(entry, dict) or entry.get("name", old["name"]) != old["name"]:
+            raise GlintError(f"edited materials: entry {i} is not material '{old['name']}'")
+        new, before = _override_table(entry, OVERRIDE_KEYS), _override_table(old, OVERRIDE_KEYS)
+        changed = [k for k in OVERRIDE_KEYS if k in new and new[k] != before.get(k)]
+        if changed:
+            warnings: list[str] = []  # unknown keys: the panel's, not the user's; nothing to warn of
+            out[i] = parse_material_override({k: new[k] for k in changed}, f"material '{old['name']}'", warnings)
+    return out
+
+
+def edited_scene(scene: Scene, overrides: dict[int, dict]) -> Scene:
+    """A copy of `scene` whose materials `overrides` names are changed as a sidecar override
+    changes them (the loader's `apply_override`); `scene` itself is left as it was."""
+    materials = list(scene.materials)
+    for i, override in overrides.items():
+        materials[i] = apply_override(replace(materials[i]), override)
+    return replace(scene, materials=materials)
+
+
+@dataclass
+class Update:
+    """One delivered pass: whole light-map pages and where the re-bake stands."""
+
+    front: list[np.ndarray]  # (H, W, 4) float32 per page, as the bake directory's lightmaps/page_<k>.exr
+    back: list[np.ndarray]  # the back sides' pages (lightmaps/back_<k>.exr); empty without two-sided objects
+    generation: int  # which edit (1 for the first edit of this Rebaker)
+    index: int  # pass, from 0
+    passes: int
+    samples: int  # paths per texel of this pass
+    seconds: float  # since the edit was made
+
+    @property
+    def final(self) -> bool:
+        return self.index == self.passes - 1
+
+
+class _Cancelled(Exception):
+    pass
+
+
+def _prepare(source, bake_dir: Path):
+    """In the worker: the scene, the bake's settings and its texel pages."""
+    with contextlib.redirect_stderr(io.StringIO()):  # the viewer's process printed the loader's warnings
+        if isinstance(source, Scene):
+            scene = source
+        else:
+            from glint.bake.gltf_loader import load_scene  # the worker's only use of the loader
+
+            scene = load_scene(Path(source))
+    manifest = read_manifest(bake_dir)
+    if manifest is None:
+        raise GlintError(f"{bake_dir}: not a glint bake directory (or made by another version); run `glint bake`")
+    settings = bake_settings(manifest)
+    if geometry_hash(scene, settings) != manifest["stages"].get("geometry"):
+        raise GlintError(f"{bake_dir}: made from other geometry than {scene.name}; run `glint bake`")
+    pages = rasterize_texels(scene.objects, read_atlas(bake_dir, len(scene.objects)))
+    return scene, settings, pages
+
+
+def _newest(commands, command):
+    """The newest command waiting after `command` (a stop wins)."""
+    while command[0] != "stop":
+        try:
+            command = commands.get_nowait()
+        except queue.Empty:
+            break
+    return command
+
+
+def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, results, latest, nice: int) -> None:
+    """The worker process: prepare once, then one progressive re-bake per edit (module docstring)."""
+    with contextlib.suppress(OSError, AttributeError):
+        os.nice(nice)
+    try:
+        start = time.perf_counter()
+        scene, settings, pages = _prepare(source, Path(bake_dir))
+        schedule = schedule or pass_samples(settings.samples)
+        results.put(("ready", 0, {"seconds": time.perf_counter() - start, "schedule": schedule,
+                                  "texels": int(sum((p.object >= 0).sum() for p in pages))}))
+    except Exception as e:  # noqa: BLE001 -- reported to the viewer as one line, never a traceback
+        results.put(("error", 0, _one_line(e)))
+        return
+    parent = mp.parent_process()
+    while True:
+        try:
+            command = _newest(commands, commands.get(timeout=PARENT_CHECK_SECONDS))
+        except queue.Empty:
+            if parent is not None and not parent.is_alive():
+                return  # the viewer ended without close(): no orphan left running
+            continue
+        if command[0] == "stop":
+            return
+        _, generation, overrides, made = command
+
+        def check(_texels, generation=generation):
+            if latest.value != generation or (parent is not None and not parent.is_alive()):
+                raise _Cancelled
+
+        try:
+            edited = edited_scene(scene, overrides)
+            for k, samples in enumerate(schedule):
+                result = bake_lightmaps(edited, pages, replace(settings, samples=samples), progress=check)
+                front, back = result.rgba()
+                results.put(("pass", generation, Update(front, back, generation, k, len(schedule), samples,
+                                                        time.time() - made)))
+                check(0)
+        except _Cancelled:
+            results.put(("cancelled", generation, None))
+        except Exception as e:  # noqa: BLE001
+            results.put(("error", generation, _one_line(e)))
+
+
+def _one_line(e: Exception) -> str:
+    text = " ".join(str(e).split())
+    return text if isinstance(e, GlintError) else f"{type(e).__name__}: {text}"
+
+
+class Rebaker:
+    """Re-bakes the light maps of `bake_dir` in a worker process whenever `edit` is called.
+
+        rebaker = Rebaker(scene_path, bake_dir)   # or a Scene as the bake loaded it
+        rebaker.edit(materials)                   # manifest material entries, some changed
+        update = rebaker.poll()                   # each frame: None, or the newest pass's pages
+        rebaker.close()
+
+    `schedule`: paths per texel of each pass (default `pass_samples` of the bake's samples);
+    `nice`: the worker's niceness (default NICE; 0: as urgent as the viewer).
+    """
+
+    def __init__(self, scene: Scene | str | Path, bake_dir: Path, *, schedule: list[int] | None = None,
+                 nice: int = NICE):
+        self.bake_dir = Path(bake_dir)
+        manifest = read_manifest(self.bake_dir)
+        if manifest is None:
+            raise GlintError(f"{self.bake_dir}: not a glint bake directory (or made by another version); "
+                             "run `glint bake`")
+        self.baked = manifest["materials"]
+        self.schedule = list(schedule or pass_samples(bake_settings(manifest).samples))
+        ctx = mp.get_context("spawn")
+        self._commands, self._results = ctx.Queue(), ctx.Queue()
+        self._latest = ctx.Value("q", 0, lock=False)  # the newest edit's generation: the worker's cancel flag
+        self._process = ctx.Process(target=_worker, name="glint-rebake", daemon=True,
+                                    args=(scene, self.bake_dir, self.schedule, self._commands, self._results,
+                                          self._latest, int(nice)))
+        self._process.start()
+        self.generation = 0
+        self.ready: dict | None = None  # the worker's set-up: seconds, schedule, texels
+        self.last: Update | None = None  # the newest pass delivered for the newest edit
+        self.error: str | None = None
+        self.cancelled = 0  # passes abandoned for a newer edit
+        self.dropped = 0  # passes of older edits that arrived after a newer edit (never returned)
+        self._edited_at = 0.0
+
+    # -- the viewer's side -------------------------------------------------------------------------
+    def edit(self, materials: list[dict]) -> None:
+        """Re-bake for these material entries (the whole list, in the manifest's order); cancels the
+        re-bake of an earlier edit. A GlintError (naming the material and key) for a bad value."""
+        overrides = material_overrides(materials, self.baked)
+        self.generation += 1
+        self._latest.value = self.generation
+        self._edited_at = time.time()
+        self.last, self.error = None, None
+        self._commands.put(("edit", self.generation, overrides, self._edited_at))
+
+    def poll(self) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
+        """Never blocks: None, or (front, back) pages of the newest pass of the newest edit that
+        arrived since the last call (older edits' passes are dropped)."""
+        newest = None
+        while True:
+            try:
+                kind, generation, payload = self._results.get_nowait()
+            except (queue.Empty, OSError, ValueError):
+                break
+            if kind == "ready":
+                self.ready = payload
+            elif kind == "cancelled":
+                self.cancelled += 1
+            elif kind == "error" and generation in (0, self.generation):
+                self.error = payload
+            elif kind == "pass" and generation == self.generation:
+                newest = self.last = payload
+            elif kind == "pass":
+                self.dropped += 1
+        return None if newest is None else (newest.front, newest.back)
+
+    @property
+    def status(self) -> str | None:
+        """The overlay's line: where the re-bake stands (None before any edit)."""
+        if self.error is not None:
+            return f"re-bake failed: {self.error}"
+        if self.generation == 0:
+            return None
+        n = len(self.schedule)
+        if self.last is not None and self.last.final:
+            return f"light maps re-baked: {self.last.samples} paths/texel in {self.last.seconds:.1f} s"
+        done = 0 if self.last is None else self.last.index + 1
+        return (f"re-baking light maps: pass {done + 1} of {n} ({self.schedule[done]} paths/texel), "
+                f"{time.time() - self._edited_at:.1f} s")
+
+    def wait(self, timeout: float = 600.0, poll_interval: float = 0.02) -> list[Update]:
+        """Every pass delivered for the newest edit until its last (tests, bench); a GlintError on
+        the worker's error or after `timeout` seconds."""
+        out, deadline = [], time.monotonic() + timeout
+        while not (out and out[-1].final):
+            if self.poll() is not None:
+                out.append(self.last)
+            elif self.error is not None:
+                raise GlintError(f"re-bake failed: {self.error}")
+            elif time.monotonic() > deadline or not self._process.is_alive():
+                raise GlintError(f"re-bake: no final pass after {timeout:.0f} s")
+            else:
+                time.sleep(poll_interval)
+        return out
+
+    def close(self) -> None:
+        """Stop the worker (at once if it is between passes; terminated after STOP_SECONDS)."""
+        if self._process is None:
+            return
+        self._latest.value = -1  # cancels a running pass
+        with contextlib.suppress(Exception):
+            self._commands.put(("stop",))
+        deadline = time.monotonic() + STOP_SECONDS
+        while self._process.is_alive() and time.monotonic() < deadline:
+            self.poll()  # a worker blocked on a full result pipe needs it read
+            self._process.join(0.05)
+        if self._process.is_alive():
+            self._process.terminate()
+            self._process.join()
+        for q in (self._commands, self._results):
+            q.close()
+            q.cancel_join_thread()
+        self._process = None
+
+    def __enter__(self) -> "Rebaker":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
