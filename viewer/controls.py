@@ -30,12 +30,13 @@ KEY_HELP = """\
                     any walking key or mouse look stops it where it is
     F12, Ctrl+S     screenshot            F1    overlay on/off
     F, F11          fullscreen            Esc   quit
-  editing materials (the material panel; needs the `panel` extra: imgui-bundle):
+  editing materials (the material panel, Dear ImGui):
     click           pick the object under the cursor: the panel shows its material
                     (a click is a press and release without dragging; dragging looks)
     M               pick what is under the cursor       F2    panel on/off
     Ctrl+Z, Ctrl+Y  undo / redo an edit (Ctrl+Shift+Z: redo); the panel has Undo,
-                    Redo, Revert (to the bake's materials) and Save
+                    Redo, Revert (to the bake's materials) and Save (into the scene's
+                    NAME.glint.toml); light maps re-bake in the background after an edit
 """
 
 MOVE_KEYS = {  # name -> (forward, right, up) direction in the walker's frame

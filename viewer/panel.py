@@ -31,6 +31,7 @@ from glint.viewer.material_edits import LOBE_KINDS, MaterialEdits
 GLTF_KEYS = ("base_color", "metallic", "roughness", "transmission")
 NEW_LOBE = {"kind": "reflect", "ks": [0.5, 0.5, 0.5], "mx": 0.1, "my": 0.1, "r0": 0.04, "alpha": 0.0}
 ERROR_COLOUR = (1.0, 0.35, 0.3, 1.0)
+PANEL_WIDTH = 340  # pixels
 
 
 def gltf_guess(entry: dict) -> dict:
@@ -204,10 +205,12 @@ class MaterialPanel:
         """The panel's ImGui window (between imgui.new_frame() and imgui.render())."""
         if not self.visible:
             return
-        from imgui_bundle import imgui  # only the window with a panel needs it (pyproject's `panel` extra)
+        from imgui_bundle import imgui  # only the window with a panel needs it
 
-        imgui.set_next_window_pos(imgui.ImVec2(8, 8), imgui.Cond_.first_use_ever)
-        imgui.set_next_window_size(imgui.ImVec2(340, 520), imgui.Cond_.first_use_ever)
+        # at the window's right edge (the overlay's text is at the left), where it fits
+        right = imgui.get_io().display_size.x - PANEL_WIDTH - 8
+        imgui.set_next_window_pos(imgui.ImVec2(max(8.0, right), 8), imgui.Cond_.first_use_ever)
+        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, 520), imgui.Cond_.first_use_ever)
         _, self.visible = imgui.begin("Material", self.visible)
         pos, size = imgui.get_window_pos(), imgui.get_window_size()
         self.rect = (pos.x, pos.y, pos.x + size.x, pos.y + size.y)

@@ -11,7 +11,7 @@ soon as it stands still the renderer keeps refining the same view with
 quasi-random samples (mode "auto", viewer/progressive.py), fading from the last
 walkthrough image over `BLEND_FRAMES` frames, until `MAX_STILL_FRAMES` frames.
 
-With the `panel` extra (imgui-bundle) the window has the material panel (viewer/panel.py,
+With imgui-bundle (a dependency) the window has the material panel (viewer/panel.py,
 drawn with Dear ImGui: viewer/imgui_backend.py): a click (press and release without dragging)
 or M picks the object under the cursor (`pick`: one G-buffer pixel read back) and the panel
 edits its material live (`Renderer.set_material`); `on_edit(materials)` hears of every change
