@@ -139,15 +139,16 @@ class _Cancelled(Exception):
     pass
 
 
-def _prepare(source, bake_dir: Path):
-    """In the worker: the scene, the bake's settings and its texel pages."""
+def _prepare(source, bake_dir: Path, edits=()):
+    """In the worker: the scene (a path loaded with the run's `--set` edits), the bake's settings
+    and its texel pages."""
     with contextlib.redirect_stderr(io.StringIO()):  # the viewer's process printed the loader's warnings
         if isinstance(source, Scene):
             scene = source
         else:
             from glint.bake.gltf_loader import load_scene  # the worker's only use of the loader
 
-            scene = load_scene(Path(source))
+            scene = load_scene(Path(source), list(edits))
     manifest = read_manifest(bake_dir)
     if manifest is None:
         raise GlintError(f"{bake_dir}: not a glint bake directory (or made by another version); run `glint bake`")
@@ -168,13 +169,14 @@ def _newest(commands, command):
     return command
 
 
-def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, results, latest, nice: int) -> None:
+def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, results, latest, nice: int,
+            edits=()) -> None:
     """The worker process: prepare once, then one progressive re-bake per edit (module docstring)."""
     with contextlib.suppress(OSError, AttributeError):
         os.nice(nice)
     try:
         start = time.perf_counter()
-        scene, settings, pages = _prepare(source, Path(bake_dir))
+        scene, settings, pages = _prepare(source, Path(bake_dir), edits)
         schedule = schedule or pass_samples(settings.samples)
         results.put(("ready", 0, {"seconds": time.perf_counter() - start, "schedule": schedule,
                                   "texels": int(sum((p.object >= 0).sum() for p in pages))}))
@@ -225,11 +227,13 @@ class Rebaker:
         rebaker.close()
 
     `schedule`: paths per texel of each pass (default `pass_samples` of the bake's samples);
-    `nice`: the worker's niceness (default NICE; 0: as urgent as the viewer).
+    `nice`: the worker's niceness (default NICE; 0: as urgent as the viewer); `edits`: the run's
+    `--set` assignments (bake/edits.py), applied when the worker loads a scene path, so that a
+    re-bake keeps what the command line changed besides the materials (a sky, the lights).
     """
 
     def __init__(self, scene: Scene | str | Path, bake_dir: Path, *, schedule: list[int] | None = None,
-                 nice: int = NICE):
+                 nice: int = NICE, edits=()):
         self.bake_dir = Path(bake_dir)
         manifest = read_manifest(self.bake_dir)
         if manifest is None:
@@ -242,7 +246,7 @@ class Rebaker:
         self._latest = ctx.Value("q", 0, lock=False)  # the newest edit's generation: the worker's cancel flag
         self._process = ctx.Process(target=_worker, name="glint-rebake", daemon=True,
                                     args=(scene, self.bake_dir, self.schedule, self._commands, self._results,
-                                          self._latest, int(nice)))
+                                          self._latest, int(nice), tuple(edits)))
         self._process.start()
         self.generation = 0
         self.ready: dict | None = None  # the worker's set-up: seconds, schedule, texels

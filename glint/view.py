@@ -121,7 +121,7 @@ def cmd_view(args) -> int:
         detail = " ".join(str(e).split()) or type(e).__name__
         raise no_window(args.scene, f"{type(e).__name__}: {detail}") from e
     save = sidecar_saver(args.scene, resolve(args.scene), [dict(m) for m in manifest["materials"]], args.edits)
-    rebaker = background_rebake(manifest, report.bake_dir)
+    rebaker = background_rebake(manifest, report.bake_dir, args.edits)  # the worker loads the scene as edited
     try:
         viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
                               pbr_mapping=pbr_mapping, on_save=save, lightmap_source=rebaker,
@@ -133,11 +133,11 @@ def cmd_view(args) -> int:
     return 0
 
 
-def background_rebake(manifest: dict, bake_dir: Path):
+def background_rebake(manifest: dict, bake_dir: Path, edits=()):
     """The re-bake of the light maps after material edits (glint.bake.rebake.Rebaker: a worker
     process, started now so that it has loaded the scene by the first edit); None for a bake
     whose scene file is gone (nothing to re-bake from: edits then change only what kd shows)."""
     source = manifest["scene"].get("source")
     if not source or not Path(source).is_file():
         return None
-    return Rebaker(Path(source), bake_dir)
+    return Rebaker(Path(source), bake_dir, edits=edits)

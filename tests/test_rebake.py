@@ -228,3 +228,16 @@ def test_window_swaps_the_sources_pages_and_refines_again(tmp_path):
     finally:
         viewer.release()
         wnd.destroy()
+
+
+def test_the_worker_loads_the_scene_with_the_runs_set_edits(room):
+    """`glint view SCENE --set ...` hands its edits to the re-bake (glint/view.py): the worker's scene
+    (bake/rebake.py `_prepare`) carries a non-material edit, here the sky's radiance, so a re-bake
+    after a panel edit keeps it. Without the edits passed on to load_scene (tried), the worker's
+    scene had no sky at all (the file's: the room's sidecar has none)."""
+    from glint.bake.rebake import _prepare
+
+    scene, _, _ = _prepare(room.path.parent / "room.glb", room.path, ["sky.radiance = [0.5, 0.25, 0.125]"])
+    assert np.allclose(scene.sky.radiance, [0.5, 0.25, 0.125])
+    plain, _, _ = _prepare(room.path.parent / "room.glb", room.path)
+    assert plain.sky is None  # the room's sidecar has no [sky]
