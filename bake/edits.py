@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 import tomlkit
 
+from glint.bake.material_mapping import OVERRIDE_KEYS, override_table
 from glint.bake.sidecar import Sidecar, parse_sidecar, parse_toml, read_sidecar_text, sidecar_path
 from glint.core.atomic import atomic_write_text
 from glint.core.errors import GlintError, quiet
@@ -52,7 +53,6 @@ else:  # pragma: no cover
 
 EXAMPLE = "materials.\"Floor\".kd=[0.3, 0.2, 0.1]"
 NAMED_TABLES = ("materials", "objects")  # tables keyed by a scene's names: a --set naming nothing is refused
-MATERIAL_KEYS = ("kd", "emission", "lobes")  # what [materials."NAME"] can set (material_mapping OVERRIDE_KEYS)
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")  # TOML bare keys
 
 
@@ -134,15 +134,14 @@ def edited_sidecar(scene_path: Path, assignments: list) -> tuple[Sidecar, tuple[
 def material_assignments(name: str, entry: dict) -> list[tuple[tuple[str, ...], object]]:
     """A bake-manifest material entry (bake/pipeline.py describe: kd, emission, lobes, ...) -> the
     assignments of [materials."name"] kd, emission and lobes that make the loader give that
-    material again (bake/material_mapping.py parse_material_override reads them). Colours are
-    float32 in the bake: they are written in float32's shortest form (0.7, not
-    0.699999988079071), which reads back to the same float32. The lobes' `mr` (how a
-    metallic-roughness texture varies them per texel) has no sidecar key: sidecar lobes are
-    uniform."""
-    lobes = [{"kind": str(lobe["kind"]), "ks": _colour(lobe["ks"]),
-              **{key: float(lobe[key]) for key in ("mx", "my", "r0", "alpha")}} for lobe in entry.get("lobes", [])]
-    values = {"kd": _colour(entry["kd"]), "emission": _colour(entry["emission"]), "lobes": lobes}
-    return [(("materials", name, key), values[key]) for key in MATERIAL_KEYS]
+    material again (bake/material_mapping.py `override_table`, which parse_material_override
+    reads). Colours are float32 in the bake: they are written in float32's shortest form (0.7,
+    not 0.699999988079071), which reads back to the same float32."""
+    table = override_table(entry)
+    lobes = [{key: str(v) if key == "kind" else _colour(v) if key == "ks" else float(v) for key, v in lobe.items()}
+             for lobe in table.get("lobes", [])]
+    values = {"kd": _colour(table["kd"]), "emission": _colour(table["emission"]), "lobes": lobes}
+    return [(("materials", name, key), values[key]) for key in OVERRIDE_KEYS]
 
 
 def save_sidecar(scene_path: Path, assignments: list) -> Path:

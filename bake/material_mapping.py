@@ -323,6 +323,25 @@ def apply_override(mat: Material, override: dict) -> Material:
     return mat
 
 
+def override_table(entry: dict) -> dict:
+    """The {kd, emission, lobes} table (a sidecar's [materials."NAME"], `parse_material_override`'s
+    input) that gives a bake-manifest material entry again, as plain lists and numbers (an entry
+    from the viewer's panel may hold numpy values); lobes keep LOBE_KEYS only: their manifest-only
+    `mr` (how a metallic-roughness texture varies them per texel) has no sidecar key."""
+    def plain(value):
+        if isinstance(value, dict):
+            return {k: plain(v) for k, v in value.items()}
+        if isinstance(value, (list, tuple)):
+            return [plain(v) for v in value]
+        return value.tolist() if hasattr(value, "tolist") else value  # numpy arrays and scalars
+
+    table = {key: plain(entry[key]) for key in OVERRIDE_KEYS if key in entry}
+    if isinstance(table.get("lobes"), list):
+        table["lobes"] = [{k: v for k, v in lobe.items() if k in LOBE_KEYS} if isinstance(lobe, dict) else lobe
+                          for lobe in table["lobes"]]
+    return table
+
+
 def parse_material_override(table, where: str, warnings: list[str]) -> dict:
     """Check a {kd, emission, lobes} table (sidecar or extras.glint) -> {key: value}."""
     if not isinstance(table, dict):

@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import json
 import multiprocessing as mp
 import os
 import queue
@@ -47,7 +46,7 @@ import numpy as np
 
 from glint.bake.hashing import geometry_hash
 from glint.bake.lightmap import bake_lightmaps
-from glint.bake.material_mapping import LOBE_KEYS, OVERRIDE_KEYS, apply_override, parse_material_override
+from glint.bake.material_mapping import OVERRIDE_KEYS, apply_override, override_table, parse_material_override
 from glint.bake.pipeline import read_atlas
 from glint.bake.settings import BakeSettings
 from glint.bake.texels import rasterize_texels
@@ -76,21 +75,6 @@ def bake_settings(manifest: dict) -> BakeSettings:
     return replace(BakeSettings(), **{k: v for k, v in manifest["settings"].items() if k in names}, jobs=1)
 
 
-def _plain(value):
-    """numpy arrays and scalars (a panel's colours) as the lists and floats a manifest holds."""
-    return json.loads(json.dumps(value, default=lambda v: v.tolist() if hasattr(v, "tolist") else str(v)))
-
-
-def _override_table(entry: dict, keys) -> dict:
-    """The sidecar-style table {kd, emission, lobes} of a manifest material entry, restricted to
-    `keys` (lobes without the manifest-only `mr`, which no sidecar can give)."""
-    table = {k: _plain(entry[k]) for k in keys if k in entry}
-    if "lobes" in table and isinstance(table["lobes"], list):
-        table["lobes"] = [{k: v for k, v in lobe.items() if k in LOBE_KEYS} if isinstance(lobe, dict) else lobe
-                          for lobe in table["lobes"]]
-    return table
-
-
 def material_overrides(materials: list[dict], baked: list[dict]) -> dict[int, dict]:
     """Material index -> parsed override (bake/material_mapping.py) for every entry of `materials`
     whose kd, emission or lobes differ from the bake's entry `baked`; only the keys that differ.
@@ -101,7 +85,7 @@ def material_overrides(materials: list[dict], baked: list[dict]) -> dict[int, di
     for i, (entry, old) in enumerate(zip(materials, baked)):
         if not isinstance(entry, dict) or entry.get("name", old["name"]) != old["name"]:
             raise GlintError(f"edited materials: entry {i} is not material '{old['name']}'")
-        new, before = _override_table(entry, OVERRIDE_KEYS), _override_table(old, OVERRIDE_KEYS)
+        new, before = override_table(entry), override_table(old)
         changed = [k for k in OVERRIDE_KEYS if k in new and new[k] != before.get(k)]
         if changed:
             warnings: list[str] = []  # unknown keys: the panel's, not the user's; nothing to warn of
