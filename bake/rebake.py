@@ -27,9 +27,20 @@ so the viewer keeps its frame rate while the bake's own integrator runs:
   texels) and restarts from the newest materials; `poll()` never returns pages of an older edit
   once a newer one was made.
 
+- Cube maps follow (`probes`, given by the command layer: glint/cubemap_stage.py ProbeRefresher,
+  which needs the viewer's renderer, so the bake never imports it): after the first and the last
+  pass the worker renders the bake's probes again (the same plans, bake/cubemap.py
+  `plan_cubemaps` of the unedited scene, checked against the manifest's hashes) from the edited
+  materials and that pass's pages, and delivers each probe's faces as their MIP chain
+  (`poll_probes`). The last pass's probes are what `glint bake --force` of the edited sidecar
+  renders (tests/test_rebake.py). Only the first and the last: each refresh renders every probe
+  (the bake's whole cube-map stage), and a probe shows the light maps blurred, where the middle
+  passes' lower noise does not show. A probe's size and its sharing stay the bake's (an edit that
+  changes them, e.g. a rougher lobe, takes `glint bake`).
+
 The worker runs at a lower priority (os.nice NICE): on a machine without a GPU (llvmpipe) it
 competes with the renderer for the same cores, and the frame rate matters more than the
-re-bake's speed. Cube maps are not re-rendered: they keep the bake's light.
+re-bake's speed.
 """
 from __future__ import annotations
 
@@ -44,6 +55,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.bake.cubemap import CubeMapPlan, ProbeRules, plan_cubemaps
 from glint.bake.hashing import geometry_hash
 from glint.bake.lightmap import bake_lightmaps
 from glint.bake.material_mapping import OVERRIDE_KEYS, apply_override, override_table, parse_material_override
@@ -119,13 +131,33 @@ class Update:
         return self.index == self.passes - 1
 
 
+@dataclass
+class ProbeUpdate:
+    """One re-rendered cube-map probe (after pass `index` of edit `generation`)."""
+
+    file: str  # the bake's file of the probe (manifest objects' `cubemap.file`): which probe
+    chain: list[np.ndarray]  # its faces' MIP chain, (6, S, S, 4) float32 first (viewer/cubemaps.py mip_chain)
+    generation: int
+    index: int
+    seconds: float  # since the edit was made
+
+
 class _Cancelled(Exception):
     pass
 
 
+def bake_probes(scene: Scene, manifest: dict, settings: BakeSettings) -> list[CubeMapPlan]:
+    """The probes of the bake directory whose `manifest` was baked from `scene` with `settings`:
+    bake/cubemap.py plans them again (the scene as baked, not as edited), and only the plans whose
+    hash is the manifest's (its stages.cubemaps) are kept."""
+    hashes = manifest["stages"].get("cubemaps", {})
+    plans = plan_cubemaps(scene, manifest["stages"]["lightmaps"], ProbeRules.of(settings)) if hashes else []
+    return [plan for plan in plans if hashes.get(str(plan.index)) == plan.hash]
+
+
 def _prepare(source, bake_dir: Path, edits=()):
     """In the worker: the scene (a path loaded with the run's `--set` edits), the bake's settings
-    and its texel pages."""
+    and manifest, and its texel pages."""
     with contextlib.redirect_stderr(io.StringIO()):  # the viewer's process printed the loader's warnings
         if isinstance(source, Scene):
             scene = source
@@ -140,7 +172,7 @@ def _prepare(source, bake_dir: Path, edits=()):
     if geometry_hash(scene, settings) != manifest["stages"].get("geometry"):
         raise GlintError(f"{bake_dir}: made from other geometry than {scene.name}; run `glint bake`")
     pages = rasterize_texels(scene.objects, read_atlas(bake_dir, len(scene.objects)))
-    return scene, settings, pages
+    return scene, settings, manifest, pages
 
 
 def _newest(commands, command):
@@ -154,19 +186,21 @@ def _newest(commands, command):
 
 
 def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, results, latest, nice: int,
-            edits=()) -> None:
+            edits=(), probes=None) -> None:
     """The worker process: prepare once, then one progressive re-bake per edit (module docstring)."""
     with contextlib.suppress(OSError, AttributeError):
         os.nice(nice)
     try:
         start = time.perf_counter()
-        scene, settings, pages = _prepare(source, Path(bake_dir), edits)
+        scene, settings, manifest, pages = _prepare(source, Path(bake_dir), edits)
         schedule = schedule or pass_samples(settings.samples)
+        plans = bake_probes(scene, manifest, settings) if probes is not None else []
         results.put(("ready", 0, {"seconds": time.perf_counter() - start, "schedule": schedule,
-                                  "texels": int(sum((p.object >= 0).sum() for p in pages))}))
+                                  "texels": int(sum((p.object >= 0).sum() for p in pages)), "probes": len(plans)}))
     except Exception as e:  # noqa: BLE001 -- reported to the viewer as one line, never a traceback
         results.put(("error", 0, _one_line(e)))
         return
+    refresher = None  # made at the first edit's probes: a GL context, the diffuse view
     parent = mp.parent_process()
     while True:
         try:
@@ -176,10 +210,10 @@ def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, result
                 return  # the viewer ended without close(): no orphan left running
             continue
         if command[0] == "stop":
-            return
-        _, generation, overrides, made = command
+            break
+        _, generation, overrides, materials, made = command
 
-        def check(_texels, generation=generation):
+        def check(_texels=0, generation=generation):
             if latest.value != generation or (parent is not None and not parent.is_alive()):
                 raise _Cancelled
 
@@ -190,11 +224,35 @@ def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, result
                 front, back = result.rgba()
                 results.put(("pass", generation, Update(front, back, generation, k, len(schedule), samples,
                                                         time.time() - made)))
-                check(0)
+                check()
+                if plans and refresher is not False and k in (0, len(schedule) - 1):
+                    refresher = _refresh_probes(probes, refresher, bake_dir, plans, materials, front, back,
+                                                results, generation, k, made, check)
         except _Cancelled:
             results.put(("cancelled", generation, None))
         except Exception as e:  # noqa: BLE001
             results.put(("error", generation, _one_line(e)))
+    if refresher:
+        refresher.release()
+
+
+def _refresh_probes(factory, refresher, bake_dir, plans, materials, front, back, results, generation: int,
+                    index: int, made: float, check):
+    """Render `plans` again for pass `index` (module docstring) and deliver each probe; returns the
+    refresher to keep, or False when it failed (reported once; the light maps go on without it)."""
+    def deliver(plan, chain):
+        results.put(("probe", generation, ProbeUpdate(plan.file, chain, generation, index, time.time() - made)))
+
+    try:
+        refresher = refresher or factory(Path(bake_dir))
+        refresher.render(plans, materials, front, back, deliver, check)
+    except _Cancelled:
+        raise
+    except Exception as e:  # noqa: BLE001 -- e.g. no EGL: the cube maps keep the bake's light
+        results.put(("probe-error", generation, _one_line(e)))
+        return False
+    results.put(("probes", generation, (index, time.time() - made)))
+    return refresher
 
 
 def _one_line(e: Exception) -> str:
@@ -213,11 +271,14 @@ class Rebaker:
     `schedule`: paths per texel of each pass (default `pass_samples` of the bake's samples);
     `nice`: the worker's niceness (default NICE; 0: as urgent as the viewer); `edits`: the run's
     `--set` assignments (bake/edits.py), applied when the worker loads a scene path, so that a
-    re-bake keeps what the command line changed besides the materials (a sky, the lights).
+    re-bake keeps what the command line changed besides the materials (a sky, the lights);
+    `probes`: a picklable factory, probes(bake_dir) -> an object with `render(plans, materials,
+    front, back, deliver, check)` and `release()` (glint/cubemap_stage.py ProbeRefresher), for
+    cube maps that follow the edits (module docstring; `poll_probes`); None: they keep the bake's.
     """
 
     def __init__(self, scene: Scene | str | Path, bake_dir: Path, *, schedule: list[int] | None = None,
-                 nice: int = NICE, edits=()):
+                 nice: int = NICE, edits=(), probes=None):
         self.bake_dir = Path(bake_dir)
         manifest = read_manifest(self.bake_dir)
         if manifest is None:
@@ -230,15 +291,21 @@ class Rebaker:
         self._latest = ctx.Value("q", 0, lock=False)  # the newest edit's generation: the worker's cancel flag
         self._process = ctx.Process(target=_worker, name="glint-rebake", daemon=True,
                                     args=(scene, self.bake_dir, self.schedule, self._commands, self._results,
-                                          self._latest, int(nice), tuple(edits)))
+                                          self._latest, int(nice), tuple(edits), probes))
         self._process.start()
         self.generation = 0
-        self.ready: dict | None = None  # the worker's set-up: seconds, schedule, texels
+        self.ready: dict | None = None  # the worker's set-up: seconds, schedule, texels, probes
         self.last: Update | None = None  # the newest pass delivered for the newest edit
         self.error: str | None = None
+        self.probe_error: str | None = None  # why the cube maps do not follow (the light maps still do)
+        self.probes_done: tuple[int, float] | None = None  # (pass, seconds) of the newest edit's last refresh
+        self.probes_in = 0  # probes delivered for the newest edit's newest refreshed pass
         self.cancelled = 0  # passes abandoned for a newer edit
         self.dropped = 0  # passes of older edits that arrived after a newer edit (never returned)
         self._edited_at = 0.0
+        self._pages: Update | None = None  # the newest pass not yet taken by poll()
+        self._probes: dict[str, ProbeUpdate] = {}  # probes not yet taken by poll_probes()
+        self._probe_pass = -1
 
     # -- the viewer's side -------------------------------------------------------------------------
     def edit(self, materials: list[dict]) -> None:
@@ -248,13 +315,26 @@ class Rebaker:
         self.generation += 1
         self._latest.value = self.generation
         self._edited_at = time.time()
-        self.last, self.error = None, None
-        self._commands.put(("edit", self.generation, overrides, self._edited_at))
+        self.last, self.error, self._pages = None, None, None
+        self.probes_done, self.probes_in, self._probes, self._probe_pass = None, 0, {}, -1
+        self._commands.put(("edit", self.generation, overrides, [dict(m) for m in materials], self._edited_at))
 
     def poll(self) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
         """Never blocks: None, or (front, back) pages of the newest pass of the newest edit that
         arrived since the last call (older edits' passes are dropped)."""
-        newest = None
+        self._drain()
+        newest, self._pages = self._pages, None
+        return None if newest is None else (newest.front, newest.back)
+
+    def poll_probes(self) -> dict[str, list[np.ndarray]] | None:
+        """Never blocks: None, or {probe file: its faces' MIP chain} of the probes of the newest
+        edit re-rendered since the last call (CubeMaps.replace takes them)."""
+        self._drain()
+        probes, self._probes = self._probes, {}
+        return {file: update.chain for file, update in probes.items()} or None
+
+    def _drain(self) -> None:
+        """Every message of the worker so far, sorted into what poll() and poll_probes() return."""
         while True:
             try:
                 kind, generation, payload = self._results.get_nowait()
@@ -266,11 +346,19 @@ class Rebaker:
                 self.cancelled += 1
             elif kind == "error" and generation in (0, self.generation):
                 self.error = payload
-            elif kind == "pass" and generation == self.generation:
-                newest = self.last = payload
+            elif kind == "probe-error":
+                self.probe_error = payload
+            elif generation != self.generation:
+                self.dropped += kind == "pass"
             elif kind == "pass":
-                self.dropped += 1
-        return None if newest is None else (newest.front, newest.back)
+                self._pages = self.last = payload
+            elif kind == "probe":
+                if payload.index != self._probe_pass:
+                    self._probe_pass, self.probes_in = payload.index, 0
+                self._probes[payload.file] = payload
+                self.probes_in += 1
+            elif kind == "probes":
+                self.probes_done = payload
 
     @property
     def status(self) -> str | None:
@@ -281,7 +369,16 @@ class Rebaker:
             return None
         n = len(self.schedule)
         if self.last is not None and self.last.final:
-            return f"light maps re-baked: {self.last.samples} paths/texel in {self.last.seconds:.1f} s"
+            line = f"light maps re-baked: {self.last.samples} paths/texel in {self.last.seconds:.1f} s"
+            probes = (self.ready or {}).get("probes", 0)
+            if self.probe_error is not None:
+                return f"{line}; cube maps not re-rendered: {self.probe_error}"
+            if probes and self.probes_done is not None and self.probes_done[0] == n - 1:
+                return f"{line}, cube maps in {self.probes_done[1]:.1f} s"
+            if probes:
+                done = self.probes_in if self._probe_pass == n - 1 else 0
+                return f"{line}; re-rendering cube maps: {done} of {probes}"
+            return line
         done = 0 if self.last is None else self.last.index + 1
         return (f"re-baking light maps: pass {done + 1} of {n} ({self.schedule[done]} paths/texel), "
                 f"{time.time() - self._edited_at:.1f} s")

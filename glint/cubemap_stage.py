@@ -50,6 +50,7 @@ from glint.core.errors import GlintError
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
+from glint.viewer.cubemaps import mip_chain
 from glint.viewer.gl import GL, describe, software_renderer
 from glint.viewer.renderer import Renderer
 
@@ -126,8 +127,10 @@ def _diffuse_renderer(ctx, bake_dir) -> Renderer:
                     lod=LOD_TRIANGLES_PER_PIXEL)
 
 
-def _render_groups(ctx, bake_dir, groups: list[list[CubeMapPlan]], progress, renderer: Renderer | None = None) -> None:
-    """Render and write the probes of `groups`, each group read back at once."""
+def _render_groups(ctx, bake_dir, groups: list[list[CubeMapPlan]], progress, renderer: Renderer | None = None,
+                   deliver: Callable[[CubeMapPlan, np.ndarray], None] | None = None) -> None:
+    """Render the probes of `groups`, each group read back at once, and write each one's file (or
+    hand its (6, S, S, 4) faces to `deliver`)."""
     own = renderer is None
     renderer = _diffuse_renderer(ctx, bake_dir) if own else renderer
     try:
@@ -149,7 +152,10 @@ def _render_groups(ctx, bake_dir, groups: list[list[CubeMapPlan]], progress, ren
             offset = 0
             for plan in group:
                 faces, offset = unpack_faces(data, offset, plan.size, far=farthest(lo, hi, plan.centre))
-                write_cubemap(Path(bake_dir) / plan.file, faces)
+                if deliver is None:
+                    write_cubemap(Path(bake_dir) / plan.file, faces)
+                else:
+                    deliver(plan, faces)
                 if progress is not None:
                     progress()
         if pack is not None:
@@ -157,6 +163,44 @@ def _render_groups(ctx, bake_dir, groups: list[list[CubeMapPlan]], progress, ren
     finally:
         if own:
             renderer.release()
+
+
+class ProbeRefresher:
+    """The probes of a bake rendered again for edited materials and re-baked light maps, in the
+    re-bake's worker process (bake/rebake.py hands each pass's pages; glint/view.py gives the
+    Rebaker this class, so the bake never imports the renderer):
+
+        refresher = ProbeRefresher(bake_dir)          # a headless context, the diffuse view
+        refresher.render(plans, materials, front, back, deliver, check)
+
+    The diffuse view of the bake (as the cube-map stage renders it) with the edited material
+    entries (their lobes left out, as `diffuse_view`) and the new light-map pages; each probe is
+    rendered as the stage renders it (`_render_groups`) and `deliver(plan, chain)` gets its faces'
+    MIP chain (viewer/cubemaps.py `mip_chain`: computed here, not on the viewer's thread).
+    `check()` is called before each batch (the re-bake's cancel: it raises)."""
+
+    def __init__(self, bake_dir: Path):
+        self.bake_dir = Path(bake_dir)
+        self.ctx = headless_context()
+        self.renderer = _diffuse_renderer(self.ctx, self.bake_dir)
+        self.shown = diffuse_view(Bake(self.bake_dir).manifest)["materials"]  # what the renderer draws
+
+    def render(self, plans: list[CubeMapPlan], materials: list[dict], front: list, back: list,
+               deliver: Callable[[CubeMapPlan, list[np.ndarray]], None], check: Callable[[], None]) -> None:
+        for i, entry in enumerate(materials):
+            diffuse = {**entry, "lobes": []}
+            if diffuse != self.shown[i]:
+                self.renderer.set_material(i, diffuse)
+                self.shown[i] = diffuse
+        self.renderer.replace_lightmaps(front, back)
+        for group in batches(plans):
+            check()
+            _render_groups(self.ctx, self.bake_dir, [group], None, self.renderer,
+                           deliver=lambda plan, faces: deliver(plan, mip_chain(faces)))
+
+    def release(self) -> None:
+        self.renderer.release()
+        self.ctx.release()
 
 
 _worker: dict = {}

@@ -18,6 +18,7 @@ from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.bake.rebake import Rebaker
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
+from glint.cubemap_stage import ProbeRefresher
 from glint.scenes import BUILTIN, resolve
 from glint.services import SCENE_HELP, add_bake_options, add_edit_option, parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
@@ -134,10 +135,11 @@ def cmd_view(args) -> int:
 
 
 def background_rebake(manifest: dict, bake_dir: Path, edits=()):
-    """The re-bake of the light maps after material edits (glint.bake.rebake.Rebaker: a worker
-    process, started now so that it has loaded the scene by the first edit); None for a bake
-    whose scene file is gone (nothing to re-bake from: edits then change only what kd shows)."""
+    """The re-bake of the light maps and cube maps after material edits (glint.bake.rebake.Rebaker:
+    a worker process, started now so that it has loaded the scene by the first edit); None for a
+    bake whose scene file is gone (nothing to re-bake from: edits then change only what kd shows)."""
     source = manifest["scene"].get("source")
     if not source or not Path(source).is_file():
         return None
-    return Rebaker(Path(source), bake_dir, edits=edits)
+    has_probes = any(o.get("cubemap") for o in manifest["objects"])
+    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher if has_probes else None)

@@ -237,7 +237,7 @@ def test_the_worker_loads_the_scene_with_the_runs_set_edits(room):
     scene had no sky at all (the file's: the room's sidecar has none)."""
     from glint.bake.rebake import _prepare
 
-    scene, _, _ = _prepare(room.path.parent / "room.glb", room.path, ["sky.radiance = [0.5, 0.25, 0.125]"])
+    scene, _, _, _ = _prepare(room.path.parent / "room.glb", room.path, ["sky.radiance = [0.5, 0.25, 0.125]"])
     assert np.allclose(scene.sky.radiance, [0.5, 0.25, 0.125])
-    plain, _, _ = _prepare(room.path.parent / "room.glb", room.path)
+    plain, _, _, _ = _prepare(room.path.parent / "room.glb", room.path)
     assert plain.sky is None  # the room's sidecar has no [sky]

@@ -101,6 +101,16 @@ def downsample(faces: np.ndarray, size: int) -> np.ndarray:
     return faces.reshape(6, size, k, size, k, 4).mean(axis=(2, 4), dtype=np.float32)
 
 
+def mip_chain(faces: np.ndarray) -> list[np.ndarray]:
+    """(6, S, S, 4) faces (S a power of two) and their 2 x 2 box-filtered halvings down to one
+    texel: the MIP levels glGenerateMipmap makes of them (a re-bake's probes come with theirs,
+    computed off the viewer's thread: glint/cubemap_stage.py ProbeRefresher)."""
+    chain = [np.asarray(faces, np.float32)]
+    while chain[-1].shape[1] > 1:
+        chain.append(downsample(chain[-1], chain[-1].shape[1] // 2))
+    return chain
+
+
 def fit_classes(sizes: list[int], per_class: int, max_classes: int, max_face: int) -> tuple[list[int], list]:
     """Face size per probe and the classes [(size, [probe, ...]), ...] for probes of `sizes`
     within the GL limits: at most `per_class` probes a class, `max_classes` classes, faces of at
@@ -183,6 +193,7 @@ class CubeMaps:
             faces = [downsample(f, s) if f.shape[1] != s else f for f, s in zip(faces, fitted)]
         self.classes = [CubeClass(s, "f2", members) for s, members in classes]
         layer_of = {p: (k, layer) for k, cls in enumerate(self.classes) for layer, p in enumerate(cls.probes)}
+        self.slots = {file: layer_of[p] for file, p in probes.items()}  # probe file -> (class, layer)
         for i, p in probe_of.items():
             table[i]["info"][:2] = layer_of[p]
         self.table = table
@@ -215,6 +226,40 @@ class CubeMaps:
                      "[bake] cubemap_budget_mib keeps the bake and the GPU in step")
                 cls.size //= 2
                 maps = [downsample(f, cls.size) for f in maps]
+
+    def replace(self, file: str, chain: list[np.ndarray]) -> int:
+        """New radiance for the probe whose bake file is `file` (a material edit's re-bake,
+        glint/cubemap_stage.py ProbeRefresher): `chain` is its faces' MIP chain (`mip_chain`),
+        level 0 at the bake's face size or larger; the levels from the class's face size down are
+        written into the probe's layer (glTexSubImage3D), nothing else is touched. A half-float
+        class that a new value no longer fits becomes float32 (never Inf). Returns the class.
+        Non-finite or negative radiance becomes 0, as `read_cubemap` reads it."""
+        if file not in self.slots:
+            raise GlintError(f"new cube map {file}: not a probe of this bake")
+        k, layer = self.slots[file]
+        cls = self.classes[k]
+        sizes = [level.shape[1] for level in chain]
+        if cls.size not in sizes or len(chain) - sizes.index(cls.size) < cls.levels:
+            raise GlintError(f"new cube map {file}: MIP levels of {sizes} for faces of {cls.size}")
+        levels = [np.clip(np.nan_to_num(level, nan=0.0, posinf=0.0, neginf=0.0), 0.0, None)
+                  for level in chain[sizes.index(cls.size):][:cls.levels]]
+        if cls.dtype == "f2" and max(float(level.max(initial=0.0)) for level in levels) > HALF_MAX:
+            self._widen(cls)
+        dtype = np.float16 if cls.dtype == "f2" else np.float32
+        for n, level in enumerate(levels):
+            self._gl.write_cube_layers(cls.glo, n, 6 * layer, level.astype(dtype),
+                                       f"level {n} of cube map {file} (face size {cls.size})")
+        return k
+
+    def _widen(self, cls: CubeClass) -> None:
+        """Class `cls` as RGBA32F: its level 0 read back, uploaded again (the MIP chain regenerated)."""
+        pixels = np.zeros((len(cls.probes) * 6, cls.size, cls.size, 4), np.float32)
+        self._gl.read_cube_array(cls.glo, 0, pixels, f"the cube maps of face size {cls.size}")
+        cls.dtype = "f4"
+        glo = self._gl.upload_cube_array(pixels, f"the cube maps of face size {cls.size} ({len(cls.probes)} "
+                                                 f"probes, RGBA32F, {cls.mib:.0f} MiB)")
+        self._gl.delete_textures([cls.glo])
+        cls.glo = glo
 
     def defines(self, first_unit: int) -> dict:
         """For shaders/cubemaps.glsl: CUBE_CLASSES, the length of its sampler array (at least 1),

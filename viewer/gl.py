@@ -147,6 +147,7 @@ class GL:
         self.ActiveTexture = fn("glActiveTexture", None, u)
         self.TexImage3D = fn("glTexImage3D", None, u, i, i, i, i, i, i, u, u, p)
         self.TexStorage3D = fn("glTexStorage3D", None, u, i, u, i, i, i)
+        self.TexSubImage3D = fn("glTexSubImage3D", None, u, i, i, i, i, i, i, i, u, u, p)
         self.TexParameteri = fn("glTexParameteri", None, u, u, i)
         self.GenerateMipmap = fn("glGenerateMipmap", None, u)
         self.GetTexImage = fn("glGetTexImage", None, u, i, u, u, p)
@@ -240,6 +241,27 @@ class GL:
         finally:
             self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, unpack.value)
         return name
+
+    def write_cube_layers(self, name: int, level: int, first: int, pixels: np.ndarray, what: str) -> None:
+        """Write `pixels`, (n, s, s, 4) float16 or float32 layer-faces (rows from t = 0), into level
+        `level` of cube-map array `name` from layer-face `first` on (glTexSubImage3D); the array's
+        format stays what it is (GL converts float32 to a half-float array's texels)."""
+        pixels = np.ascontiguousarray(pixels)
+        count, size = pixels.shape[0], pixels.shape[1]
+        half = pixels.dtype == np.float16
+        unpack = ctypes.c_int(0)
+        self.GetIntegerv(GL_PIXEL_UNPACK_BUFFER_BINDING, ctypes.byref(unpack))
+        self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0)  # read the pixels from client memory
+        self.PixelStorei(GL_UNPACK_ALIGNMENT, 1)
+        try:
+            with self.checked(f"write {what}"):
+                self.ActiveTexture(GL_TEXTURE0 + self.ctx.default_texture_unit)
+                self.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, name)
+                self.TexSubImage3D(GL_TEXTURE_CUBE_MAP_ARRAY, level, 0, 0, first, size, size, count, GL_RGBA,
+                                   GL_HALF_FLOAT if half else GL_FLOAT, pixels.ctypes.data)
+        finally:
+            self.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
+            self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, unpack.value)
 
     def allocate_cube_array(self, size: int, depth: int, levels: int, internal: int, what: str) -> int:
         """A new immutable cube-map array of `levels` levels, faces of `size` texels, `depth`

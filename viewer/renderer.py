@@ -285,6 +285,18 @@ class Renderer:
         self._gbuffer_key = None
         self.progressive.invalidate()
 
+    def replace_probes(self, probes: dict) -> None:
+        """New radiance for cube-map probes, {bake file: its faces' MIP chain} (CubeMaps.replace; a
+        re-bake after a material edit re-renders them, glint/cubemap_stage.py ProbeRefresher); the
+        split-sum arrays of the classes they are in are prefiltered again, and the still camera's
+        running mean starts over."""
+        classes = {self.scene.cubemaps.replace(file, chain) for file, chain in probes.items()}
+        if self.split_sum is not None:
+            for k in sorted(classes):
+                self.split_sum.refresh(self.scene.cubemaps, k)
+        if classes:
+            self.invalidate()
+
     # -- results ---------------------------------------------------------------------------------
     def _require_frame(self) -> None:
         if self._linear is None:

@@ -137,28 +137,34 @@ class SplitSum:
         self.classes = cubes.classes
         self.levels = [level_count(c.size) for c in self.classes]
         self.textures: list[int] = []
+        self._programs: dict = {}  # the prefilter's compute programs by image format
         self._gl = GL(ctx) if self.classes else None
         self.prefilter_ms = 0.0
         if not self.classes:
             return
-        defines = {**shader_defines(), **cubes.defines(PREFILTER_CUBE_UNIT)}
-        programs = {}
         ctx.finish()
         started = time.perf_counter()
         cubes.bind_buffers()
-        for k, (cls, levels) in enumerate(zip(self.classes, self.levels)):
-            fmt = "rgba16f" if cls.dtype == "f2" else "rgba32f"
-            if fmt not in programs:
-                programs[fmt] = compute_program(ctx, "split_sum_prefilter.comp", {**defines, "SPLIT_SUM_FORMAT": fmt})
-            self.textures.append(self._prefilter(programs[fmt], cubes, k, cls, levels))
+        for k in range(len(self.classes)):
+            self.textures.append(self._prefilter(cubes, k))
         ctx.finish()
         self.prefilter_ms = (time.perf_counter() - started) * 1e3
-        for program in programs.values():
-            program.release()
 
-    def _prefilter(self, program, cubes, k: int, cls, levels: int) -> int:
+    def refresh(self, cubes, k: int) -> None:
+        """Prefilter class k again (its cube maps were replaced: CubeMaps.replace)."""
+        cubes.bind_buffers()
+        name = self._prefilter(cubes, k)
+        self._gl.delete_textures([self.textures[k]])
+        self.textures[k] = name
+
+    def _prefilter(self, cubes, k: int) -> int:
         """The prefiltered chain of class k: a new cube-map array, each level written by one dispatch."""
-        gl = self._gl
+        gl, cls, levels = self._gl, self.classes[k], self.levels[k]
+        fmt = "rgba16f" if cls.dtype == "f2" else "rgba32f"
+        if fmt not in self._programs:
+            defines = {**shader_defines(), **cubes.defines(PREFILTER_CUBE_UNIT), "SPLIT_SUM_FORMAT": fmt}
+            self._programs[fmt] = compute_program(self.ctx, "split_sum_prefilter.comp", defines)
+        program = self._programs[fmt]
         internal = GL_RGBA16F if cls.dtype == "f2" else GL_RGBA32F
         what = (f"the split-sum prefiltered cube maps of face size {cls.size} ({len(cls.probes)} probes, "
                 f"{levels} levels, {'RGBA16F' if cls.dtype == 'f2' else 'RGBA32F'})")
@@ -211,4 +217,7 @@ class SplitSum:
         if self._gl is not None:
             self._gl.delete_textures(self.textures)
         self.textures = []
+        for program in self._programs.values():
+            program.release()
+        self._programs = {}
         self.lut.release()

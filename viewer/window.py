@@ -108,8 +108,9 @@ class ViewerWindow(moderngl_window.WindowConfig):
         without it); on_edit(materials), on_save(materials): the command layer's callbacks with the
         whole list of manifest material entries as edited; pbr_mapping: the glTF-style controls'
         mapping (viewer/panel.py); lightmap_source: an object whose `poll()` returns None or new
-        light-map pages (front, back) for the bake's atlas, never blocking, and whose `status` is
-        None or one line for the overlay (glint/view.py gives the background re-bake,
+        light-map pages (front, back) for the bake's atlas, never blocking, whose `poll_probes()`
+        (if it has one) returns None or new cube-map probes {bake file: MIP chain}, and whose
+        `status` is None or one line for the overlay (glint/view.py gives the background re-bake,
         glint.bake.rebake.Rebaker); polled every frame."""
         super().__init__(**kwargs)
         self.lightmap_source = lightmap_source
@@ -193,15 +194,19 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.ui.draw(imgui.get_draw_data())
 
     def swap_lightmaps(self) -> bool:
-        """Take the light-map source's newest pages, if any, into the GPU scene and restart the
-        still camera's refinement (its running mean holds the old light). True when swapped."""
+        """Take the light-map source's newest pages and probes, if any, into the GPU scene and
+        restart the still camera's refinement (its running mean holds the old light). True when
+        something was swapped."""
         if self.lightmap_source is None:
             return False
         pages = self.lightmap_source.poll()
-        if pages is None:
-            return False
-        self.renderer.replace_lightmaps(*pages)
-        return True
+        if pages is not None:
+            self.renderer.replace_lightmaps(*pages)
+        poll_probes = getattr(self.lightmap_source, "poll_probes", None)
+        probes = poll_probes() if poll_probes is not None else None
+        if probes:
+            self.renderer.replace_probes(probes)
+        return pages is not None or bool(probes)
 
     def on_resize(self, width: int, height: int) -> None:
         pass  # every frame renders at the current framebuffer size; the renderer follows it
