@@ -10,9 +10,12 @@ a `Rebaker` (bake/rebake.py) re-bakes while a headless renderer draws walkthroug
 scene's camera tour at --size, as the window does (polling the re-bake each frame and swapping
 its pages in); printed are the seconds from the edit to each pass's pages (worker clock: the
 edit's time to the pass's end), the frame times before and during the re-bake (wall clock per
-frame, glFinish after each) and the largest frame. Then the sidecar gets the edit, `glint bake
---force` bakes it, and its light maps are compared with the last pass (rounded to half float,
-as the EXR stores them).
+frame, glFinish after each) and the largest frame. The cube maps follow (the worker renders the
+probes again after the first and the last pass, glint/cubemap_stage.py ProbeRefresher): printed
+are the seconds from the edit to each refresh's last probe and the milliseconds the renderer took
+to take them in (Renderer.replace_probes). Then the sidecar gets the edit, `glint bake --force`
+bakes it, and its light maps and cube maps are compared with the last pass's (rounded to half
+float, as the EXR stores them).
 """
 from __future__ import annotations
 
@@ -31,10 +34,12 @@ from glint.bake.rebake import NICE, Rebaker
 from glint.bake.settings import resolve_settings
 from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
+from glint.cubemap_stage import ProbeRefresher
 from glint.scenes import builtin_path
 from glint.services import bake_scene, parse_size
 from glint.viewer.camera import camera_path_at
 from glint.viewer.context import headless_context
+from glint.viewer.cubemaps import mip_chain, read_cubemap
 from glint.viewer.gl import describe
 from glint.viewer.renderer import Renderer
 
@@ -71,24 +76,34 @@ def measure_edit(renderer: Renderer | None, base: Bake, scene_path: Path, size, 
     materials = [dict(m) for m in base.manifest["materials"]]
     next(m for m in materials if m["name"] == material)[key] = value
     at = tour(base.manifest)
-    with Rebaker(scene_path, base.path, nice=nice) as rebaker:
+    with Rebaker(scene_path, base.path, nice=nice, probes=ProbeRefresher) as rebaker:
         while rebaker.ready is None:  # the worker has loaded the scene, as it has long before a user's first edit
             rebaker.poll()
             time.sleep(0.05)
         idle = [frame_ms(renderer, at(0.1 * k), size) for k in range(IDLE_FRAMES)] if renderer else [0.0]
         rebaker.edit(materials)
-        busy, passes, swaps, t = [], [], [], 0.0
-        while not (passes and passes[-1].final):
+        busy, passes, swaps, probe_swaps, refreshes, probes, t = [], [], [], [], [], {}, 0.0
+        final = len(rebaker.schedule) - 1
+        while not (passes and passes[-1].final and refreshes and refreshes[-1][0] == final):
             t += 0.05
             pages = rebaker.poll()
+            new_probes = rebaker.poll_probes()
             if pages is not None:
                 passes.append(rebaker.last)
                 if renderer is not None:
                     start = time.perf_counter()
                     renderer.replace_lightmaps(*pages)
                     swaps.append((time.perf_counter() - start) * 1e3)
-            if rebaker.error:
-                raise SystemExit(rebaker.error)
+            if new_probes:
+                probes.update(new_probes)
+                if renderer is not None:
+                    start = time.perf_counter()
+                    renderer.replace_probes(new_probes)
+                    probe_swaps.append((time.perf_counter() - start) * 1e3)
+            if rebaker.probes_done is not None and (not refreshes or refreshes[-1] != rebaker.probes_done):
+                refreshes.append(rebaker.probes_done)
+            if rebaker.error or rebaker.probe_error:
+                raise SystemExit(rebaker.error or rebaker.probe_error)
             if renderer is not None:
                 busy.append(frame_ms(renderer, at(t), size))
             else:
@@ -97,9 +112,12 @@ def measure_edit(renderer: Renderer | None, base: Bake, scene_path: Path, size, 
     row = {"edit": f"materials.\"{material}\".{key} = {value}", "frames_drawn_meanwhile": renderer is not None,
            "worker_nice": nice, "worker_setup_seconds": round(ready["seconds"], 2), "texels": ready["texels"],
            "passes": [{"samples": u.samples, "seconds_after_edit": round(u.seconds, 2)} for u in passes],
-           "_last": passes[-1].front}
+           "probes": ready["probes"],
+           "probe_refreshes": [{"after_pass": k, "seconds_after_edit": round(sec, 2)} for k, sec in refreshes],
+           "_last": passes[-1].front, "_probes": probes}
     if renderer is not None:
-        row.update(swap_ms=[round(s, 2) for s in swaps], frame_ms_idle_median=round(float(np.median(idle)), 2),
+        row.update(swap_ms=[round(s, 2) for s in swaps], probe_swap_ms=[round(s, 2) for s in probe_swaps],
+                   frame_ms_idle_median=round(float(np.median(idle)), 2),
                    frame_ms_during_rebake_median=round(float(np.median(busy)), 2),
                    frame_ms_during_rebake_max=round(float(np.max(busy)), 2), frames_during_rebake=len(busy))
     return row
@@ -133,6 +151,7 @@ def main() -> None:
             if renderer is not None:  # back to the bake's light maps for the next edit
                 renderer.replace_lightmaps([base.lightmap(k) for k in range(len(base.manifest["lightmaps"]))],
                                            [base.lightmap(k, back=True) for k in range(len(base.back_pages))])
+                renderer.replace_probes({f: mip_chain(read_cubemap(base.path / f)) for f in renderer.scene.cubemaps.slots})
         renderer_name = describe(ctx) if ctx is not None else None
         if renderer is not None:
             renderer.release()  # before the bakes: their cube-map stage makes its own GL contexts
@@ -146,9 +165,14 @@ def main() -> None:
             reference, seconds = bake(edited_path, args.quality)
             diffs = [np.abs(p.astype(np.float16).astype(np.float32) - reference.lightmap(k))
                      for k, p in enumerate(row.pop("_last"))]
+            cube_diffs = [np.abs(chain[0].astype(np.float16).astype(np.float32)[..., :3]
+                                 - read_cubemap(reference.path / file)[..., :3]) for file, chain in row.pop("_probes").items()]
             row.update(bake_force_lightmap_seconds=seconds,
                        max_abs_difference_from_bake_force=float(max(d.max() for d in diffs)),
-                       differing_values=int(sum((d > 0).sum() for d in diffs)))
+                       differing_values=int(sum((d > 0).sum() for d in diffs)),
+                       cubemaps_compared=len(cube_diffs),
+                       cubemap_max_abs_difference_from_bake_force=float(max(d.max() for d in cube_diffs)),
+                       cubemap_differing_values=int(sum((d > 0).sum() for d in cube_diffs)))
             print(json.dumps(row), flush=True)
     result = {"scene": SCENE, "quality": args.quality, "size": list(size), "base_lightmap_seconds": bake_seconds,
               "machine": platform.node(), "renderer": renderer_name, "edits": rows}

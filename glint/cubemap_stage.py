@@ -50,7 +50,7 @@ from glint.core.errors import GlintError
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
-from glint.viewer.cubemaps import mip_chain
+from glint.viewer.cubemaps import finite_radiance, mip_chain
 from glint.viewer.gl import GL, describe, software_renderer
 from glint.viewer.renderer import Renderer
 
@@ -176,7 +176,8 @@ class ProbeRefresher:
     The diffuse view of the bake (as the cube-map stage renders it) with the edited material
     entries (their lobes left out, as `diffuse_view`) and the new light-map pages; each probe is
     rendered as the stage renders it (`_render_groups`) and `deliver(plan, chain)` gets its faces'
-    MIP chain (viewer/cubemaps.py `mip_chain`: computed here, not on the viewer's thread).
+    MIP chain (viewer/cubemaps.py `mip_chain`, half float where it fits: computed and converted
+    here, not on the viewer's thread).
     `check()` is called before each batch (the re-bake's cancel: it raises)."""
 
     def __init__(self, bake_dir: Path):
@@ -196,7 +197,7 @@ class ProbeRefresher:
         for group in batches(plans):
             check()
             _render_groups(self.ctx, self.bake_dir, [group], None, self.renderer,
-                           deliver=lambda plan, faces: deliver(plan, mip_chain(faces)))
+                           deliver=lambda plan, faces: deliver(plan, mip_chain(finite_radiance(faces), half=True)))
 
     def release(self) -> None:
         self.renderer.release()

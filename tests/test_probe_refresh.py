@@ -58,8 +58,8 @@ def probe_files(bake: Bake) -> list[str]:
 def test_refreshed_probes_are_the_bake_of_the_edited_sidecar(boxes, tmp_path):
     """The paint (the six diffuse boxes) turned blue: the worker's re-rendered probes equal, texel
     for texel after the EXR's half-float rounding, the cube maps `glint bake --force` renders for
-    the scene with that kd in its sidecar; each comes with its MIP chain (numpy's 2 x 2 box filter
-    of the level above); and they differ from the unedited bake's (the edit shows in them).
+    the scene with that kd in its sidecar; each comes with its MIP chain in half float (numpy's
+    2 x 2 box filter of the level above, within half-float rounding); and they differ from the unedited bake's (the edit shows in them).
 
     Deliberate bugs this catches (tried): the refresher leaving the materials as baked (only the
     new light maps): 4.5 % of the probes' values differ from the bake's, by up to 0.21; the new
@@ -86,8 +86,9 @@ def test_refreshed_probes_are_the_bake_of_the_edited_sidecar(boxes, tmp_path):
         assert not np.allclose(faces[..., :3], read_cubemap(boxes.path / file)[..., :3], rtol=0.05)
         assert [c.shape[1] for c in chain] == [faces.shape[1] >> k for k in range(len(chain))] and \
             chain[-1].shape[1] == 1
-        for above, below in zip(chain, chain[1:]):
-            np.testing.assert_allclose(below, downsample(above, below.shape[1]), rtol=1e-6)
+        assert all(level.dtype == np.float16 for level in chain)  # half float: the viewer's thread converts nothing
+        for above, below in zip(chain, chain[1:]):  # within two half-float roundings
+            np.testing.assert_allclose(below, downsample(above.astype(np.float32), below.shape[1]), rtol=1e-3)
 
 
 def specular_probe_frames(ctx, bake: Bake, walkthrough: str):
@@ -201,3 +202,24 @@ def test_window_takes_the_sources_probes(boxes):
     finally:
         viewer.release()
         wnd.destroy()
+
+
+def test_replace_zeroes_non_finite_and_negative_radiance(boxes, ctx):
+    """Half-float and float32 chains with NaN, +-Inf and negative texels: those texels read back 0,
+    the others as given (finite_radiance checks half floats on their bits). Deliberate bug this
+    catches (tried): the bit test without the sign (bits & 0x7C00 only): -1 read back."""
+    with Renderer(ctx, boxes, supersample=1) as renderer:
+        cubes = renderer.scene.cubemaps
+        file = probe_files(boxes)[0]
+        k, layer = cubes.slots[file]
+        cls = cubes.classes[k]
+        for dtype in (np.float16, np.float32):
+            for bad in (np.nan, np.inf, -np.inf, -1.0):  # each alone: one check must not hide another
+                faces = np.full((6, cls.size, cls.size, 4), 0.5, np.float32)
+                faces[0, 0, 0, 0] = bad
+                renderer.replace_probes({file: [level.astype(dtype) for level in mip_chain(faces)]})
+                after = np.zeros((len(cls.probes), 6, cls.size, cls.size, 4), np.float32)
+                cubes._gl.read_cube_array(cls.glo, 0, after, "level 0")
+                expected = faces.copy()
+                expected[0, 0, 0, 0] = 0.0
+                np.testing.assert_array_equal(after[layer], expected, err_msg=f"{bad} as {np.dtype(dtype)}")
