@@ -36,7 +36,8 @@ KEY_HELP = """\
     M               pick what is under the cursor       F2    panel on/off
     Ctrl+Z, Ctrl+Y  undo / redo an edit (Ctrl+Shift+Z: redo); the panel has Undo,
                     Redo, Revert (to the bake's materials) and Save (into the scene's
-                    NAME.glint.toml); light maps re-bake in the background after an edit
+                    NAME.glint.toml); light maps and cube maps re-bake in the background
+                    after an edit
 """
 
 MOVE_KEYS = {  # name -> (forward, right, up) direction in the walker's frame
