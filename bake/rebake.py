@@ -361,6 +361,16 @@ class Rebaker:
                 self.probes_done = payload
 
     @property
+    def done(self) -> bool:
+        """The newest edit's last pass is in, and its probes (when the bake has any and they can be
+        rendered) too."""
+        if self.last is None or not self.last.final:
+            return False
+        if not (self.ready or {}).get("probes") or self.probe_error is not None:
+            return True
+        return self.probes_done is not None and self.probes_done[0] == len(self.schedule) - 1
+
+    @property
     def status(self) -> str | None:
         """The overlay's line: where the re-bake stands (None before any edit)."""
         if self.error is not None:

@@ -1,7 +1,8 @@
 """Screenshots of a material edit in `glint view`, for docs/VIEWER.md: the window's own frames
 (viewer/window.py on moderngl-window's headless backend, the material panel drawn), before the
 edit, with the object picked, right after the edit, and once the background re-bake
-(bake/rebake.py) has brought the light maps up to date.
+(bake/rebake.py, started as `glint view` starts it) has brought the light maps and cube maps up
+to date.
 
     python3 -m glint.bench.edit_screenshots [--scene living-room] [--material "Sofa fabric"]
                                             [--kd 0.6,0.08,0.05] [--size 960x540] [--out docs/images]
@@ -20,11 +21,11 @@ import numpy as np
 from PIL import Image
 
 from glint.bake.gltf_loader import load_scene
-from glint.bake.rebake import Rebaker
 from glint.bake.settings import resolve_settings
 from glint.core.bake_dir import Bake
 from glint.scenes import resolve
 from glint.services import bake_scene, parse_size, parse_vector
+from glint.view import background_rebake
 from glint.viewer.camera import ViewCamera
 from glint.viewer.controls import WalkControls
 
@@ -56,7 +57,7 @@ def main() -> None:
         camera = manifest["cameras"][0]
         home = ViewCamera.from_manifest(camera)
         wnd = Window(size=size, gl_version=GL_VERSION, backend="egl", aspect_ratio=None)
-        with Rebaker(scene_path, bake_dir) as rebaker:
+        with background_rebake(manifest, bake_dir) as rebaker:
             viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=bake, controls=WalkControls([camera], [], home),
                                   lightmap_source=rebaker, on_edit=rebaker.edit)
             viewer.overlay.visible = False
@@ -86,14 +87,14 @@ def main() -> None:
             start = time.perf_counter()
             viewer.panel.set_kd(kd)
             shot("edit-3-edited.png")
-            while True:  # until the re-bake's last pass is in the window
+            while True:  # until the re-bake's last pass and its probes are in the window
                 shot("edit-4-rebaked.png", 1, quiet=True)
-                if rebaker.last is not None and rebaker.last.final:
+                if rebaker.done:
                     break
                 time.sleep(0.5)
             seconds = time.perf_counter() - start
             shot("edit-4-rebaked.png")
-            print(f"re-bake: {seconds:.1f} s from the edit to the last pass in the window")
+            print(f"re-bake: {seconds:.1f} s from the edit to the last pass and its probes in the window")
             viewer.release()
         wnd.destroy()
 

@@ -73,7 +73,7 @@ def test_refreshed_probes_are_the_bake_of_the_edited_sidecar(boxes, tmp_path):
         rebaker.edit(materials)
         rebaker.wait(120)
         probes = {}
-        while rebaker.probes_done is None and rebaker.probe_error is None and rebaker.error is None:
+        while not rebaker.done and rebaker.error is None:
             probes.update(rebaker.poll_probes() or {})
         probes.update(rebaker.poll_probes() or {})
         assert rebaker.probe_error is None and rebaker.error is None
