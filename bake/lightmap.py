@@ -21,6 +21,7 @@ baked for (E = 0 exactly). Both are counted per object for the bake's statistics
 """
 from __future__ import annotations
 
+from contextlib import nullcontext
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +29,7 @@ import numpy as np
 from glint.bake.alpha import cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
-from glint.bake.executor import LocalExecutor
+from glint.bake.executor import executor_for
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
 from glint.bake.texels import TexelPage
@@ -70,15 +71,18 @@ class LightmapPages:
                      for images, masks in ((self.irradiance, self.baked), (self.back_irradiance, self.back_baked)))
 
 
-def _setup(scene: Scene) -> tuple[Scene, RayTracer]:
-    return scene, RayTracer(scene)
+def _setup(scene: Scene, points: np.ndarray, normals: np.ndarray):
+    """A worker's state: the scene, its Embree tracer, and every texel's sample point and normal (sent
+    once per worker; a task is then only its range of texels)."""
+    return scene, RayTracer(scene), points, normals
 
 
-def _job(state, task):
-    scene, tracer = state
-    points, normals, first, samples, seed, max_depth = task
-    result = compute_irradiance(scene, tracer, points, normals, samples, seed=seed,
-                                max_depth=max_depth, first_index=first)
+def _trace_tile(state, task):
+    """The irradiance, back-face share and ray count of texels first..first + count."""
+    scene, tracer, points, normals = state
+    first, count, samples, seed, max_depth = task
+    result = compute_irradiance(scene, tracer, points[first:first + count], normals[first:first + count], samples,
+                                seed=seed, max_depth=max_depth, first_index=first)
     return result.irradiance, result.backface, result.rays
 
 
@@ -87,7 +91,10 @@ def two_sided_objects(scene: Scene) -> np.ndarray:
     return np.array([scene.material_of(o).two_sided for o in scene.objects], bool)
 
 
-def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None) -> LightmapPages:
+def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None,
+                   executor=None) -> LightmapPages:
+    """The light maps of `pages`; the tiles traced by `executor` (bake/executor.py: the bake's, which
+    may be a Dask cluster; default: `settings`' own)."""
     two = two_sided_objects(scene)
     # Texels in the cut-out parts of MASK materials are never seen: not traced, left to dilation.
     covered = [(p.object >= 0) & ~_cut_out(scene, p) for p in pages]
@@ -100,18 +107,18 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     points = np.concatenate([points, points[back]])
     normals = np.concatenate([normals, -normals[back]])
     n = len(points)
-    tasks = [(points[i:i + TILE], normals[i:i + TILE], i, settings.samples, settings.seed, settings.max_depth)
-             for i in range(0, n, TILE)]
+    tasks = [(i, min(TILE, n - i), settings.samples, settings.seed, settings.max_depth) for i in range(0, n, TILE)]
     E = np.zeros((n, 3), np.float32)
     backface = np.zeros(n, np.float32)
     rays = 0
-    for index, (e, b, r) in LocalExecutor(settings.workers).run(_setup, (scene,), _job, tasks):
-        start = index * TILE
-        E[start:start + len(e)] = e
-        backface[start:start + len(b)] = b
-        rays += r
-        if progress is not None:
-            progress(len(e))
+    with executor_for(settings) if executor is None else nullcontext(executor) as tiles:
+        for index, (e, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
+            start = index * TILE
+            E[start:start + len(e)] = e
+            backface[start:start + len(b)] = b
+            rays += r
+            if progress is not None:
+                progress(len(e))
     valid = backface <= settings.backface_threshold
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
