@@ -26,8 +26,10 @@ import asyncio
 import concurrent.futures
 import logging
 import multiprocessing as mp
+import pickle
 import re
 import threading
+import time
 from typing import Any, Callable, Iterable, Iterator
 
 from glint.core.errors import GlintError, warn
@@ -36,6 +38,9 @@ from glint.core.errors import GlintError, warn
 CANCELLED = (asyncio.CancelledError, concurrent.futures.CancelledError)
 CONNECT_SECONDS = 5  # to reach a scheduler: a reachable one answers in milliseconds
 LOST_INPUTS_RETRIES = 2
+# Tasks per worker thread a stage aims at on a cluster, at least: a late worker or a slow task then
+# delays the stage by a fraction of a worker's share (bake/lightmap.py tile_size, the cube-map stage)
+TASKS_PER_WORKER = 4
 # Dask's log lines shown while a bake runs: none below CRITICAL (a lost scheduler or worker would
 # otherwise print lines of its own beside the bake's one line; a worker that died and was replaced
 # only makes the bake take longer)
@@ -73,6 +78,9 @@ class LocalExecutor:
 
     def start(self) -> None:
         """Nothing to start: the processes are forked by each `run`."""
+
+    def workers(self) -> int:
+        return self.jobs
 
     def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable) -> Iterator[tuple[int, Any]]:
         tasks = list(enumerate(tasks))
@@ -199,6 +207,9 @@ class DaskExecutor:
         self._client = self._cluster = self._error = None
         self._starting: threading.Thread | None = None
         self._quiet = None  # Dask's log lines kept to QUIET while open
+        # for the manifest's statistics.cluster: what the cluster cost this bake
+        self.statistics = {"scheduler": address, "workers": 0, "threads": 0, "start_seconds": 0.0,
+                           "waited_seconds": 0.0, "scatter_seconds": 0.0, "scattered_mib": 0.0, "tasks": 0}
 
     def __enter__(self) -> "DaskExecutor":
         return self
@@ -223,13 +234,16 @@ class DaskExecutor:
         """The connected `distributed.Client` (waits for a cluster starting in the background)."""
         self.start()
         if self._starting is not None:
+            t0 = time.perf_counter()
             self._starting.join()
             self._starting = None
+            self.statistics["waited_seconds"] = round(time.perf_counter() - t0, 3)
         if self._error is not None:
             raise self._error
         return self._client
 
     def _connect(self) -> None:
+        t0 = time.perf_counter()
         try:
             if self.local_workers is not None:
                 _start_forkserver()  # before Dask is imported here: the server imports it meanwhile
@@ -247,7 +261,10 @@ class DaskExecutor:
                 raise GlintError(f"cannot reach the Dask scheduler at {self.address} ({_one_line(e)}): start one "
                                  "with `dask scheduler`, or use --scheduler local:N") from None
             self._check_versions()
-            if self.local_workers is None and not self._client.nthreads():
+            threads = self._client.nthreads()
+            self.statistics.update(start_seconds=round(time.perf_counter() - t0, 3), workers=len(threads),
+                                   threads=sum(threads.values()))
+            if self.local_workers is None and not threads:
                 warn(f"the Dask scheduler at {self.address} has no workers yet: the bake waits for them "
                      f"(start some with `dask worker {self.address} --nthreads 1`)")
         except BaseException as e:  # kept for the caller's thread (`client`), which reports it
@@ -275,9 +292,13 @@ class DaskExecutor:
             if not pending:
                 return
             try:
-                # Once per worker: every task depends on the scattered inputs, and each worker fetches
-                # them once (from a peer, if it joins later) and builds its state from them once.
+                # Once per worker: every task depends on the scattered inputs, which Dask copies to every
+                # worker (from one worker to the next, in a tree) and to a worker that joins later (from
+                # a peer); each worker builds its state from them once.
+                t0 = time.perf_counter()
                 [inputs] = client.scatter([setup_args], broadcast=True, hash=False)
+                self._count(scatter_seconds=time.perf_counter() - t0, tasks=len(pending),
+                            scattered_mib=_pickled_bytes(setup_args) / 2 ** 20)
                 futures = {client.submit(_dask_task, setup, inputs, inputs.key, job, task, worker_version(),
                                          key=f"glint-{getattr(job, '__name__', 'job')}-{index}-{inputs.key}",
                                          pure=False): index
@@ -298,9 +319,12 @@ class DaskExecutor:
                 except Exception:  # workers gone or the scheduler lost: nothing left to free there
                     pass
         if pending:
-            raise GlintError(f"the bake's inputs were lost on the Dask cluster at {self.address} "
-                             f"{1 + LOST_INPUTS_RETRIES} times (workers ending before they had passed them on); "
-                             "bake again")
+            raise GlintError(f"the bake's inputs were lost on the Dask cluster at {self.address}: the workers that "
+                             f"held them ended, on each of {1 + LOST_INPUTS_RETRIES} tries; bake again")
+
+    def _count(self, **amounts) -> None:
+        for key, amount in amounts.items():
+            self.statistics[key] = round(self.statistics[key] + amount, 3)
 
     def _result(self, future):
         distributed = _import_distributed()
@@ -309,8 +333,8 @@ class DaskExecutor:
         except GlintError:
             raise
         except distributed.KilledWorker as e:  # Dask's own retries spent
-            raise GlintError(f"a bake task ended the Dask worker that ran it, on every try ({_one_line(e)}); "
-                             "the workers may be short of memory: give them more, or bake without --scheduler") from None
+            raise GlintError(f"a bake task ended the Dask worker that ran it, on every try ({_one_line(e)}); the "
+                             "workers may be short of memory: give them more, or bake without --scheduler") from None
         except (OSError, *CANCELLED) as e:
             raise self._lost(e) from None
 
@@ -339,12 +363,21 @@ class DaskExecutor:
             quiet.__exit__(None, None, None)
 
 
+def _pickled_bytes(value) -> int:
+    """The bytes `value` travels as (pickle protocol 5, as Dask sends it; arrays not copied to count them)."""
+    buffers = []
+    head = pickle.dumps(value, protocol=5, buffer_callback=buffers.append)
+    return len(head) + sum(b.raw().nbytes for b in buffers)
+
+
 def _one_line(e: BaseException) -> str:
     return " ".join(str(e).split()) or type(e).__name__
 
 
-# What the worker processes of a local:N cluster have imported before they start (_start_forkserver)
-WORKER_MODULES = ("distributed", "glint.bake.lightmap", "glint.cubemap_stage")
+# What the worker processes of a local:N cluster have imported before they start (_start_forkserver):
+# the command's main module too, which a forked child would otherwise run again itself (multiprocessing
+# does, for a script such as the `glint` command's)
+WORKER_MODULES = ("__main__", "distributed", "glint.bake.lightmap", "glint.cubemap_stage")
 
 
 def _start_forkserver() -> None:

@@ -21,6 +21,7 @@ baked for (E = 0 exactly). Both are counted per object for the bake's statistics
 """
 from __future__ import annotations
 
+import time
 from contextlib import nullcontext
 from dataclasses import dataclass
 
@@ -29,7 +30,7 @@ import numpy as np
 from glint.bake.alpha import cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
-from glint.bake.executor import executor_for
+from glint.bake.executor import TASKS_PER_WORKER, executor_for
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
 from glint.bake.texels import TexelPage
@@ -37,6 +38,7 @@ from glint.core.errors import warn
 from glint.core.scene import Scene
 
 TILE = 2048  # texels per job: small enough for a smooth progress bar, big enough to amortise numpy
+MIN_CLUSTER_TILE = 256  # texels per job at the least, on a cluster of many workers (tile_size)
 # The bake warns when more than these shares of its texels are invalid, or of its surface unlit.
 # Well-made scenes have 10-23 % invalid texels (contacts, furniture against walls, and chart borders,
 # whose conservatively rasterised samples lie on edges; docs/BAKE.md has the figures) and a few per
@@ -62,6 +64,8 @@ class LightmapPages:
     unlit: int = 0  # surface texels (front texels) that no light reached on any side
     invalid_by_object: np.ndarray | None = None  # (objects,) int64 invalid texels (both sides)
     unlit_by_object: np.ndarray | None = None  # (objects,) int64 unlit surface texels
+    trace_seconds: float = 0.0  # the path tracing of the tiles (the stage's parallel part), wall clock
+    tiles: int = 0  # tasks the texels were traced in
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
@@ -86,6 +90,15 @@ def _trace_tile(state, task):
     return result.irradiance, result.backface, result.rays
 
 
+def tile_size(texels: int, executor) -> int:
+    """Texels per job: TILE, or on a cluster with more worker threads than TILE-sized jobs would keep
+    busy (TASKS_PER_WORKER each), fewer, down to MIN_CLUSTER_TILE. A texel's random numbers come from its
+    index, so the size never changes a result (bake/irradiance.py)."""
+    if not executor.distributed:
+        return TILE
+    return max(MIN_CLUSTER_TILE, min(TILE, -(-texels // (TASKS_PER_WORKER * executor.workers()))))
+
+
 def two_sided_objects(scene: Scene) -> np.ndarray:
     """(objects,) bool: which objects get a back side in the light maps."""
     return np.array([scene.material_of(o).two_sided for o in scene.objects], bool)
@@ -107,18 +120,21 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     points = np.concatenate([points, points[back]])
     normals = np.concatenate([normals, -normals[back]])
     n = len(points)
-    tasks = [(i, min(TILE, n - i), settings.samples, settings.seed, settings.max_depth) for i in range(0, n, TILE)]
     E = np.zeros((n, 3), np.float32)
     backface = np.zeros(n, np.float32)
     rays = 0
+    t0 = time.perf_counter()
     with executor_for(settings) if executor is None else nullcontext(executor) as tiles:
+        tile = tile_size(n, tiles)
+        tasks = [(i, min(tile, n - i), settings.samples, settings.seed, settings.max_depth) for i in range(0, n, tile)]
         for index, (e, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
-            start = index * TILE
+            start = index * tile
             E[start:start + len(e)] = e
             backface[start:start + len(b)] = b
             rays += r
             if progress is not None:
                 progress(len(e))
+    trace_seconds = time.perf_counter() - t0
     valid = backface <= settings.backface_threshold
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
@@ -139,7 +155,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     unlit_by_object = np.bincount(objects[unlit], minlength=count)
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
-                         unlit_by_object=unlit_by_object)
+                         unlit_by_object=unlit_by_object, trace_seconds=trace_seconds, tiles=len(tasks))
 
 
 def _pages(pages: list[TexelPage], covers: list[np.ndarray], E: np.ndarray, valid: np.ndarray, settings):

@@ -54,9 +54,11 @@ class BakeReport:
         if self.status == "cubemaps":
             return f"{self.bake_dir}: light maps up to date; rendered {cubes}"
         lm = stats["lightmaps"]
+        cluster = stats.get("cluster")
+        where = f" on the Dask cluster {cluster['scheduler']} ({cluster['workers']} workers)" if cluster else ""
         return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels, "
                 f"{lm['rays'] / 1e6:.1f} M rays in {lm['seconds']:.1f} s "
-                f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)" + (f"; {cubes}" if cubes else ""))
+                f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)" + (f"; {cubes}" if cubes else "") + where)
 
 
 def probe_line(cm: dict) -> str:
@@ -252,11 +254,16 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
             manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
                                                           old_dir if reuse_geometry else None, executor))
             status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
-        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, old_dir, out, manifest, progress, settings.workers,
-                                                         render_cubemaps, executor), **budget_statistics(cubemaps, rules)}
+        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, old_dir, out, manifest, progress,
+                                                         settings.workers, render_cubemaps, executor),
+                                              **budget_statistics(cubemaps, rules)}
         if manifest["statistics"]["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status
             redone.append("cube maps")
+        # Where the bake ran, when on a cluster: its workers and what starting and feeding them cost.
+        manifest["statistics"].pop("cluster", None)
+        if executor.distributed and executor.statistics["workers"]:  # connected: work was done there
+            manifest["statistics"]["cluster"] = dict(executor.statistics)
         # What the viewer will show wrong because the loader ignored it (glint.services.fidelity_line).
         manifest["statistics"]["ignored_features"] = dict(scene.ignored_features)
         # What this bake redid and reused, for later commands that find it up to date (core/skipped.py).
@@ -357,7 +364,8 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
                           "invalid_objects": worst(result.invalid_by_object),
                           "unlit_objects": worst(result.unlit_by_object),
                           "samples": settings.samples, "rays": int(result.rays),
-                          "rays_per_second": float(result.rays / max(t2 - t1, 1e-9))},
+                          "rays_per_second": float(result.rays / max(t2 - t1, 1e-9)),
+                          "trace_seconds": round(result.trace_seconds, 3), "tiles": result.tiles},
         },
     }
 

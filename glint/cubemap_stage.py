@@ -56,6 +56,7 @@ from glint.bake.cubemap import (
     CubeMapPlan,
     supersample,
 )
+from glint.bake.executor import TASKS_PER_WORKER
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
@@ -260,9 +261,6 @@ def _worker_task(plans: list[CubeMapPlan]) -> int:
 
 
 # -- on a Dask cluster --------------------------------------------------------------------------------
-CLUSTER_TASKS_PER_WORKER = 4  # probe tasks per worker thread at least, so that a slow one is not the last
-
-
 def bake_inputs(bake_dir: Path) -> dict[str, bytes]:
     """The files of the bake written so far that the probes' renderer reads, by path relative to the
     bake directory: all but the cube maps (the diffuse view draws none)."""
@@ -277,6 +275,7 @@ class ClusterProbeWorker:
     `render` returns each probe's file as bytes, for the bake's own process to write."""
 
     def __init__(self, files: dict[str, bytes]):
+        t0 = time.perf_counter()
         self.folder = Path(tempfile.mkdtemp(prefix="glint-probes-"))
         self.thread = ThreadPoolExecutor(1, thread_name_prefix="glint-gl")
         try:
@@ -284,6 +283,7 @@ class ClusterProbeWorker:
                 (self.folder / name).parent.mkdir(parents=True, exist_ok=True)
                 (self.folder / name).write_bytes(data)
             self.probes = self.thread.submit(ProbeWorker, self.folder).result()
+            self.setup_seconds = time.perf_counter() - t0
         except GlintError as e:  # no EGL there: the message says what to install, and where
             self._remove()
             raise GlintError(f"on the Dask worker machine {socket.gethostname()}: {e}") from None
@@ -291,15 +291,18 @@ class ClusterProbeWorker:
             self._remove()
             raise
 
-    def render(self, plans: list[CubeMapPlan]) -> tuple[list[tuple[str, bytes]], str, str]:
-        """The task's files, and which process (host:pid) and device rendered them."""
+    def render(self, plans: list[CubeMapPlan]) -> dict:
+        """The task's files {"files": [(path in the bake, bytes)]}, which process (host:pid) and device
+        rendered them, in how many seconds, and the seconds this worker took to get ready."""
+        t0 = time.perf_counter()
         self.thread.submit(self.probes.render, plans).result()
         files = []
         for plan in plans:
             path = self.folder / plan.file
             files.append((plan.file, path.read_bytes()))
             path.unlink()
-        return files, f"{socket.gethostname()}:{os.getpid()}", self.probes.device
+        return {"files": files, "process": f"{socket.gethostname()}:{os.getpid()}", "device": self.probes.device,
+                "seconds": time.perf_counter() - t0, "setup_seconds": self.setup_seconds}
 
     def release(self) -> None:
         self.thread.submit(self.probes.release).result()
@@ -316,20 +319,23 @@ def _cluster_task(worker: ClusterProbeWorker, plans: list[CubeMapPlan]):
 
 def _render_on_cluster(cluster, bake_dir: Path, plans: list[CubeMapPlan], progress) -> dict:
     """The probes rendered by the cluster's workers, their files written here; statistics: the worker
-    processes that rendered and their devices."""
+    processes that rendered, their devices, the longest task and the longest a worker took to get ready
+    (unpack the inputs, open its GL context, build the renderer)."""
     # tasks small enough that every worker thread gets several, at most PROBES_PER_TASK probes
-    per_task = max(1, min(PROBES_PER_TASK, len(plans) // (CLUSTER_TASKS_PER_WORKER * cluster.workers())))
-    processes, devices = set(), set()
-    for _, (files, process, device) in cluster.run(ClusterProbeWorker, (bake_inputs(bake_dir),), _cluster_task,
-                                                   probe_tasks(plans, per_task)):
-        processes.add(process)
-        devices.add(device)
-        for name, data in files:
+    per_task = max(1, min(PROBES_PER_TASK, len(plans) // (TASKS_PER_WORKER * cluster.workers())))
+    processes, devices, longest, setup = set(), set(), 0.0, 0.0
+    for _, task in cluster.run(ClusterProbeWorker, (bake_inputs(bake_dir),), _cluster_task,
+                               probe_tasks(plans, per_task)):
+        processes.add(task["process"])
+        devices.add(task["device"])
+        longest, setup = max(longest, task["seconds"]), max(setup, task["setup_seconds"])
+        for name, data in task["files"]:
             (Path(bake_dir) / name).parent.mkdir(parents=True, exist_ok=True)
             (Path(bake_dir) / name).write_bytes(data)
             if progress is not None:
                 progress()
-    return {"processes": len(processes), "device": "; ".join(sorted(devices)), "cluster": cluster.address}
+    return {"processes": len(processes), "device": "; ".join(sorted(devices)), "cluster": cluster.address,
+            "task_seconds_max": round(longest, 3), "worker_setup_seconds_max": round(setup, 3)}
 
 
 def farthest(lo, hi, centre) -> float:

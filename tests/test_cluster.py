@@ -23,6 +23,7 @@ from conftest import FAST
 
 import glint
 from glint.bake import executor as executor_module
+from glint.bake import lightmap
 from glint.bake.executor import DaskExecutor
 from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import resolve_settings
@@ -37,8 +38,9 @@ distributed = pytest.importorskip("distributed")  # in the `test` extra: CI has 
 # metal box); about 0.2 s a tile at 32 samples, so a worker killed after the first result still has work
 SETTINGS = {**FAST, "samples": 32, "texels_per_metre": 12.0}
 CLI = ["-q", "draft", "--samples", "32", "--texels-per-metre", "12", "--no-denoise"]
-# statistics that say when and where, not what
-TIMING = {"seconds", "rays_per_second", "seconds_per_cubemap", "processes", "cluster", "device", "last_bake"}
+# statistics that say when, where and in how many tasks, not what
+TIMING = {"seconds", "trace_seconds", "rays_per_second", "seconds_per_cubemap", "processes", "cluster", "device",
+          "tiles", "task_seconds_max", "worker_setup_seconds_max"}
 
 
 @pytest.fixture(scope="module")
@@ -74,22 +76,25 @@ def assert_same_bake(bake: Path, reference: Path) -> None:
     ours, theirs = files_of(bake), files_of(reference)
     assert sorted(ours) == sorted(theirs)
     assert sum(name.startswith("cubemaps/") for name in ours) == 3
-    for name in theirs:
-        if name != "manifest.json":
-            assert ours[name] == theirs[name], f"{name} differs from the local bake's"
+    differ = [name for name in theirs if name != "manifest.json" and ours[name] != theirs[name]]
+    assert differ == [], "these files differ from the local bake's"
     ours, theirs = (json.loads(d["manifest.json"]) for d in (ours, theirs))
     assert without_timing(ours) == without_timing(theirs)
 
 
 def test_local_2_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monkeypatch, capsys):
-    """`glint bake --scheduler local:2`: every light map, cube map, texture and the meshes are the local
-    bake's bytes, the manifest its own apart from timing (so the stages' hashes too: a local bake of
-    the same directory then finds it up to date); the cube-map progress counts each probe once; the
-    workers, not this process, rendered the probes.
-    Deliberate bug tried: the tile's random numbers from the task (`first_index=0` in
-    bake/lightmap.py _trace_tile, as a worker-local count would give): lightmaps/page_0.exr differs.
-    And the cube maps rendered from the client's bake directory read before the light maps were
-    written (bake_inputs called before the stage): every probe differs (black walls)."""
+    """`glint bake --scheduler local:2`, its tasks run last first (Dask priorities), the light maps in
+    smaller tiles than the local bake's (bake/lightmap.py tile_size, here 16 tiles of 1626 texels
+    against 13 of 2048; a texel's random numbers follow its index): every light map,
+    cube map, texture and the meshes are the local bake's bytes, the manifest its own apart from timing
+    (so the stages' hashes too: a local bake of the same directory then finds it up to date); the
+    cube-map progress counts each probe once; the workers, not this process, rendered the probes.
+    Deliberate bugs tried: DaskExecutor.run yielding each result with its place in the order of
+    completion instead of its task's index: "glint: internal error: ValueError: could not broadcast
+    input array from shape (2048,3) into shape (1436,3)" (the first tile put in the last, shorter
+    slot; tasks in their submitted order hid this bug in a run without the priorities). And
+    bake_inputs reading the bake directory's top level only (glob, not rglob): exit 2, "glint: on the
+    Dask worker machine vm: image: no such file /tmp/glint-probes-.../lightmaps/page_0.exr"."""
     from glint import services
 
     counted, stats = [], {}
@@ -102,8 +107,21 @@ def test_local_2_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monk
         return result
 
     monkeypatch.setattr(services, "render_cubemaps", counting)
+    # the last task first: results come back in about the reverse of the order they were submitted in
+    submitted = []
+    real_submit = distributed.Client.submit
+
+    def last_first(self, *args, **kwargs):
+        submitted.append(1)
+        return real_submit(self, *args, **{**kwargs, "priority": len(submitted)})
+
+    monkeypatch.setattr(distributed.Client, "submit", last_first)
+    # tiles of 1626 texels on the cluster (26,012 / (8 x 2 workers)) against the local bake's 2048
+    monkeypatch.setattr(lightmap, "TASKS_PER_WORKER", 8)
     out = scene_path.with_name("dask.bake")
     assert main(["bake", str(scene_path), "-o", str(out), *CLI, "--scheduler", "local:2"]) == 0
+    assert json.loads((out / "manifest.json").read_text())["statistics"]["lightmaps"]["tiles"] == 16
+    assert json.loads((reference / "manifest.json").read_text())["statistics"]["lightmaps"]["tiles"] == 13
     assert_same_bake(out, reference)
     assert len(counted) == 3 and stats["cluster"] == "local:2" and stats["processes"] >= 1
     capsys.readouterr()
@@ -111,13 +129,17 @@ def test_local_2_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monk
     assert "up to date" in capsys.readouterr().out
 
 
-def test_a_worker_killed_mid_bake_and_the_bake_is_still_the_same_bytes(scene_path, reference, monkeypatch):
+@pytest.mark.parametrize("workers", [2, 1])
+def test_a_worker_killed_mid_bake_and_the_bake_is_still_the_same_bytes(scene_path, reference, monkeypatch, workers):
     """Once the first result of each stage (light-map tiles, cube maps) is in, the process of a worker
     that is running a task is killed (SIGKILL): Dask runs its tasks again on the other worker or the
-    one the nanny starts in its place, and the bake is the local bake's bytes.
+    one the nanny starts in its place, and the bake is the local bake's bytes. With one worker the
+    scattered inputs die with it: they are scattered again to its successor.
     Deliberate bug tried: no retries (`distributed.scheduler.allowed-failures` 0): the bake ends with
     "a bake task ended the Dask worker that ran it, on every try (Attempted to run task
-    'glint-_trace_tile-2-...' on 1 different workers, but all those workers died ...)"."""
+    'glint-_trace_tile-2-...' on 1 different workers, but all those workers died ...)". No second
+    scatter (LOST_INPUTS_RETRIES 0): with one worker, "the bake's inputs were lost on the Dask
+    cluster at local:1 ..."."""
     killed = []
     real_run = DaskExecutor.run
 
@@ -128,9 +150,10 @@ def test_a_worker_killed_mid_bake_and_the_bake_is_still_the_same_bytes(scene_pat
             yield result
 
     monkeypatch.setattr(DaskExecutor, "run", run_and_kill)
-    out = scene_path.with_name("killed.bake")
+    out = scene_path.with_name(f"killed-{workers}.bake")
     scene = load_scene(scene_path)
-    bake_scene(scene, resolve_settings(scene.bake_settings, **SETTINGS, scheduler="local:2"), out, progress=False)
+    bake_scene(scene, resolve_settings(scene.bake_settings, **SETTINGS, scheduler=f"local:{workers}"), out,
+               progress=False)
     assert len(killed) == 2 and all(killed), f"no worker had a task in flight to lose: {killed}"
     assert_same_bake(out, reference)
 
@@ -159,9 +182,9 @@ def test_unreachable_scheduler_one_line_and_the_previous_bake_intact(scene_path,
     2 within the connect timeout (5 s) and some start-up, one line on stderr naming the address and
     what to do, no traceback; the previous bake is byte for byte as it was, and no temporary
     directory is left beside it.
-    Deliberate bug tried: the executor started inside the BakeDirWriter and the connect error caught
-    as TimeoutError only (OSError escapes): "glint: internal error: OSError: Timed out trying to
-    connect ..." (exit 1)."""
+    Deliberate bug tried: the connect error caught as TimeoutError only: "glint: internal error:
+    OSError: Timed out trying to connect to tcp://127.0.0.1:38395 after 5 s (run with --debug for the
+    traceback)", exit 1."""
     out = tmp_path / "previous.bake"
     shutil.copytree(reference, out)
     before = files_of(out)
@@ -182,9 +205,9 @@ def test_scheduler_lost_mid_bake_one_line_and_the_previous_bake_intact(scene_pat
     """A `dask scheduler` and a `dask worker` started here as processes; the scheduler is killed once the
     first light-map tile is in: the bake ends with one line that says so (within Dask's reconnect
     time, the connect timeout), and the previous bake in the output directory is as it was.
-    Deliberate bug tried: `_result` without the CancelledError case: the futures Dask cancels when its
-    connection is gone raised "FutureCancelledError: glint-_trace_tile-6-... cancelled for reason:
-    scheduler-connection-lost. ..." (an internal error at the command line), not a GlintError."""
+    Deliberate bug tried: `_result` without the CancelledError case: "distributed.client.
+    FutureCancelledError: glint-_trace_tile-1-tuple-... cancelled for reason: scheduler-connection-lost"
+    came out (an internal error at the command line), not a GlintError."""
     port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     dask = [sys.executable, "-m", "dask"]
@@ -230,8 +253,9 @@ def test_workers_without_egl_say_what_to_install(scene_path, tmp_path):
     """A cluster whose worker cannot open an EGL display (no EGL vendor library found, as on a machine
     without libegl-mesa0 or a GPU driver): the light maps bake there, and the cube-map stage ends the
     bake with one line that names the worker machine and the packages to install; nothing is written.
-    Deliberate bug tried: ClusterProbeWorker without its GlintError case: the line lacked "on the Dask
-    worker machine ..." (the user could not tell that the worker, not this machine, lacks EGL)."""
+    Deliberate bug tried: ClusterProbeWorker without its GlintError case: the line was "cannot create a
+    headless OpenGL 4.3 context with EGL (requested device index 0, but found 0 devices); install ..."
+    without "on the Dask worker machine vm:" (whose EGL is missing, this machine's or a worker's?)."""
     no_egl = {"__EGL_VENDOR_LIBRARY_FILENAMES": str(tmp_path / "none.json")}
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
                                   env=no_egl, silence_logs=50) as cluster:
@@ -251,8 +275,9 @@ def test_workers_of_another_glint_version_are_refused(scene_path, monkeypatch):
     refuses it with one line naming both versions. A worker that passed the check but whose version
     differs from the bake's by the time a task runs (as one that joins later) fails that task with the
     same line.
-    Deliberate bug tried: `_check_versions` not called at connect: no error at start() (the bake would
-    run on the old worker, whose bytes may differ)."""
+    Deliberate bugs tried: `_check_versions` not called at connect: "DID NOT RAISE" at start() (the
+    bake would run on the other version's worker); the check in `_dask_task` left out: "DID NOT RAISE"
+    for the task."""
     old = "import glint; glint.__version__ = '0.0.1'  # this worker's glint is another"
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
                                   preload=[old], silence_logs=50) as cluster:
@@ -273,7 +298,8 @@ def test_workers_of_another_glint_version_are_refused(scene_path, monkeypatch):
 
 def test_without_dask_the_scheduler_option_says_what_to_install(monkeypatch):
     """`distributed` not importable: --scheduler gives one line with the pip command.
-    Deliberate bug tried: the ImportError left to the CLI: "internal error: ModuleNotFoundError"."""
+    Deliberate bug tried: the ImportError not caught: "ModuleNotFoundError: import of distributed
+    halted; None in sys.modules" (an internal error at the command line)."""
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(GlintError, match=r"pip install 'glint\[cluster\]'"):
         DaskExecutor("tcp://127.0.0.1:8786").start()
@@ -282,7 +308,7 @@ def test_without_dask_the_scheduler_option_says_what_to_install(monkeypatch):
 def test_a_local_bake_does_not_import_dask(tmp_path):
     """Without --scheduler Dask is never imported (an optional extra): a whole `glint bake` in a fresh
     interpreter leaves `dask` and `distributed` out of sys.modules.
-    Deliberate bug tried: `import distributed` at the top of bake/executor.py: the assertion lists both."""
+    Deliberate bug tried: `import distributed` at the top of bake/executor.py: "0 ['dask', 'distributed']"."""
     code = ("import sys; from glint.cli import main; "
             f"code = main(['bake', 'cornell-box', '-o', {str(tmp_path / 'c.bake')!r}, '-q', 'draft', '--samples', '1', "
             "'--no-denoise']); "
