@@ -45,7 +45,10 @@ CONFIGS = ("local", "local:1", "local:2")
 ROOT = Path(__file__).resolve().parents[1]
 # The model (--model): what it takes of a cluster it was not measured on
 NETWORK_MIB_PER_SECOND = 110.0  # 1 Gbit/s Ethernet, what the client and each worker send and receive
-TREE_BRANCHING = 2  # Dask's replicate (scatter(broadcast=True)): copies double each round
+# Dask's replicate (scatter(broadcast=True)): in each generation every holder sends to up to this many
+# workers that lack the data (distributed's Scheduler.replicate, branching_factor), so the holders
+# triple per generation and a generation takes this many copies' time on a holder's network link
+REPLICATE_BRANCHING = 2
 CORES = (8, 64, 512)
 
 
@@ -154,15 +157,21 @@ def measure_overhead(tasks: int = 400) -> dict:
     return out
 
 
-def model(runs: list[dict], cores=CORES) -> list[dict]:
+def model(runs: list[dict], overhead: dict, cores=CORES) -> list[dict]:
     """The time of each measured bake on `cores` cores (one worker thread each), from the median of its
     local-executor runs (serial parts, work) and its cluster runs (the cube-map workers' set-up, the
-    longest cube-map task, the inputs scattered). See docs/BAKE.md for the model and its assumptions."""
+    longest cube-map task, the inputs scattered) and the engine's time per task (`overhead`, --overhead).
+    docs/BAKE.md "A model for larger clusters" states it and what it assumes."""
+    from glint.bake.executor import TASKS_PER_WORKER
+    from glint.bake.lightmap import MIN_CLUSTER_TILE, TILE
+    from glint.cubemap_stage import PROBES_PER_TASK
+
+    per_task_seconds = overhead["local2_seconds_per_task"]
     out = []
     for scene in dict.fromkeys(r["scene"] for r in runs):
         local = [r for r in runs if r["scene"] == scene and r["config"] == "local"]
-        cluster = [r for r in runs if r["scene"] == scene and r["config"].startswith(("local:", "tcp://"))]
-        if not local:
+        cluster = [r for r in runs if r["scene"] == scene and r["config"] != "local" and r.get("cluster")]
+        if not local or not cluster:
             continue
 
         def med(rows, key):
@@ -170,27 +179,32 @@ def model(runs: list[dict], cores=CORES) -> list[dict]:
             return statistics.median(values) if values else 0.0
 
         wall, trace, cubes = med(local, "wall_seconds"), med(local, "trace_seconds"), med(local, "cubemap_seconds")
-        local_processes = 2  # the local executor's runs: --jobs 0 on this 2-core machine
         serial = wall - trace - cubes  # start-up, load, unwrap, texels, dilate, denoise, writing: the client's
-        work = trace * local_processes  # core-seconds of path tracing (both cores busy throughout)
-        texels = int(med(local, "texels"))
-        cube_processes = med(local, "cubemap_processes") or 1
-        cube_work = cubes * cube_processes
+        work = trace * 2  # core-seconds of path tracing: the local executor's two processes kept both cores busy
+        texels, probes = int(med(local, "texels")), int(med(local, "cubemaps"))
+        cube_work = cubes * (med(local, "cubemap_processes") or 1)
         setup = med(cluster, "cubemap_worker_setup_seconds_max")
-        longest = med(cluster, "cubemap_task_seconds_max")
-        mib = statistics.median([r["cluster"]["scattered_mib"] for r in cluster if r.get("cluster")] or [0.0])
+        # the longest probe: the cluster run's longest task over the probes in its tasks
+        measured_threads = statistics.median([r["cluster"]["threads"] for r in cluster])
+        probes_then = max(1, min(PROBES_PER_TASK, probes // (TASKS_PER_WORKER * measured_threads)))
+        longest_probe = med(cluster, "cubemap_task_seconds_max") / probes_then
+        mib = statistics.median([r["cluster"]["scattered_mib"] for r in cluster])
         for p in cores:
-            tile = max(256, min(2048, math.ceil(texels / (4 * p))))
+            tile = max(MIN_CLUSTER_TILE, min(TILE, math.ceil(texels / (TASKS_PER_WORKER * p))))
             tiles = math.ceil(texels / tile)
             traced = math.ceil(tiles / p) * work / tiles  # waves of equal tiles
-            rendered = (setup + max(cube_work / p, longest)) if cubes else 0.0
-            rounds = math.ceil(math.log(p, TREE_BRANCHING)) + 1
-            scatter = rounds * mib / NETWORK_MIB_PER_SECOND
+            per_task = max(1, min(PROBES_PER_TASK, probes // (TASKS_PER_WORKER * p)))
+            rendered = setup + max(cube_work / p, longest_probe * per_task) if probes else 0.0
+            generations = math.ceil(math.log(p) / math.log(1 + REPLICATE_BRANCHING) - 1e-9)
+            # the client to one worker, then the tree's generations
+            scatter = (1 + REPLICATE_BRANCHING * generations) * mib / NETWORK_MIB_PER_SECOND
+            engine = (tiles + math.ceil(probes / per_task)) * per_task_seconds
+            total = serial + traced + rendered + scatter + engine
             out.append({"scene": scene, "cores": p, "serial_seconds": round(serial, 1), "tiles": tiles,
                         "trace_seconds": round(traced, 1), "cubemap_seconds": round(rendered, 1),
-                        "scatter_seconds": round(scatter, 1),
-                        "total_seconds": round(serial + traced + rendered + scatter, 1),
-                        "speed_up_vs_measured_local": round(wall / (serial + traced + rendered + scatter), 1)})
+                        "scatter_seconds": round(scatter, 1), "engine_seconds": round(engine, 1),
+                        "total_seconds": round(total, 1), "measured_local_seconds": round(wall, 1),
+                        "speed_up": round(wall / total, 1)})
     return out
 
 
@@ -202,16 +216,19 @@ def main(argv=None) -> int:
     parser.add_argument("--rounds", type=int, default=5)
     parser.add_argument("--configs", nargs="+", default=list(CONFIGS))
     parser.add_argument("--overhead", action="store_true", help="measure the per-task overhead only")
-    parser.add_argument("--model", nargs="+", type=Path, metavar="JSON", help="model larger clusters from these runs")
+    parser.add_argument("--model", nargs="+", type=Path, metavar="JSON",
+                        help="model larger clusters from these runs' files and --overhead's (task_overhead.json)")
     parser.add_argument("--cores", nargs="+", type=int, default=list(CORES))
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     about = {"machine": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
              "commit": commit(), "command": " ".join(["python3 -m glint.bench.measure_cluster", *sys.argv[1:]])}
     if args.model:
-        runs = [r for path in args.model for r in json.loads(path.read_text())["runs"]]
+        files = [json.loads(path.read_text()) for path in args.model]
+        runs = [r for f in files for r in f.get("runs", [])]
+        overhead = next(f for f in files if "local2_seconds_per_task" in f)
         result = {**about, "inputs": [str(p) for p in args.model], "network_mib_per_second": NETWORK_MIB_PER_SECOND,
-                  "model": model(runs, args.cores)}
+                  "model": model(runs, overhead, args.cores)}
         for row in result["model"]:
             print(row)
     elif args.overhead:
