@@ -1,15 +1,53 @@
-"""Runs independent bake jobs (texel tiles) on local worker processes.
+"""Runs independent bake jobs (texel tiles, cube-map probes) on local worker processes or on a Dask cluster.
 
-One interface, `LocalExecutor.run(tasks)`: each task is handled by
-`job(state, task)` in a worker whose `state = setup(*setup_args)` was built once
-per process (an Embree scene cannot be pickled, so every worker builds its own).
-Results come back in completion order as (task index, result); the caller puts
-them in place, so the outcome does not depend on the number of workers.
+One interface, `executor.run(setup, setup_args, job, tasks)`: each task is handled by
+`job(state, task)` in a worker whose `state = setup(*setup_args)` was built once per worker
+process (an Embree scene cannot be pickled, so every worker builds its own). Results come back in
+completion order as (task index, result); the caller puts them in place, so the outcome does not
+depend on the number of workers or on which worker ran what.
+
+- `LocalExecutor(jobs)`: forked processes of this machine (they inherit setup_args unpickled).
+- `DaskExecutor(address)`: the workers of a Dask cluster (`distributed`), for `glint bake
+  --scheduler`: `tcp://HOST:PORT` (a running `dask scheduler`) or `local:N` (a cluster of N worker
+  processes on this machine, started and closed by the executor). setup_args are scattered once
+  (`client.scatter`, to every worker) and travel once to each worker, which builds its state from
+  them on its first task and keeps it for the others; each task carries only its own small
+  description (a tile's first texel and count; a list of probes). Dask is imported here only when
+  such an executor starts (an optional extra: `pip install 'glint[cluster]'`).
+
+`executor_for(settings)` picks one; use it as a context manager (`with executor_for(s) as ex:`), and
+call `start()` once work is certain: a `local:N` cluster then starts in the background while the
+caller goes on (unwrapping the scene), a remote scheduler is reached at once, so that a wrong
+address fails before any work.
 """
 from __future__ import annotations
 
+import asyncio
+import concurrent.futures
+import logging
 import multiprocessing as mp
+import pickle
+import re
+import threading
+import time
 from typing import Any, Callable, Iterable, Iterator
+
+from glint.core.errors import GlintError, warn
+
+# What a future of a lost scheduler raises (Dask cancels every future when its connection is gone).
+CANCELLED = (asyncio.CancelledError, concurrent.futures.CancelledError)
+CONNECT_SECONDS = 5  # to reach a scheduler: a reachable one answers in milliseconds
+LOST_INPUTS_RETRIES = 2
+# Tasks per worker thread a stage aims at on a cluster, at least: a late worker or a slow task then
+# delays the stage by a fraction of a worker's share (bake/lightmap.py tile_size, the cube-map stage)
+TASKS_PER_WORKER = 4
+# Dask's log lines shown while a bake runs: none below CRITICAL (a lost scheduler or worker would
+# otherwise print lines of its own beside the bake's one line; a worker that died and was replaced
+# only makes the bake take longer)
+QUIET = logging.CRITICAL
+# `local:N`, or a Dask address: [SCHEME://]HOST:PORT (tcp://, tls://, ws://, wss://, ucx://; no scheme: tcp)
+LOCAL_ADDRESS = re.compile(r"local:(\d+)")
+REMOTE_ADDRESS = re.compile(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9a-fA-F:.]+\]|[\w.-]+):(\d{1,5})")
 
 _worker_state: Any = None
 _worker_job: Callable | None = None
@@ -27,8 +65,22 @@ def _run_task(indexed):
 
 
 class LocalExecutor:
+    distributed = False
+
     def __init__(self, jobs: int):
         self.jobs = max(1, int(jobs))
+
+    def __enter__(self) -> "LocalExecutor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass
+
+    def start(self) -> None:
+        """Nothing to start: the processes are forked by each `run`."""
+
+    def workers(self) -> int:
+        return self.jobs
 
     def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable) -> Iterator[tuple[int, Any]]:
         tasks = list(enumerate(tasks))
@@ -48,3 +100,320 @@ class LocalExecutor:
             raise
         finally:
             pool.join()
+
+
+def executor_for(settings) -> "LocalExecutor | DaskExecutor":
+    """The executor of a bake's settings: its Dask cluster (`settings.scheduler`), else `settings.workers`
+    local processes."""
+    scheduler = getattr(settings, "scheduler", None)
+    return DaskExecutor(scheduler) if scheduler else LocalExecutor(settings.workers)
+
+
+def check_scheduler_address(address: str) -> str:
+    """`address` if it is `local:N` (N >= 1) or [SCHEME://]HOST:PORT, else a one-line GlintError."""
+    local = LOCAL_ADDRESS.fullmatch(address)
+    if (local and int(local.group(1)) >= 1) or (not local and REMOTE_ADDRESS.fullmatch(address)):
+        return address
+    raise GlintError(f"bad --scheduler '{address}': expected tcp://HOST:PORT (a running `dask scheduler`) "
+                     "or local:N (N worker processes on this machine), e.g. tcp://10.0.0.5:8786 or local:4")
+
+
+def worker_version() -> str:
+    """The glint version of the process it runs in (on a Dask worker: `client.run(worker_version)`),
+    read when called: the package's attribute as that process has it."""
+    import glint
+
+    return glint.__version__
+
+
+def version_error(address: str, theirs: str, ours: str) -> GlintError:
+    return GlintError(f"the Dask worker {address} runs glint {theirs} but this bake runs glint {ours}: "
+                      f"install glint {ours} on every worker (bakes must be the same bytes on every machine)")
+
+
+# -- on a Dask worker ------------------------------------------------------------------------------
+# A worker process keeps the state of the inputs it last set up (keyed by their scattered data's
+# key), so that every task of a stage after the first on that worker reuses it; `_forget` drops it
+# when the stage ends. A lock, because a worker may run several tasks at once (--nthreads > 1).
+_states: dict[str, Any] = {}
+_states_lock = threading.Lock()
+
+
+def _dask_task(setup: Callable, setup_args: tuple, key: str, job: Callable, task, version: str):
+    """One task on a Dask worker: the worker's state for `key` (built on first use), then the job."""
+    if worker_version() != version:  # a worker that joined after the check at connect
+        raise version_error(_import_distributed().get_worker().address, worker_version(), version)
+    with _states_lock:
+        if key not in _states:
+            for old in list(_states):
+                _release(_states.pop(old))
+            _heap_for_large_arrays()
+            _states[key] = setup(*setup_args)
+        state = _states[key]
+    return job(state, task)
+
+
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
+MMAP_THRESHOLD = 32 << 20  # glibc's own upper bound for its dynamic mmap threshold (64-bit)
+TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # glibc's dynamic trim threshold follows the mmap threshold so
+
+
+def _heap_for_large_arrays() -> None:
+    """Let glibc keep the path tracer's arrays in the heap, as in a plain Python process at its largest.
+
+    Dask's nanny starts its workers with MALLOC_TRIM_THRESHOLD_=65536, which also pins glibc's mmap
+    threshold at 128 KiB: every array of the tracer's batches (a few MiB) was then mapped and unmapped
+    anew, page faults each time, and a living-room tile took 2.3x as long (2.5-2.6 s against 1.1 s in a
+    process without it). The mmap threshold at 32 MiB brought it to 1.15-1.2 s; the trim threshold
+    at 64 MiB too, to 1.0-1.04 s (memory up to 64 MiB kept for the next batch instead of handed back
+    to the system at every free). Nothing happens where the C library is not glibc."""
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None)
+        libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD)
+        libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD)
+    except (OSError, AttributeError):
+        pass
+
+
+def _forget(key: str) -> None:
+    with _states_lock:
+        if key in _states:
+            _release(_states.pop(key))
+
+
+def _release(state) -> None:
+    """A state that holds more than memory (a GL context, a folder) has `release()`."""
+    release = getattr(state, "release", None)
+    if release is not None:
+        release()
+
+
+class DaskExecutor:
+    """The workers of a Dask cluster, with `run` as LocalExecutor's. See the module docstring.
+
+    Faults: a worker that dies has its tasks run again elsewhere by Dask (up to Dask's
+    `distributed.scheduler.allowed-failures`, 3: a task that ends more workers is reported); should
+    the scattered inputs die with it (no other worker held them yet), they are scattered again and
+    the unfinished tasks submitted again (LOST_INPUTS_RETRIES times). The results are assembled by
+    task index, so the order and the place they come from never matter. A scheduler that cannot be
+    reached or goes away, a worker with another glint version, or a task's own GlintError end the
+    bake with one line (GlintError). Dask's own log lines are held back while the executor is open
+    (QUIET)."""
+
+    distributed = True
+
+    def __init__(self, address: str):
+        self.address = check_scheduler_address(address)
+        local = LOCAL_ADDRESS.fullmatch(address)
+        self.local_workers = int(local.group(1)) if local else None
+        self._client = self._cluster = self._error = None
+        self._starting: threading.Thread | None = None
+        self._quiet = None  # Dask's log lines kept to QUIET while open
+        # for the manifest's statistics.cluster: what the cluster cost this bake
+        self.statistics = {"scheduler": address, "workers": 0, "threads": 0, "start_seconds": 0.0,
+                           "waited_seconds": 0.0, "scatter_seconds": 0.0, "scattered_mib": 0.0, "tasks": 0}
+
+    def __enter__(self) -> "DaskExecutor":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def start(self) -> None:
+        """Reach the scheduler now (a remote one: a wrong address fails before any work), or start the
+        `local:N` cluster in a background thread (it takes about a second; the caller goes on). Twice is
+        once."""
+        if self._starting is not None or self._client is not None:
+            return
+        if self.local_workers is None:
+            self._connect()
+            return
+        self._starting = threading.Thread(target=self._connect, name="glint-dask-start", daemon=True)
+        self._starting.start()
+
+    @property
+    def client(self):
+        """The connected `distributed.Client` (waits for a cluster starting in the background)."""
+        self.start()
+        if self._starting is not None:
+            t0 = time.perf_counter()
+            self._starting.join()
+            self._starting = None
+            self.statistics["waited_seconds"] = round(time.perf_counter() - t0, 3)
+        if self._error is not None:
+            raise self._error
+        return self._client
+
+    def _connect(self) -> None:
+        t0 = time.perf_counter()
+        try:
+            if self.local_workers is not None:
+                _start_forkserver()  # before Dask is imported here: the server imports it meanwhile
+            distributed = _import_distributed()
+            self._quiet = distributed.utils.silence_logging_cmgr(QUIET)
+            self._quiet.__enter__()
+            if self.local_workers is not None:
+                self._cluster = _local_cluster(distributed, self.local_workers)
+                address = self._cluster.scheduler_address
+            else:
+                address = self.address
+            try:
+                self._client = distributed.Client(address, timeout=CONNECT_SECONDS, set_as_default=False)
+            except (OSError, TimeoutError) as e:
+                raise GlintError(f"cannot reach the Dask scheduler at {self.address} ({_one_line(e)}): start one "
+                                 "with `dask scheduler`, or use --scheduler local:N") from None
+            self._check_versions()
+            threads = self._client.nthreads()
+            self.statistics.update(start_seconds=round(time.perf_counter() - t0, 3), workers=len(threads),
+                                   threads=sum(threads.values()))
+            if self.local_workers is None and not threads:
+                warn(f"the Dask scheduler at {self.address} has no workers yet: the bake waits for them "
+                     f"(start some with `dask worker {self.address} --nthreads 1`)")
+        except BaseException as e:  # kept for the caller's thread (`client`), which reports it
+            self._error = e
+            self._disconnect()
+            if self._starting is None:
+                raise
+
+    def _check_versions(self) -> None:
+        """Refuse the cluster if a worker runs another glint version (its bytes could differ)."""
+        ours = worker_version()
+        for address, theirs in sorted(self._client.run(worker_version).items()):
+            if theirs != ours:
+                raise version_error(address, theirs, ours)
+
+    def workers(self) -> int:
+        """Worker threads in the cluster now (what a stage may size its tasks by)."""
+        return max(1, sum(self.client.nthreads().values()))
+
+    def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable) -> Iterator[tuple[int, Any]]:
+        client = self.client
+        distributed = _import_distributed()
+        pending = dict(enumerate(tasks))
+        for _ in range(1 + LOST_INPUTS_RETRIES):
+            if not pending:
+                return
+            try:
+                # Once per worker: every task depends on the scattered inputs, which Dask copies to every
+                # worker (from one worker to the next, in a tree) and to a worker that joins later (from
+                # a peer); each worker builds its state from them once.
+                t0 = time.perf_counter()
+                [inputs] = client.scatter([setup_args], broadcast=True, hash=False)
+                self._count(scatter_seconds=time.perf_counter() - t0, tasks=len(pending),
+                            scattered_mib=_pickled_bytes(setup_args) / 2 ** 20)
+                futures = {client.submit(_dask_task, setup, inputs, inputs.key, job, task, worker_version(),
+                                         key=f"glint-{getattr(job, '__name__', 'job')}-{index}-{inputs.key}",
+                                         pure=False): index
+                           for index, task in pending.items()}
+            except (OSError, *CANCELLED) as e:
+                raise self._lost(e) from None
+            try:
+                for future in distributed.as_completed(futures, loop=client.loop):
+                    if future.status == "cancelled" and client.status == "running":
+                        continue  # its inputs were lost with the workers that held them: submitted again
+                    yield futures[future], self._result(future)
+                    del pending[futures[future]]
+            finally:
+                for future in futures:
+                    future.cancel()
+                try:
+                    client.run(_forget, inputs.key)
+                except Exception:  # workers gone or the scheduler lost: nothing left to free there
+                    pass
+        if pending:
+            raise GlintError(f"the bake's inputs were lost on the Dask cluster at {self.address}: the workers that "
+                             f"held them ended, on each of {1 + LOST_INPUTS_RETRIES} tries; bake again")
+
+    def _count(self, **amounts) -> None:
+        for key, amount in amounts.items():
+            self.statistics[key] = round(self.statistics[key] + amount, 3)
+
+    def _result(self, future):
+        distributed = _import_distributed()
+        try:
+            return future.result()
+        except GlintError:
+            raise
+        except distributed.KilledWorker as e:  # Dask's own retries spent
+            raise GlintError(f"a bake task ended the Dask worker that ran it, on every try ({_one_line(e)}); the "
+                             "workers may be short of memory: give them more, or bake without --scheduler") from None
+        except (OSError, *CANCELLED) as e:
+            raise self._lost(e) from None
+
+    def _lost(self, e: BaseException) -> GlintError:
+        reason = "connection lost" if isinstance(e, CANCELLED) else _one_line(e)
+        return GlintError(f"lost the Dask scheduler at {self.address} during the bake ({reason}); "
+                          "the previous bake directory is as it was: bake again")
+
+    def close(self) -> None:
+        """Disconnect; a `local:N` cluster is shut down (once it has started, if it is starting)."""
+        if self._starting is not None:
+            self._starting.join()
+            self._starting = None
+        self._disconnect()
+
+    def _disconnect(self) -> None:
+        client, cluster, self._client, self._cluster = self._client, self._cluster, None, None
+        for part in (client, cluster):
+            if part is not None:
+                try:
+                    part.close()
+                except Exception:  # closing after the scheduler went away: nothing to close
+                    pass
+        if self._quiet is not None:
+            self._quiet, quiet = None, self._quiet
+            quiet.__exit__(None, None, None)
+
+
+def _pickled_bytes(value) -> int:
+    """The bytes `value` travels as (pickle protocol 5, as Dask sends it; arrays not copied to count them)."""
+    buffers = []
+    head = pickle.dumps(value, protocol=5, buffer_callback=buffers.append)
+    return len(head) + sum(b.raw().nbytes for b in buffers)
+
+
+def _one_line(e: BaseException) -> str:
+    return " ".join(str(e).split()) or type(e).__name__
+
+
+# What the worker processes of a local:N cluster have imported before they start (_start_forkserver):
+# the command's main module too, which a forked child would otherwise run again itself (multiprocessing
+# does, for a script such as the `glint` command's)
+WORKER_MODULES = ("__main__", "distributed", "glint.bake.lightmap", "glint.cubemap_stage")
+
+
+def _start_forkserver() -> None:
+    """Start multiprocessing's fork server, which imports WORKER_MODULES, for a local:N cluster's
+    worker processes to be forked from (`_local_cluster`), unless it runs already.
+
+    Forked from this process instead, the workers would inherit the thread pools of the libraries it
+    used (OpenImageIO, Embree, Open Image Denoise) without their threads: a child forked after a bake
+    hung in its first EXR write. Spawned, each would import Dask and glint itself (0.3 s and more
+    each, on the cores the bake needs). The server is a fresh process that imports them once, while
+    this process imports Dask and goes on with the bake."""
+    import multiprocessing
+    import multiprocessing.forkserver
+
+    multiprocessing.get_context("forkserver").set_forkserver_preload(list(WORKER_MODULES))
+    multiprocessing.forkserver.ensure_running()
+
+
+def _local_cluster(distributed, workers: int):
+    """A cluster of `workers` processes on this machine, forked by the fork server (`_start_forkserver`),
+    one thread each (the bake's jobs are numpy and Embree: the GIL would serialise threads), no
+    dashboard (no port to take, nothing to serve)."""
+    import dask
+
+    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
+        return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                        dashboard_address=None, silence_logs=QUIET)
+
+
+def _import_distributed():
+    try:
+        import distributed
+    except ImportError:
+        raise GlintError("--scheduler needs Dask, which is not installed: pip install 'glint[cluster]'") from None
+    return distributed

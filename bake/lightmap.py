@@ -21,6 +21,8 @@ baked for (E = 0 exactly). Both are counted per object for the bake's statistics
 """
 from __future__ import annotations
 
+import time
+from contextlib import nullcontext
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +30,7 @@ import numpy as np
 from glint.bake.alpha import cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
-from glint.bake.executor import LocalExecutor
+from glint.bake.executor import TASKS_PER_WORKER, executor_for
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
 from glint.bake.texels import TexelPage
@@ -36,6 +38,7 @@ from glint.core.errors import warn
 from glint.core.scene import Scene
 
 TILE = 2048  # texels per job: small enough for a smooth progress bar, big enough to amortise numpy
+MIN_CLUSTER_TILE = 256  # texels per job at the least, on a cluster of many workers (tile_size)
 # The bake warns when more than these shares of its texels are invalid, or of its surface unlit.
 # Well-made scenes have 10-23 % invalid texels (contacts, furniture against walls, and chart borders,
 # whose conservatively rasterised samples lie on edges; docs/BAKE.md has the figures) and a few per
@@ -61,6 +64,8 @@ class LightmapPages:
     unlit: int = 0  # surface texels (front texels) that no light reached on any side
     invalid_by_object: np.ndarray | None = None  # (objects,) int64 invalid texels (both sides)
     unlit_by_object: np.ndarray | None = None  # (objects,) int64 unlit surface texels
+    trace_seconds: float = 0.0  # the path tracing of the tiles (the stage's parallel part), wall clock
+    tiles: int = 0  # tasks the texels were traced in
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
@@ -70,16 +75,28 @@ class LightmapPages:
                      for images, masks in ((self.irradiance, self.baked), (self.back_irradiance, self.back_baked)))
 
 
-def _setup(scene: Scene) -> tuple[Scene, RayTracer]:
-    return scene, RayTracer(scene)
+def _setup(scene: Scene, points: np.ndarray, normals: np.ndarray):
+    """A worker's state: the scene, its Embree tracer, and every texel's sample point and normal (sent
+    once per worker; a task is then only its range of texels)."""
+    return scene, RayTracer(scene), points, normals
 
 
-def _job(state, task):
-    scene, tracer = state
-    points, normals, first, samples, seed, max_depth = task
-    result = compute_irradiance(scene, tracer, points, normals, samples, seed=seed,
-                                max_depth=max_depth, first_index=first)
+def _trace_tile(state, task):
+    """The irradiance, back-face share and ray count of texels first..first + count."""
+    scene, tracer, points, normals = state
+    first, count, samples, seed, max_depth = task
+    result = compute_irradiance(scene, tracer, points[first:first + count], normals[first:first + count], samples,
+                                seed=seed, max_depth=max_depth, first_index=first)
     return result.irradiance, result.backface, result.rays
+
+
+def tile_size(texels: int, executor) -> int:
+    """Texels per job: TILE, or on a cluster with more worker threads than TILE-sized jobs would keep
+    busy (TASKS_PER_WORKER each), fewer, down to MIN_CLUSTER_TILE. A texel's random numbers come from its
+    index, so the size never changes a result (bake/irradiance.py)."""
+    if not executor.distributed:
+        return TILE
+    return max(MIN_CLUSTER_TILE, min(TILE, -(-texels // (TASKS_PER_WORKER * executor.workers()))))
 
 
 def two_sided_objects(scene: Scene) -> np.ndarray:
@@ -87,7 +104,10 @@ def two_sided_objects(scene: Scene) -> np.ndarray:
     return np.array([scene.material_of(o).two_sided for o in scene.objects], bool)
 
 
-def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None) -> LightmapPages:
+def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None,
+                   executor=None) -> LightmapPages:
+    """The light maps of `pages`; the tiles traced by `executor` (bake/executor.py: the bake's, which
+    may be a Dask cluster; default: `settings`' own)."""
     two = two_sided_objects(scene)
     # Texels in the cut-out parts of MASK materials are never seen: not traced, left to dilation.
     covered = [(p.object >= 0) & ~_cut_out(scene, p) for p in pages]
@@ -100,18 +120,21 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     points = np.concatenate([points, points[back]])
     normals = np.concatenate([normals, -normals[back]])
     n = len(points)
-    tasks = [(points[i:i + TILE], normals[i:i + TILE], i, settings.samples, settings.seed, settings.max_depth)
-             for i in range(0, n, TILE)]
     E = np.zeros((n, 3), np.float32)
     backface = np.zeros(n, np.float32)
     rays = 0
-    for index, (e, b, r) in LocalExecutor(settings.workers).run(_setup, (scene,), _job, tasks):
-        start = index * TILE
-        E[start:start + len(e)] = e
-        backface[start:start + len(b)] = b
-        rays += r
-        if progress is not None:
-            progress(len(e))
+    t0 = time.perf_counter()
+    with executor_for(settings) if executor is None else nullcontext(executor) as tiles:
+        tile = tile_size(n, tiles)
+        tasks = [(i, min(tile, n - i), settings.samples, settings.seed, settings.max_depth) for i in range(0, n, tile)]
+        for index, (e, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
+            start = index * tile
+            E[start:start + len(e)] = e
+            backface[start:start + len(b)] = b
+            rays += r
+            if progress is not None:
+                progress(len(e))
+    trace_seconds = time.perf_counter() - t0
     valid = backface <= settings.backface_threshold
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
@@ -132,7 +155,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     unlit_by_object = np.bincount(objects[unlit], minlength=count)
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
-                         unlit_by_object=unlit_by_object)
+                         unlit_by_object=unlit_by_object, trace_seconds=trace_seconds, tiles=len(tasks))
 
 
 def _pages(pages: list[TexelPage], covers: list[np.ndarray], E: np.ndarray, valid: np.ndarray, settings):

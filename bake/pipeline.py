@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from glint.bake import hashing
 from glint.bake.cubemap import CubeMapPlan, ProbeRules, budget_statistics, plan_cubemaps
+from glint.bake.executor import executor_for
 from glint.bake.lightmap import bake_lightmaps, two_sided_objects, warn_texels
 from glint.bake.settings import PROBE_SETTINGS, BakeSettings
 from glint.bake.texels import rasterize_texels
@@ -53,9 +54,11 @@ class BakeReport:
         if self.status == "cubemaps":
             return f"{self.bake_dir}: light maps up to date; rendered {cubes}"
         lm = stats["lightmaps"]
+        cluster = stats.get("cluster")
+        where = f" on the Dask cluster {cluster['scheduler']} ({cluster['workers']} workers)" if cluster else ""
         return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels, "
                 f"{lm['rays'] / 1e6:.1f} M rays in {lm['seconds']:.1f} s "
-                f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)" + (f"; {cubes}" if cubes else ""))
+                f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)" + (f"; {cubes}" if cubes else "") + where)
 
 
 def probe_line(cm: dict) -> str:
@@ -235,7 +238,12 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
 
     if old is not None and announce is not None:
         announce(stale_reason(old, manifest))
-    with BakeDirWriter(bake_dir) as out:
+    executor = executor_for(settings)
+    if not reuse_lightmaps or _to_render(cubemaps, old, old_dir):
+        # a remote scheduler is reached now, before anything is written; a local:N cluster starts in
+        # the background while the scene is unwrapped
+        executor.start()
+    with executor, BakeDirWriter(bake_dir) as out:
         _write_textures(scene, out.path)
         if reuse_lightmaps:
             out.reuse(old_dir, "meshes.npz")
@@ -244,13 +252,18 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
             status, redone = "manifest", []
         else:
             manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
-                                                          old_dir if reuse_geometry else None))
+                                                          old_dir if reuse_geometry else None, executor))
             status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
-        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, old_dir, out, manifest, progress, settings.workers,
-                                                         render_cubemaps), **budget_statistics(cubemaps, rules)}
+        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, old_dir, out, manifest, progress,
+                                                         settings.workers, render_cubemaps, executor),
+                                              **budget_statistics(cubemaps, rules)}
         if manifest["statistics"]["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status
             redone.append("cube maps")
+        # Where the bake ran, when on a cluster: its workers and what starting and feeding them cost.
+        manifest["statistics"].pop("cluster", None)
+        if executor.distributed and executor.statistics["workers"]:  # connected: work was done there
+            manifest["statistics"]["cluster"] = dict(executor.statistics)
         # What the viewer will show wrong because the loader ignored it (glint.services.fidelity_line).
         manifest["statistics"]["ignored_features"] = dict(scene.ignored_features)
         # What this bake redid and reused, for later commands that find it up to date (core/skipped.py).
@@ -261,17 +274,23 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     return BakeReport(bake_dir, status, manifest, redone)
 
 
-def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: BakeDirWriter, manifest: dict,
-              progress: bool, workers: int, render_cubemaps: CubeMapRenderer | None) -> dict:
-    """Carry over the cube maps whose inputs did not change, render the others (bake/cubemap.py)."""
-
+def _to_render(plans: list[CubeMapPlan], old: dict | None, old_dir: Path) -> list[CubeMapPlan]:
+    """The plans whose cube map the previous bake (`old`, its manifest, in `old_dir`) does not have."""
     old_hashes = old["stages"].get("cubemaps", {}) if old is not None else {}
-    todo = []
+    return [plan for plan in plans
+            if old_hashes.get(str(plan.index)) != plan.hash or not (Path(old_dir) / plan.file).is_file()]
+
+
+def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: BakeDirWriter, manifest: dict,
+              progress: bool, workers: int, render_cubemaps: CubeMapRenderer | None, executor) -> dict:
+    """Carry over the cube maps whose inputs did not change, render the others (bake/cubemap.py) with
+    `render_cubemaps`, on `workers` local processes or, when the bake's `executor` is a Dask cluster's,
+    on its workers."""
+    todo = _to_render(plans, old, old_dir)
+    rendered = {plan.index for plan in todo}
     for plan in plans:
-        if old_hashes.get(str(plan.index)) == plan.hash and (Path(old_dir) / plan.file).is_file():
+        if plan.index not in rendered:
             out.reuse(old_dir, plan.file)
-        else:
-            todo.append(plan)
     stats = {"count": len(plans), "rendered": len(todo), "reused": len(plans) - len(todo), "seconds": 0.0,
              "texels": int(sum(6 * p.size ** 2 for p in todo))}
     if todo:
@@ -280,7 +299,8 @@ def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: Ba
                              "(bake through glint.services.bake_scene)")
         write_json(out.path / "manifest.json", manifest)  # the renderer reads the bake written so far
         with tqdm(total=len(todo), desc="cube maps", unit="map", disable=not progress, leave=False) as bar:
-            stats.update(render_cubemaps(out.path, todo, progress=bar.update, workers=workers))
+            stats.update(render_cubemaps(out.path, todo, progress=bar.update, workers=workers,
+                                         cluster=executor if executor.distributed else None))
         stats["seconds_per_cubemap"] = round(stats["seconds"] / len(todo), 3)
     return stats
 
@@ -303,7 +323,7 @@ def _write_textures(scene: Scene, path: Path) -> None:
 
 
 def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Path, progress: bool,
-                                 old_dir: Path | None) -> dict:
+                                 old_dir: Path | None, executor=None) -> dict:
 
 
     t0 = time.perf_counter()
@@ -317,7 +337,7 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
     texels = int(sum((p.object >= 0).sum() for p in pages))
     with tqdm(total=texels, desc="light maps", unit="texel", disable=not progress, leave=False,
               smoothing=0.05) as bar:
-        result = bake_lightmaps(scene, pages, settings, progress=bar.update)
+        result = bake_lightmaps(scene, pages, settings, progress=bar.update, executor=executor)
     warn_texels(result, scene)
     names, back_names = [], []
     for images, stem, files in zip(result.rgba(), ("page", "back"), (names, back_names)):
@@ -344,7 +364,8 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
                           "invalid_objects": worst(result.invalid_by_object),
                           "unlit_objects": worst(result.unlit_by_object),
                           "samples": settings.samples, "rays": int(result.rays),
-                          "rays_per_second": float(result.rays / max(t2 - t1, 1e-9))},
+                          "rays_per_second": float(result.rays / max(t2 - t1, 1e-9)),
+                          "trace_seconds": round(result.trace_seconds, 3), "tiles": result.tiles},
         },
     }
 

@@ -55,7 +55,7 @@ import numpy as np
 
 from glint.bake.bounding_planes import MAX_PLANES
 from glint.bake.material_mapping import DIFFUSE_ROUGHNESS, parse_material_override
-from glint.bake.settings import BakeSettings
+from glint.bake.settings import COMMAND_LINE_ONLY, BakeSettings
 from glint.bake.validate import check_number as _number
 from glint.bake.validate import check_rgb as _rgb
 from glint.bake.validate import check_vec3 as _vec3
@@ -73,7 +73,7 @@ SUFFIX = ".glint.toml"
 TABLES = ("bake", "lights", "sky", "materials", "objects", "cameras", "camera_paths")
 # [bake] keys the bake understands (bake/settings.py) and the material rule's threshold;
 # others pass through with a warning.
-BAKE_KEYS = tuple(f.name for f in fields(BakeSettings)) + ("diffuse_roughness",)
+BAKE_KEYS = tuple(f.name for f in fields(BakeSettings) if f.name not in COMMAND_LINE_ONLY) + ("diffuse_roughness",)
 QUALITIES = ("draft", "preview", "final")
 UNITS = ("photometric", "radiometric")
 DEFAULT_YFOV_DEG = 50.0

@@ -20,14 +20,25 @@ small triangles. There the probes are shared out, PROBES_PER_TASK at a time, amo
 processes (the bake's --jobs), each with its own EGL context and renderer, started with spawn (a GL
 context does not survive fork); each probe is rendered alone, so the files are the same bytes
 whichever process renders it. A GPU gets one context: its driver queues the work anyway.
+
+On a Dask cluster (`glint bake --scheduler`, bake/executor.py DaskExecutor) the workers do not share
+this machine's file system: the bake inputs the renderer reads (the bake directory written so far,
+cube maps aside: manifest, meshes, light maps, textures) travel once to each worker as bytes
+(`bake_inputs`), which unpacks them into a folder of its own and renders there as a local worker
+process does (`ProbeWorker`, the same code), on a GL context of its own (EGL: a GPU driver, or Mesa's
+llvmpipe); each task's files come back as bytes and this process puts them into the bake directory.
+Every probe is a task's probes rendered alone, so the files are the bytes of a local bake.
 """
 from __future__ import annotations
 
 import math
 import multiprocessing as mp
 import os
+import shutil
+import socket
+import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Callable
@@ -45,6 +56,7 @@ from glint.bake.cubemap import (
     CubeMapPlan,
     supersample,
 )
+from glint.bake.executor import TASKS_PER_WORKER
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
@@ -84,12 +96,17 @@ def batches(plans: list[CubeMapPlan], limit: int = BATCH_MIB * 2 ** 20) -> list[
 
 
 def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
-                    progress: Callable[[], None] | None = None, workers: int = 1) -> dict:
+                    progress: Callable[[], None] | None = None, workers: int = 1, cluster=None) -> dict:
     """Render `plans` from the bake in `bake_dir` (manifest, meshes and light maps written) into
     its cubemaps/ folder, batch by batch; returns statistics (seconds, batches, processes, device).
     On a software renderer with `workers` > 1 the probes are shared out among that many processes,
-    each with its own GL context (see the module docstring); on a GPU one context renders them all."""
+    each with its own GL context (see the module docstring); on a GPU one context renders them all.
+    `cluster`: a Dask cluster's executor (bake/executor.py DaskExecutor), whose workers render them
+    instead (`workers` is then unused)."""
     t0 = time.perf_counter()
+    if cluster is not None:
+        return {**_render_on_cluster(cluster, bake_dir, plans, progress), "seconds": round(time.perf_counter() - t0, 3),
+                "batches": len(batches(plans))}
     ctx = headless_context()
     try:
         device, software = describe(ctx), software_renderer(ctx)
@@ -100,14 +117,11 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
     finally:
         ctx.release()
     if processes > 1:
-        # the largest faces first, so that the last tasks are short and the processes end together
-        by_size = sorted(plans, key=lambda p: -p.size)
-        tasks = [by_size[k:k + PROBES_PER_TASK] for k in range(0, len(plans), PROBES_PER_TASK)]
         spawn = mp.get_context("spawn")  # a GL context does not survive fork
         try:
             with ProcessPoolExecutor(processes, mp_context=spawn, initializer=_start_worker,
                                      initargs=(str(bake_dir),)) as pool:
-                for done in as_completed([pool.submit(_worker_task, task) for task in tasks]):
+                for done in as_completed([pool.submit(_worker_task, task) for task in probe_tasks(plans)]):
                     for _ in range(done.result()):
                         if progress is not None:
                             progress()
@@ -204,21 +218,124 @@ class ProbeRefresher:
         self.ctx.release()
 
 
+def probe_tasks(plans: list[CubeMapPlan], per_task: int = PROBES_PER_TASK) -> list[list[CubeMapPlan]]:
+    """The plans in tasks of `per_task` for worker processes: the largest faces first, so that the last
+    tasks are short and the processes end together."""
+    by_size = sorted(plans, key=lambda p: -p.size)
+    return [by_size[k:k + per_task] for k in range(0, len(by_size), per_task)]
+
+
+class ProbeWorker:
+    """A worker process's GL context and the bake's diffuse renderer, made once: it renders a task's
+    probes and writes their files into the bake directory it reads (the bake being written, for the
+    local processes; a Dask worker's copy of its inputs, `ClusterProbeWorker`).
+    llvmpipe rasterises on the drawing thread (LP_NUM_THREADS=0, unless the user set it): the
+    processes already keep the cores busy, and its raster threads would only contend with them."""
+
+    def __init__(self, bake_dir: str | Path):
+        os.environ.setdefault("LP_NUM_THREADS", "0")  # read when the first context opens, just below
+        self.bake_dir = Path(bake_dir)
+        self.ctx = headless_context()
+        self.device = describe(self.ctx)
+        self.renderer = _diffuse_renderer(self.ctx, self.bake_dir)
+
+    def render(self, plans: list[CubeMapPlan]) -> int:
+        _render_groups(self.ctx, self.bake_dir, batches(plans), None, self.renderer)
+        return len(plans)
+
+    def release(self) -> None:
+        self.renderer.release()
+        self.ctx.release()
+
+
 _worker: dict = {}
 
 
 def _start_worker(bake_dir: str) -> None:
-    """A worker process's GL context and renderer, made once (ProcessPoolExecutor initializer).
-    llvmpipe rasterises on the drawing thread (LP_NUM_THREADS=0, unless the user set it): the
-    processes already keep the cores busy, and its raster threads would only contend with them."""
-    os.environ.setdefault("LP_NUM_THREADS", "0")  # read when the first context opens, just below
-    ctx = headless_context()
-    _worker.update(ctx=ctx, bake_dir=bake_dir, renderer=_diffuse_renderer(ctx, bake_dir))
+    """ProcessPoolExecutor initializer of the local worker processes."""
+    _worker["probes"] = ProbeWorker(bake_dir)
 
 
 def _worker_task(plans: list[CubeMapPlan]) -> int:
-    _render_groups(_worker["ctx"], _worker["bake_dir"], batches(plans), None, _worker["renderer"])
-    return len(plans)
+    return _worker["probes"].render(plans)
+
+
+# -- on a Dask cluster --------------------------------------------------------------------------------
+def bake_inputs(bake_dir: Path) -> dict[str, bytes]:
+    """The files of the bake written so far that the probes' renderer reads, by path relative to the
+    bake directory: all but the cube maps (the diffuse view draws none)."""
+    bake_dir = Path(bake_dir)
+    return {path.relative_to(bake_dir).as_posix(): path.read_bytes() for path in sorted(bake_dir.rglob("*"))
+            if path.is_file() and path.relative_to(bake_dir).parts[0] != "cubemaps"}
+
+
+class ClusterProbeWorker:
+    """On a Dask worker: the bake inputs unpacked into a folder of its own, and a ProbeWorker over it on a
+    thread of its own (a GL context is current on one thread; Dask may run tasks on any of its threads).
+    `render` returns each probe's file as bytes, for the bake's own process to write."""
+
+    def __init__(self, files: dict[str, bytes]):
+        t0 = time.perf_counter()
+        self.folder = Path(tempfile.mkdtemp(prefix="glint-probes-"))
+        self.thread = ThreadPoolExecutor(1, thread_name_prefix="glint-gl")
+        try:
+            for name, data in files.items():
+                (self.folder / name).parent.mkdir(parents=True, exist_ok=True)
+                (self.folder / name).write_bytes(data)
+            self.probes = self.thread.submit(ProbeWorker, self.folder).result()
+            self.setup_seconds = time.perf_counter() - t0
+        except GlintError as e:  # no EGL there: the message says what to install, and where
+            self._remove()
+            raise GlintError(f"on the Dask worker machine {socket.gethostname()}: {e}") from None
+        except BaseException:
+            self._remove()
+            raise
+
+    def render(self, plans: list[CubeMapPlan]) -> dict:
+        """The task's files {"files": [(path in the bake, bytes)]}, which process (host:pid) and device
+        rendered them, in how many seconds, and the seconds this worker took to get ready."""
+        t0 = time.perf_counter()
+        self.thread.submit(self.probes.render, plans).result()
+        files = []
+        for plan in plans:
+            path = self.folder / plan.file
+            files.append((plan.file, path.read_bytes()))
+            path.unlink()
+        return {"files": files, "process": f"{socket.gethostname()}:{os.getpid()}", "device": self.probes.device,
+                "seconds": time.perf_counter() - t0, "setup_seconds": self.setup_seconds}
+
+    def release(self) -> None:
+        self.thread.submit(self.probes.release).result()
+        self._remove()
+
+    def _remove(self) -> None:
+        self.thread.shutdown()
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def _cluster_task(worker: ClusterProbeWorker, plans: list[CubeMapPlan]):
+    return worker.render(plans)
+
+
+def _render_on_cluster(cluster, bake_dir: Path, plans: list[CubeMapPlan], progress) -> dict:
+    """The probes rendered by the cluster's workers, their files written here; statistics: the worker
+    processes that rendered, their devices, the longest task and the longest a worker took to get ready
+    (unpack the inputs, open its GL context, build the renderer)."""
+    # tasks small enough that every worker thread gets several, at most PROBES_PER_TASK probes
+    per_task = max(1, min(PROBES_PER_TASK, len(plans) // (TASKS_PER_WORKER * cluster.workers())))
+    processes, devices, longest, setup = set(), set(), 0.0, 0.0
+    for _, task in cluster.run(ClusterProbeWorker, (bake_inputs(bake_dir),), _cluster_task,
+                               probe_tasks(plans, per_task)):
+        processes.add(task["process"])
+        devices.add(task["device"])
+        longest, setup = max(longest, task["seconds"]), max(setup, task["setup_seconds"])
+        for name, data in task["files"]:
+            (Path(bake_dir) / name).parent.mkdir(parents=True, exist_ok=True)
+            (Path(bake_dir) / name).write_bytes(data)
+            if progress is not None:
+                progress()
+    return {"processes": len(processes), "device": "; ".join(sorted(devices)), "cluster": cluster.address,
+            "task_seconds_max": round(longest, 3), "worker_setup_seconds_max": round(setup, 3)}
 
 
 def farthest(lo, hi, centre) -> float:

@@ -71,6 +71,13 @@ def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_e
                    help="light-map resolution (overrides the preset)")
     p.add_argument("-j", "--jobs", type=_whole(0), metavar="N",
                    help="worker processes (default: the sidecar's [bake] jobs, else 0 = one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="bake on a Dask cluster: the light-map tiles and cube maps become tasks on its workers. "
+                        "ADDRESS is tcp://HOST:PORT of a running `dask scheduler` (workers started with `dask worker "
+                        "tcp://HOST:PORT --nthreads 1`, each with this glint version and, for the cube maps, EGL: "
+                        "a GPU driver or Mesa's llvmpipe), or local:N for a cluster of N worker processes on this "
+                        "machine. The bake is the same bytes as without it; needs pip install 'glint[cluster]' "
+                        "(docs/BAKE.md \"On a cluster (Dask)\")")
     p.add_argument("--no-denoise", action="store_true", help="keep the path-traced noise (no Open Image Denoise)")
     p.add_argument("--force", action="store_true", help="bake everything again even if up to date")
 
@@ -127,7 +134,7 @@ def fidelity_line(manifest: dict) -> str | None:
 
 def _command_line_settings(args) -> dict:
     return {"quality": args.quality, "samples": args.samples, "texels_per_metre": args.texels_per_metre,
-            "jobs": args.jobs, "denoise": False if args.no_denoise else None}
+            "jobs": args.jobs, "scheduler": args.scheduler, "denoise": False if args.no_denoise else None}
 
 
 def settings_for(scene: Scene, args, existing: dict | None) -> BakeSettings:

@@ -256,9 +256,9 @@ def test_rebake_renders_only_the_cube_maps_whose_inputs_changed(tmp_path, monkey
     rendered = []
     real = services.render_cubemaps
 
-    def recording(bake_dir, plans, progress=None, workers=1):
+    def recording(bake_dir, plans, progress=None, workers=1, cluster=None):
         rendered.extend(p.name for p in plans)
-        return real(bake_dir, plans, progress, workers)
+        return real(bake_dir, plans, progress, workers, cluster)
 
     def no_lightmaps(*a, **k):
         raise AssertionError("light maps were re-baked")
