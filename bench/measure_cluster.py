@@ -216,9 +216,13 @@ def measure_sizes(scene_arg: str, quality: str, bake_dir: Path | None) -> dict:
     covered = [(p.object >= 0) & ~_cut_out(scene, p) for p in pages]
     points = np.concatenate([p.position[c] for p, c in zip(pages, covered)])
     normals = np.concatenate([p.normal[c] for p, c in zip(pages, covered)])
-    arrays = {k: v for m in scene.materials for k, v in vars(m).items() if isinstance(v, np.ndarray) and v.ndim >= 2}
+    textures = {}  # the materials' images (kd_texture, ...) by attribute, MiB
+    for m in scene.materials:
+        for name, value in vars(m).items():
+            if isinstance(value, np.ndarray) and value.ndim >= 2:
+                textures[name] = textures.get(name, 0.0) + value.nbytes / 2 ** 20
     out = {"scene": scene_arg, "quality": quality, "scene_mib": _pickled_bytes(scene) / 2 ** 20,
-           "material_arrays_mib": sum(v.nbytes for v in arrays.values()) / 2 ** 20,
+           "material_textures_mib": {name: round(mib, 3) for name, mib in textures.items()},
            "front_texels": len(points), "front_points_normals_mib": _pickled_bytes((points, normals)) / 2 ** 20,
            "tile_task_bytes": len(pickle.dumps((0, TILE, settings.samples, settings.seed, settings.max_depth))),
            "tile_result_bytes": _pickled_bytes((np.zeros((TILE, 3), np.float32), np.zeros(TILE, np.float32), 0))}
