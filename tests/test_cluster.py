@@ -18,6 +18,7 @@ import sys
 import time
 from pathlib import Path
 
+import distributed  # in the `test` extra (pyproject.toml): CI runs these tests
 import pytest
 from conftest import FAST
 
@@ -31,8 +32,6 @@ from glint.cli import main
 from glint.core.errors import GlintError
 from glint.scenes.stress import many_objects
 from glint.services import bake_scene
-
-distributed = pytest.importorskip("distributed")  # in the `test` extra: CI has it (pyproject.toml)
 
 # 26,012 texels (13 tiles of glint.bake.lightmap.TILE), three cube maps (probe_sharing = 0: one per
 # metal box); about 0.2 s a tile at 32 samples, so a worker killed after the first result still has work
