@@ -6,6 +6,7 @@ that overhead goes, and the model of the time on larger clusters made from them.
         [--rounds 5] [--configs local local:1 local:2] [--json docs/bench/cluster/preview.json]
     python3 -m glint.bench.measure_cluster --overhead [--json docs/bench/cluster/task_overhead.json]
     python3 -m glint.bench.measure_cluster --model docs/bench/cluster/A.json [B.json ...] [--cores 8 64 512]
+    python3 -m glint.bench.measure_cluster --sizes SCENE [--quality preview] [--bake-dir DIR] [--json ...]
 
 Runs: each round bakes every scene with every configuration once, in turn (interleaved, so that
 other work on a shared machine weighs on all alike), as `python -m glint bake SCENE -q QUALITY
@@ -19,8 +20,11 @@ local executor's.
 
 --overhead: what a task costs on the engine beyond its work: 400 tasks that return a light-map tile's
 result (2048 x 3 + 2048 float32) and do nothing else, on local:2 (once started) and on the local
-executor's two processes; seconds per task. --model: the time of each measured bake on 8, 64 and 512
-cores (docs/BAKE.md states the model and what it assumes).
+executor's two processes; seconds per task. And the phases of a local:2 cluster's start in a fresh
+interpreter (median of 5): importing Dask, the fork server's imports, the two workers, closing. --model: the time of each measured bake on 8, 64 and 512
+cores (docs/BAKE.md states the model and what it assumes). --sizes: what travels for a scene (the
+light-map stage's scattered inputs and a tile's task and result, pickled; with --bake-dir the
+cube-map stage's inputs and its probe files).
 """
 from __future__ import annotations
 
@@ -139,11 +143,44 @@ def _no_state():
     return None
 
 
+# Run in a fresh interpreter (`python -c`), as `glint bake --scheduler local:2` meets them: the phases of
+# starting a local:N cluster (bake/executor.py DaskExecutor._connect), each timed on its own.
+STARTUP = """
+import json, multiprocessing, sys, time
+t0 = time.perf_counter()
+import glint.cli  # what the glint command has imported when its bake starts
+from glint.bake import executor as E
+t1 = time.perf_counter()
+E._start_forkserver()
+distributed = E._import_distributed()
+t2 = time.perf_counter()
+process = multiprocessing.get_context("forkserver").Process(target=E.worker_version)
+process.start(); process.join()  # the first child: once the server has imported WORKER_MODULES
+t3 = time.perf_counter()
+cluster = E._local_cluster(distributed, 2)
+client = distributed.Client(cluster.scheduler_address, set_as_default=False)
+t4 = time.perf_counter()
+client.close(); cluster.close()
+t5 = time.perf_counter()
+print(json.dumps({"import_glint_cli_seconds": t1 - t0, "import_dask_seconds": t2 - t1,
+                  "fork_server_ready_after_seconds": t3 - t2, "two_workers_seconds": t4 - t3, "close_seconds": t5 - t4}))
+"""
+
+
+def measure_startup(runs: int = 5) -> dict:
+    """The median of `runs` fresh interpreters' start-up phases (STARTUP)."""
+    rows = []
+    for _ in range(runs):
+        run = subprocess.run([sys.executable, "-c", STARTUP], capture_output=True, text=True, check=True)
+        rows.append(json.loads(run.stdout.strip().splitlines()[-1]))
+    return {key: round(statistics.median(r[key] for r in rows), 3) for key in rows[0]}
+
+
 def measure_overhead(tasks: int = 400) -> dict:
     """Seconds per task beyond its work, on local:2 (started beforehand) and on two local processes."""
     from glint.bake.executor import DaskExecutor, LocalExecutor
 
-    out = {"tasks": tasks}
+    out = {"tasks": tasks, "startup_phases_median_of_5": measure_startup()}
     with DaskExecutor("local:2") as cluster:
         t0 = time.perf_counter()
         cluster.start()
@@ -155,6 +192,51 @@ def measure_overhead(tasks: int = 400) -> dict:
             assert done == tasks
             out[f"{name}_seconds_per_task"] = round((time.perf_counter() - t0) / tasks, 5)
     return out
+
+
+def measure_sizes(scene_arg: str, quality: str, bake_dir: Path | None) -> dict:
+    """What the light-map stage scatters for `scene_arg` at `quality` (the scene, the texels' points and
+    normals; pickled as Dask sends them) and what its tasks carry, and, given a bake directory of it,
+    what the cube-map stage scatters (bake_inputs) and its probe files' sizes by face size."""
+    import pickle
+
+    from glint.bake.executor import _pickled_bytes
+    from glint.bake.lightmap import TILE, _cut_out
+    from glint.bake.settings import resolve_settings
+    from glint.bake.texels import rasterize_texels
+    from glint.bake.unwrap import unwrap
+    from glint.core.bake_dir import read_manifest
+    from glint.cubemap_stage import bake_inputs
+    from glint.services import open_scene
+
+    scene, _ = open_scene(scene_arg)
+    settings = resolve_settings(scene.bake_settings, quality=quality)
+    pages = rasterize_texels(scene.objects, unwrap(scene.objects, settings.texels_per_metre, settings.padding,
+                                                   settings.max_page_size))
+    covered = [(p.object >= 0) & ~_cut_out(scene, p) for p in pages]
+    points = np.concatenate([p.position[c] for p, c in zip(pages, covered)])
+    normals = np.concatenate([p.normal[c] for p, c in zip(pages, covered)])
+    textures = {}  # the materials' images (kd_texture, ...) by attribute, MiB
+    for m in scene.materials:
+        for name, value in vars(m).items():
+            if isinstance(value, np.ndarray) and value.ndim >= 2:
+                textures[name] = textures.get(name, 0.0) + value.nbytes / 2 ** 20
+    out = {"scene": scene_arg, "quality": quality, "scene_mib": _pickled_bytes(scene) / 2 ** 20,
+           "material_textures_mib": {name: round(mib, 3) for name, mib in textures.items()},
+           "front_texels": len(points), "front_points_normals_mib": _pickled_bytes((points, normals)) / 2 ** 20,
+           "tile_task_bytes": len(pickle.dumps((0, TILE, settings.samples, settings.seed, settings.max_depth))),
+           "tile_result_bytes": _pickled_bytes((np.zeros((TILE, 3), np.float32), np.zeros(TILE, np.float32), 0))}
+    if bake_dir is not None:
+        files = bake_inputs(bake_dir)
+        out.update(cubemap_inputs_mib=sum(map(len, files.values())) / 2 ** 20, cubemap_inputs_files=len(files))
+        by_size = {}
+        for entry in read_manifest(bake_dir)["objects"]:
+            if entry.get("cubemap"):
+                by_size.setdefault(entry["cubemap"]["size"], set()).add(entry["cubemap"]["file"])
+        out["cubemap_file_kib_by_face_size"] = {
+            size: sorted(round((bake_dir / f).stat().st_size / 1024, 1) for f in names)
+            for size, names in sorted(by_size.items())}
+    return {k: round(v, 3) if isinstance(v, float) else v for k, v in out.items()}
 
 
 def model(runs: list[dict], overhead: dict, cores=CORES) -> list[dict]:
@@ -219,11 +301,17 @@ def main(argv=None) -> int:
     parser.add_argument("--model", nargs="+", type=Path, metavar="JSON",
                         help="model larger clusters from these runs' files and --overhead's (task_overhead.json)")
     parser.add_argument("--cores", nargs="+", type=int, default=list(CORES))
+    parser.add_argument("--sizes", metavar="SCENE", help="what travels for this scene at --quality (the first of "
+                        "--scenes), with --bake-dir its cube-map inputs too")
+    parser.add_argument("--bake-dir", type=Path, help="a bake directory of the --sizes scene")
     parser.add_argument("--json", type=Path, help="write the results here")
     args = parser.parse_args(argv)
     about = {"machine": platform.node(), "cpus": os.cpu_count(), "python": platform.python_version(),
              "commit": commit(), "command": " ".join(["python3 -m glint.bench.measure_cluster", *sys.argv[1:]])}
-    if args.model:
+    if args.sizes:
+        result = {**about, **measure_sizes(args.sizes, args.quality, args.bake_dir)}
+        print(result)
+    elif args.model:
         files = [json.loads(path.read_text()) for path in args.model]
         runs = [r for f in files for r in f.get("runs", [])]
         overhead = next(f for f in files if "local2_seconds_per_task" in f)

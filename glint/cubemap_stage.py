@@ -27,7 +27,7 @@ cube maps aside: manifest, meshes, light maps, textures) travel once to each wor
 (`bake_inputs`), which unpacks them into a folder of its own and renders there as a local worker
 process does (`ProbeWorker`, the same code), on a GL context of its own (EGL: a GPU driver, or Mesa's
 llvmpipe); each task's files come back as bytes and this process puts them into the bake directory.
-Every probe is a task's probes rendered alone, so the files are the bytes of a local bake.
+A probe is rendered alone, whichever task and worker it falls to, so the files are a local bake's bytes.
 """
 from __future__ import annotations
 

@@ -76,7 +76,8 @@ def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_e
                         "ADDRESS is tcp://HOST:PORT of a running `dask scheduler` (workers started with `dask worker "
                         "tcp://HOST:PORT --nthreads 1`, each with this glint version and, for the cube maps, EGL: "
                         "a GPU driver or Mesa's llvmpipe), or local:N for a cluster of N worker processes on this "
-                        "machine. The bake is the same bytes as without it; needs pip install 'glint[cluster]' "
+                        "machine (--jobs is then unused). The bake is the same bytes as without it; needs "
+                        "pip install 'glint[cluster]' "
                         "(docs/BAKE.md \"On a cluster (Dask)\")")
     p.add_argument("--no-denoise", action="store_true", help="keep the path-traced noise (no Open Image Denoise)")
     p.add_argument("--force", action="store_true", help="bake everything again even if up to date")

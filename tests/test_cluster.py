@@ -18,6 +18,7 @@ import sys
 import time
 from pathlib import Path
 
+import distributed  # in the `test` extra (pyproject.toml): CI runs these tests
 import pytest
 from conftest import FAST
 
@@ -31,8 +32,6 @@ from glint.cli import main
 from glint.core.errors import GlintError
 from glint.scenes.stress import many_objects
 from glint.services import bake_scene
-
-distributed = pytest.importorskip("distributed")  # in the `test` extra: CI has it (pyproject.toml)
 
 # 26,012 texels (13 tiles of glint.bake.lightmap.TILE), three cube maps (probe_sharing = 0: one per
 # metal box); about 0.2 s a tile at 32 samples, so a worker killed after the first result still has work
@@ -91,7 +90,7 @@ def test_local_2_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monk
     cube-map progress counts each probe once; the workers, not this process, rendered the probes.
     Deliberate bugs tried: DaskExecutor.run yielding each result with its place in the order of
     completion instead of its task's index: "glint: internal error: ValueError: could not broadcast
-    input array from shape (2048,3) into shape (1436,3)" (the first tile put in the last, shorter
+    input array from shape (1626,3) into shape (1622,3)" (the first tile put in the last, shorter
     slot; tasks in their submitted order hid this bug in a run without the priorities). And
     bake_inputs reading the bake directory's top level only (glob, not rglob): exit 2, "glint: on the
     Dask worker machine vm: image: no such file /tmp/glint-probes-.../lightmaps/page_0.exr"."""
