@@ -32,7 +32,7 @@ import threading
 import time
 from typing import Any, Callable, Iterable, Iterator
 
-from glint.core.errors import GlintError, warn
+from glint.core.errors import GlintError, one_line, warn
 
 # What a future of a lost scheduler raises (Dask cancels every future when its connection is gone).
 CANCELLED = (asyncio.CancelledError, concurrent.futures.CancelledError)
@@ -262,7 +262,7 @@ class DaskExecutor:
             try:
                 self._client = distributed.Client(address, timeout=CONNECT_SECONDS, set_as_default=False)
             except (OSError, TimeoutError) as e:
-                raise GlintError(f"cannot reach the Dask scheduler at {self.address} ({_one_line(e)}): start one "
+                raise GlintError(f"cannot reach the Dask scheduler at {self.address} ({one_line(e)}): start one "
                                  "with `dask scheduler`, or use --scheduler local:N") from None
             self._check_versions()
             threads = self._client.nthreads()
@@ -337,13 +337,13 @@ class DaskExecutor:
         except GlintError:
             raise
         except distributed.KilledWorker as e:  # Dask's own retries spent
-            raise GlintError(f"a bake task ended the Dask worker that ran it, on every try ({_one_line(e)}); the "
+            raise GlintError(f"a bake task ended the Dask worker that ran it, on every try ({one_line(e)}); the "
                              "workers may be short of memory: give them more, or bake without --scheduler") from None
         except (OSError, *CANCELLED) as e:
             raise self._lost(e) from None
 
     def _lost(self, e: BaseException) -> GlintError:
-        reason = "connection lost" if isinstance(e, CANCELLED) else _one_line(e)
+        reason = "connection lost" if isinstance(e, CANCELLED) else one_line(e)
         return GlintError(f"lost the Dask scheduler at {self.address} during the bake ({reason}); "
                           "the previous bake directory is as it was: bake again")
 
@@ -372,10 +372,6 @@ def _pickled_bytes(value) -> int:
     buffers = []
     head = pickle.dumps(value, protocol=5, buffer_callback=buffers.append)
     return len(head) + sum(b.raw().nbytes for b in buffers)
-
-
-def _one_line(e: BaseException) -> str:
-    return " ".join(str(e).split()) or type(e).__name__
 
 
 # What the worker processes of a local:N cluster have imported before they start (_start_forkserver):

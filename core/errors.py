@@ -33,6 +33,12 @@ class GlintError(Exception):
     """
 
 
+def one_line(e: BaseException) -> str:
+    """An exception's message on one line (whitespace runs as one space), or its type's name when it
+    has none: for the detail a GlintError quotes from a library's exception."""
+    return " ".join(str(e).split()) or type(e).__name__
+
+
 @dataclass(frozen=True)
 class WarningKind:
     """A warning that repeats per subject (object, material, camera), summarised in one line.

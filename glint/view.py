@@ -17,7 +17,7 @@ from glint.bake.edits import format_assignment, material_assignments, parse_assi
 from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.bake.rebake import Rebaker
 from glint.core.bake_dir import Bake
-from glint.core.errors import GlintError
+from glint.core.errors import GlintError, one_line
 from glint.cubemap_stage import ProbeRefresher
 from glint.scenes import BUILTIN, resolve
 from glint.services import SCENE_HELP, add_bake_options, add_edit_option, parse_size, run_bake
@@ -119,8 +119,7 @@ def cmd_view(args) -> int:
         window = create_window(size=(width, height), title=f"glint — {name}", vsync=args.vsync,
                                fullscreen=args.fullscreen)
     except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
-        detail = " ".join(str(e).split()) or type(e).__name__
-        raise no_window(args.scene, f"{type(e).__name__}: {detail}") from e
+        raise no_window(args.scene, f"{type(e).__name__}: {one_line(e)}") from e
     save = sidecar_saver(args.scene, resolve(args.scene), [dict(m) for m in manifest["materials"]], args.edits)
     rebaker = background_rebake(manifest, report.bake_dir, args.edits)  # the worker loads the scene as edited
     try:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import moderngl
 
-from glint.core.errors import GlintError
+from glint.core.errors import GlintError, one_line
 from glint.viewer.gl import GL_REQUIRED, check_context
 
 
@@ -20,10 +20,9 @@ def headless_context(require: int = GL_REQUIRED) -> moderngl.Context:
     try:
         ctx = moderngl.create_standalone_context(backend="egl", require=require)
     except Exception as e:  # moderngl/glcontext raise plain Exceptions with the EGL error in the text
-        detail = " ".join(str(e).split()) or type(e).__name__
         raise GlintError(
             f"cannot create a headless OpenGL {require // 100}.{require % 100 // 10} context with EGL "
-            f"({detail}); install a GPU driver with EGL, or Mesa's EGL and llvmpipe "
+            f"({one_line(e)}); install a GPU driver with EGL, or Mesa's EGL and llvmpipe "
             "(Debian/Ubuntu: apt-get install libegl1 libegl-mesa0 libgl1 libgl1-mesa-dri)") from e
     check_context(ctx, require)
     return ctx
