@@ -33,7 +33,7 @@ so the viewer keeps its frame rate while the bake's own integrator runs:
   `plan_cubemaps` of the unedited scene, checked against the manifest's hashes) from the edited
   materials and that pass's pages, and delivers each probe's faces as their MIP chain
   (`poll_probes`). The last pass's probes are what `glint bake --force` of the edited sidecar
-  renders (tests/test_rebake.py). Only the first and the last: each refresh renders every probe
+  renders (tests/test_probe_refresh.py). Only the first and the last: each refresh renders every probe
   (the bake's whole cube-map stage), and a probe shows the light maps blurred, where the middle
   passes' lower noise does not show. A probe's size and its sharing stay the bake's (an edit that
   changes them, e.g. a rougher lobe, takes `glint bake`).
@@ -136,7 +136,7 @@ class ProbeUpdate:
     """One re-rendered cube-map probe (after pass `index` of edit `generation`)."""
 
     file: str  # the bake's file of the probe (manifest objects' `cubemap.file`): which probe
-    chain: list[np.ndarray]  # its faces' MIP chain, (6, S, S, 4) float32 first (viewer/cubemaps.py mip_chain)
+    chain: list[np.ndarray]  # its faces' MIP chain, (6, S, S, 4) first, half float where it fits (mip_chain)
     generation: int
     index: int
     seconds: float  # since the edit was made
@@ -366,8 +366,16 @@ class Rebaker:
         rendered) too."""
         if self.last is None or not self.last.final:
             return False
-        if not (self.ready or {}).get("probes") or self.probe_error is not None:
-            return True
+        return not self._probe_count or self.probe_error is not None or self._probes_final
+
+    @property
+    def _probe_count(self) -> int:
+        """The bake's probes the worker re-renders (0 before it is ready, or without probes)."""
+        return (self.ready or {}).get("probes", 0)
+
+    @property
+    def _probes_final(self) -> bool:
+        """The newest edit's probes of its last pass are all in."""
         return self.probes_done is not None and self.probes_done[0] == len(self.schedule) - 1
 
     @property
@@ -380,14 +388,13 @@ class Rebaker:
         n = len(self.schedule)
         if self.last is not None and self.last.final:
             line = f"light maps re-baked: {self.last.samples} paths/texel in {self.last.seconds:.1f} s"
-            probes = (self.ready or {}).get("probes", 0)
             if self.probe_error is not None:
                 return f"{line}; cube maps not re-rendered: {self.probe_error}"
-            if probes and self.probes_done is not None and self.probes_done[0] == n - 1:
+            if self._probe_count and self._probes_final:
                 return f"{line}, cube maps in {self.probes_done[1]:.1f} s"
-            if probes:
+            if self._probe_count:
                 done = self.probes_in if self._probe_pass == n - 1 else 0
-                return f"{line}; re-rendering cube maps: {done} of {probes}"
+                return f"{line}; re-rendering cube maps: {done} of {self._probe_count}"
             return line
         done = 0 if self.last is None else self.last.index + 1
         return (f"re-baking light maps: pass {done + 1} of {n} ({self.schedule[done]} paths/texel), "

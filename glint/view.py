@@ -140,5 +140,5 @@ def background_rebake(manifest: dict, bake_dir: Path, edits=()):
     source = manifest["scene"].get("source")
     if not source or not Path(source).is_file():
         return None
-    has_probes = any(o.get("cubemap") for o in manifest["objects"])
-    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher if has_probes else None)
+    # the worker plans the bake's probes (none: nothing to refresh) and renders them after its passes
+    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher)
