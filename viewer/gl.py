@@ -221,6 +221,19 @@ class GL:
         finally:
             self.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
 
+    @contextmanager
+    def _from_client_memory(self):
+        """`with gl._from_client_memory():` texel uploads inside read their pixels from client memory
+        (no pixel-unpack buffer bound, rows byte-aligned); the buffer bound before is bound again."""
+        unpack = ctypes.c_int(0)
+        self.GetIntegerv(GL_PIXEL_UNPACK_BUFFER_BINDING, ctypes.byref(unpack))
+        self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0)
+        self.PixelStorei(GL_UNPACK_ALIGNMENT, 1)
+        try:
+            yield
+        finally:
+            self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, unpack.value)
+
     def upload_cube_array(self, pixels: np.ndarray, what: str) -> int:
         """A new cube-map array holding `pixels`, (layers x 6, S, S, 4) float16 or float32 (layer-face
         = layer * 6 + face, rows from t = 0), RGBA16F or RGBA32F to match, with a full MIP chain
@@ -228,18 +241,11 @@ class GL:
         depth, size = pixels.shape[0], pixels.shape[1]
         half = pixels.dtype == np.float16
         pixels = np.ascontiguousarray(pixels)
-        unpack = ctypes.c_int(0)
-        self.GetIntegerv(GL_PIXEL_UNPACK_BUFFER_BINDING, ctypes.byref(unpack))
-        self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0)  # read the pixels from client memory
-        self.PixelStorei(GL_UNPACK_ALIGNMENT, 1)
-        try:
-            with self._new_cube_array(f"upload {what}") as name:
-                self.TexImage3D(GL_TEXTURE_CUBE_MAP_ARRAY, 0, GL_RGBA16F if half else GL_RGBA32F, size, size, depth,
-                                0, GL_RGBA, GL_HALF_FLOAT if half else GL_FLOAT, pixels.ctypes.data)
-                self._cube_array_parameters()
-                self.GenerateMipmap(GL_TEXTURE_CUBE_MAP_ARRAY)
-        finally:
-            self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, unpack.value)
+        with self._from_client_memory(), self._new_cube_array(f"upload {what}") as name:
+            self.TexImage3D(GL_TEXTURE_CUBE_MAP_ARRAY, 0, GL_RGBA16F if half else GL_RGBA32F, size, size, depth,
+                            0, GL_RGBA, GL_HALF_FLOAT if half else GL_FLOAT, pixels.ctypes.data)
+            self._cube_array_parameters()
+            self.GenerateMipmap(GL_TEXTURE_CUBE_MAP_ARRAY)
         return name
 
     def write_cube_layers(self, name: int, level: int, first: int, pixels: np.ndarray, what: str) -> None:
@@ -249,19 +255,14 @@ class GL:
         pixels = np.ascontiguousarray(pixels)
         count, size = pixels.shape[0], pixels.shape[1]
         half = pixels.dtype == np.float16
-        unpack = ctypes.c_int(0)
-        self.GetIntegerv(GL_PIXEL_UNPACK_BUFFER_BINDING, ctypes.byref(unpack))
-        self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, 0)  # read the pixels from client memory
-        self.PixelStorei(GL_UNPACK_ALIGNMENT, 1)
         try:
-            with self.checked(f"write {what}"):
+            with self._from_client_memory(), self.checked(f"write {what}"):
                 self.ActiveTexture(GL_TEXTURE0 + self.ctx.default_texture_unit)
                 self.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, name)
                 self.TexSubImage3D(GL_TEXTURE_CUBE_MAP_ARRAY, level, 0, 0, first, size, size, count, GL_RGBA,
                                    GL_HALF_FLOAT if half else GL_FLOAT, pixels.ctypes.data)
         finally:
             self.BindTexture(GL_TEXTURE_CUBE_MAP_ARRAY, 0)
-            self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, unpack.value)
 
     def allocate_cube_array(self, size: int, depth: int, levels: int, internal: int, what: str) -> int:
         """A new immutable cube-map array of `levels` levels, faces of `size` texels, `depth`
