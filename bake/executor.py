@@ -9,7 +9,7 @@ depend on the number of workers or on which worker ran what.
 - `LocalExecutor(jobs)`: forked processes of this machine (they inherit setup_args unpickled).
 - `DaskExecutor(address)`: the workers of a Dask cluster (`distributed`), for `glint bake
   --scheduler`: `tcp://HOST:PORT` (a running `dask scheduler`) or `local:N` (a cluster of N worker
-  processes on this machine, started and closed by the executor). setup_args are scattered once
+  processes on this machine, started and closed by the executor: bake/local_cluster.py). setup_args are scattered once
   (`client.scatter`, to every worker) and travel once to each worker, which builds its state from
   them on its first task and keeps it for the others; each task carries only its own small
   description (a tile's first texel and count; a list of probes). Dask is imported here only when
@@ -32,12 +32,14 @@ import threading
 import time
 from typing import Any, Callable, Iterable, Iterator
 
+from glint.bake import local_cluster
 from glint.core.errors import GlintError, one_line, warn
 
 # What a future of a lost scheduler raises (Dask cancels every future when its connection is gone).
 CANCELLED = (asyncio.CancelledError, concurrent.futures.CancelledError)
 CONNECT_SECONDS = 5  # to reach a scheduler: a reachable one answers in milliseconds
 LOST_INPUTS_RETRIES = 2
+ARRIVAL_SECONDS = 30  # how long a local:N cluster's start waits for its workers to register, at most
 # Tasks per worker thread a stage aims at on a cluster, at least: a late worker or a slow task then
 # delays the stage by a fraction of a worker's share (bake/lightmap.py tile_size, the cube-map stage)
 TASKS_PER_WORKER = 4
@@ -208,8 +210,11 @@ class DaskExecutor:
         self.address = check_scheduler_address(address)
         local = LOCAL_ADDRESS.fullmatch(address)
         self.local_workers = int(local.group(1)) if local else None
-        self._client = self._cluster = self._error = None
+        self._client = self._cluster = self._error = self._server = None
         self._starting: threading.Thread | None = None
+        self._closing = False
+        self._failure: GlintError | None = None  # set by _watch_server
+        self._arrived = threading.Event()  # local:N: set once its workers have registered, or it failed
         self._quiet = None  # Dask's log lines kept to QUIET while open
         # for the manifest's statistics.cluster: what the cluster cost this bake
         self.statistics = {"scheduler": address, "workers": 0, "threads": 0, "start_seconds": 0.0,
@@ -230,6 +235,11 @@ class DaskExecutor:
         if self.local_workers is None:
             self._connect()
             return
+        self._started = time.perf_counter()
+        self._server = local_cluster.take_server()  # forked or spawned here, on the main thread
+        self.statistics["worker_server"] = self._server.started
+        threading.Thread(target=self._watch_server, args=(self._server,), name="glint-dask-server",
+                         daemon=True).start()
         self._starting = threading.Thread(target=self._connect, name="glint-dask-start", daemon=True)
         self._starting.start()
 
@@ -247,16 +257,16 @@ class DaskExecutor:
         return self._client
 
     def _connect(self) -> None:
-        t0 = time.perf_counter()
+        t0 = getattr(self, "_started", None) or time.perf_counter()
         try:
-            if self.local_workers is not None:
-                _start_forkserver()  # before Dask is imported here: the server imports it meanwhile
             distributed = _import_distributed()
             self._quiet = distributed.utils.silence_logging_cmgr(QUIET)
             self._quiet.__enter__()
             if self.local_workers is not None:
-                self._cluster = _local_cluster(distributed, self.local_workers)
+                # the scheduler here; the server forks the workers, which register while the bake goes on
+                self._cluster = local_cluster.start_scheduler(distributed, QUIET, self.local_workers, self._arrived)
                 address = self._cluster.scheduler_address
+                self._server.start_workers(address, self.local_workers, QUIET)
             else:
                 address = self.address
             try:
@@ -264,8 +274,14 @@ class DaskExecutor:
             except (OSError, TimeoutError) as e:
                 raise GlintError(f"cannot reach the Dask scheduler at {self.address} ({one_line(e)}): start one "
                                  "with `dask scheduler`, or use --scheduler local:N") from None
-            self._check_versions()
-            threads = self._client.nthreads()
+            if self.local_workers is not None:  # forked from this glint, or spawned from its files
+                self._arrived.wait(ARRIVAL_SECONDS)  # tasks would wait for them anyway; scatter looks for them
+                if self._failure is not None:
+                    raise self._failure
+                threads = dict.fromkeys(range(self.local_workers), 1)
+            else:
+                self._check_versions()
+                threads = self._client.nthreads()
             self.statistics.update(start_seconds=round(time.perf_counter() - t0, 3), workers=len(threads),
                                    threads=sum(threads.values()))
             if self.local_workers is None and not threads:
@@ -285,8 +301,27 @@ class DaskExecutor:
                 raise version_error(address, theirs, ours)
 
     def workers(self) -> int:
-        """Worker threads in the cluster now (what a stage may size its tasks by)."""
+        """Worker threads in the cluster now (what a stage may size its tasks by); local:N: N, registered
+        or about to be."""
+        if self.local_workers is not None:
+            return self.local_workers
         return max(1, sum(self.client.nthreads().values()))
+
+    def _watch_server(self, server) -> None:
+        """A local:N cluster's worker server that gives up or ends while the bake runs ends the bake: its
+        reason is kept for `_lost`, and the client is closed, which cancels the futures `run` waits on."""
+        reason = server.watch()
+        if self._closing:
+            return
+        self._failure = GlintError(f"the worker processes of the local Dask cluster ({self.address}) could not be "
+                                   f"kept running ({reason or 'their server ended'}): bake without --scheduler")
+        self._arrived.set()
+        client = self._client
+        if client is not None:
+            try:
+                client.close()
+            except Exception:  # closing already
+                pass
 
     def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable) -> Iterator[tuple[int, Any]]:
         client = self.client
@@ -343,6 +378,8 @@ class DaskExecutor:
             raise self._lost(e) from None
 
     def _lost(self, e: BaseException) -> GlintError:
+        if self._failure is not None:
+            return self._failure
         reason = "connection lost" if isinstance(e, CANCELLED) else one_line(e)
         return GlintError(f"lost the Dask scheduler at {self.address} during the bake ({reason}); "
                           "the previous bake directory is as it was: bake again")
@@ -355,8 +392,10 @@ class DaskExecutor:
         self._disconnect()
 
     def _disconnect(self) -> None:
-        client, cluster, self._client, self._cluster = self._client, self._cluster, None, None
-        for part in (client, cluster):
+        self._closing = True
+        client, cluster, server = self._client, self._cluster, self._server
+        self._client = self._cluster = self._server = None
+        for part in (client, cluster, server):  # the scheduler closed first: its workers then end by themselves
             if part is not None:
                 try:
                     part.close()
@@ -372,39 +411,6 @@ def _pickled_bytes(value) -> int:
     buffers = []
     head = pickle.dumps(value, protocol=5, buffer_callback=buffers.append)
     return len(head) + sum(b.raw().nbytes for b in buffers)
-
-
-# What the worker processes of a local:N cluster have imported before they start (_start_forkserver):
-# the command's main module too, which a forked child would otherwise run again itself (multiprocessing
-# does, for a script such as the `glint` command's)
-WORKER_MODULES = ("__main__", "distributed", "glint.bake.lightmap", "glint.cubemap_stage")
-
-
-def _start_forkserver() -> None:
-    """Start multiprocessing's fork server, which imports WORKER_MODULES, for a local:N cluster's
-    worker processes to be forked from (`_local_cluster`), unless it runs already.
-
-    Forked from this process instead, the workers would inherit the thread pools of the libraries it
-    used (OpenImageIO, Embree, Open Image Denoise) without their threads: a child forked after a bake
-    hung in its first EXR write. Spawned, each would import Dask and glint itself (0.3 s and more
-    each, on the cores the bake needs). The server is a fresh process that imports them once, while
-    this process imports Dask and goes on with the bake."""
-    import multiprocessing
-    import multiprocessing.forkserver
-
-    multiprocessing.get_context("forkserver").set_forkserver_preload(list(WORKER_MODULES))
-    multiprocessing.forkserver.ensure_running()
-
-
-def _local_cluster(distributed, workers: int):
-    """A cluster of `workers` processes on this machine, forked by the fork server (`_start_forkserver`),
-    one thread each (the bake's jobs are numpy and Embree: the GIL would serialise threads), no
-    dashboard (no port to take, nothing to serve)."""
-    import dask
-
-    with dask.config.set({"distributed.worker.multiprocessing-method": "forkserver"}):
-        return distributed.LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=QUIET)
 
 
 def _import_distributed():

@@ -21,7 +21,8 @@ local executor's.
 --overhead: what a task costs on the engine beyond its work: 400 tasks that return a light-map tile's
 result (2048 x 3 + 2048 float32) and do nothing else, on local:2 (once started) and on the local
 executor's two processes; seconds per task. And the phases of a local:2 cluster's start in a fresh
-interpreter (median of 5): importing Dask, the fork server's imports, the two workers, closing. --model: the time of each measured bake on 8, 64 and 512
+interpreter (median of 5): forking the worker server, importing Dask, the scheduler, the two workers
+forked and registered, closing. --model: the time of each measured bake on 8, 64 and 512
 cores (docs/BAKE.md states the model and what it assumes). --sizes: what travels for a scene (the
 light-map stage's scattered inputs and a tile's task and result, pickled; with --bake-dir the
 cube-map stage's inputs and its probe files).
@@ -144,26 +145,31 @@ def _no_state():
 
 
 # Run in a fresh interpreter (`python -c`), as `glint bake --scheduler local:2` meets them: the phases of
-# starting a local:N cluster (bake/executor.py DaskExecutor._connect), each timed on its own.
+# starting a local:N cluster (bake/executor.py DaskExecutor.start and _connect, bake/local_cluster.py),
+# each timed on its own.
 STARTUP = """
-import json, multiprocessing, sys, time
+import json, threading, time
 t0 = time.perf_counter()
 import glint.cli  # what the glint command has imported when its bake starts
-from glint.bake import executor as E
+from glint.bake import executor as E, local_cluster as L
 t1 = time.perf_counter()
-E._start_forkserver()
-distributed = E._import_distributed()
+L.fork_server()  # as glint/cli.py does: the server imports Dask meanwhile
+server = L.take_server()
 t2 = time.perf_counter()
-process = multiprocessing.get_context("forkserver").Process(target=E.worker_version)
-process.start(); process.join()  # the first child: once the server has imported WORKER_MODULES
+distributed = E._import_distributed()
 t3 = time.perf_counter()
-cluster = E._local_cluster(distributed, 2)
-client = distributed.Client(cluster.scheduler_address, set_as_default=False)
+arrived = threading.Event()
+cluster = L.start_scheduler(distributed, E.QUIET, 2, arrived)
 t4 = time.perf_counter()
-client.close(); cluster.close()
+server.start_workers(cluster.scheduler_address, 2, E.QUIET)
+client = distributed.Client(cluster.scheduler_address, set_as_default=False)
+arrived.wait(30)
 t5 = time.perf_counter()
-print(json.dumps({"import_glint_cli_seconds": t1 - t0, "import_dask_seconds": t2 - t1,
-                  "fork_server_ready_after_seconds": t3 - t2, "two_workers_seconds": t4 - t3, "close_seconds": t5 - t4}))
+client.close(); cluster.close(); server.close()
+t6 = time.perf_counter()
+print(json.dumps({"import_glint_cli_seconds": t1 - t0, "fork_server_seconds": t2 - t1,
+                  "import_dask_seconds": t3 - t2, "scheduler_seconds": t4 - t3,
+                  "two_workers_registered_seconds": t5 - t4, "close_seconds": t6 - t5}))
 """
 
 

@@ -315,3 +315,93 @@ def test_a_local_bake_does_not_import_dask(tmp_path):
             "print(code, loaded)")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert run.stdout.strip().splitlines()[-1] == "0 []", run.stdout + run.stderr
+
+
+# -- local:N's own worker server (bake/local_cluster.py) --------------------------------------------
+def glint_processes(marker: str) -> list:
+    """The processes whose command line names `marker` (a forked worker server and its workers carry the
+    command line of the `glint` process they were forked from)."""
+    import psutil  # a dependency of distributed
+
+    found = []
+    for process in psutil.process_iter(["cmdline"]):
+        if any(marker in part for part in process.info["cmdline"] or ()):
+            found.append(process)
+    return found
+
+
+def test_the_glint_command_forks_its_worker_server_and_bakes_the_same_bytes(scene_path, reference, tmp_path):
+    """`python -m glint bake --scheduler local:2` in a process of its own: its worker server is forked
+    from it (statistics.cluster.worker_server), the bake is the local bake's bytes, and once the command
+    has ended no process of its cluster is left.
+    Deliberate bugs tried: glint/cli.py without its fork_server call: "assert 'spawned' == 'forked'".
+    The forked server keeping the command pipe's write end open (so it never sees the bake close it):
+    the command's output never ended (the server, still running, holds it): subprocess.run timed out."""
+    out = tmp_path / "forked.bake"
+    run = subprocess.run([sys.executable, "-m", "glint", "bake", str(scene_path), "-o", str(out), *CLI,
+                          "--scheduler", "local:2"], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    cluster = json.loads((out / "manifest.json").read_text())["statistics"]["cluster"]
+    assert cluster["worker_server"] == "forked" and cluster["workers"] == 2
+    assert_same_bake(out, reference)
+    deadline = time.monotonic() + 10
+    while glint_processes(str(out)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not glint_processes(str(out)), f"{len(glint_processes(str(out)))} left"
+
+
+def test_a_killed_bake_leaves_no_worker_processes(scene_path, tmp_path):
+    """The `glint bake --scheduler local:2` process killed (SIGKILL) while its workers trace: its worker
+    server sees its pipe close, stops the workers and ends; within 10 s nothing of the cluster is left.
+    Deliberate bug tried: `serve` not watching its command pipe once the workers run (select on nothing):
+    "1 processes of the killed bake's cluster still run" (the server; the workers left when their
+    scheduler went)."""
+    import psutil
+
+    out = tmp_path / "killed.bake"
+    bake = subprocess.Popen([sys.executable, "-m", "glint", "bake", str(scene_path), "-o", str(out), *CLI,
+                             "--scheduler", "local:2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    children = []
+    deadline = time.monotonic() + 120
+    while len(children) < 3 and time.monotonic() < deadline:  # the server and its two workers
+        children = psutil.Process(bake.pid).children(recursive=True)
+        time.sleep(0.05)
+    assert len(children) == 3, f"the bake's cluster did not start: {children}"
+    bake.kill()
+    bake.wait()
+    gone, alive = psutil.wait_procs(children, timeout=10)
+    for process in alive:
+        process.kill()
+    assert not alive, f"{len(alive)} processes of the killed bake's cluster still run"
+
+
+GIVES_UP = """
+import os
+from glint.bake import local_cluster
+from glint.bake.executor import DaskExecutor
+from glint.core.errors import GlintError
+local_cluster.RESTARTS = 1  # the forked server has this value too
+local_cluster.fork_server()
+
+def end_the_worker(state, task):
+    os._exit(3)
+
+with DaskExecutor("local:1") as executor:
+    try:
+        list(executor.run(str, (), end_the_worker, ["a"]))
+    except GlintError as e:
+        print("GlintError:", e)
+"""
+
+
+def test_workers_that_keep_dying_end_the_bake_with_one_line(tmp_path):
+    """A task that ends its worker every time, on local:1 whose server may replace a worker once: the
+    server gives up after the second death and the bake ends with one line that says so (Dask alone would
+    wait for a worker for ever).
+    Deliberate bug tried: DaskExecutor.start without its watching thread: "GlintError: lost the Dask
+    scheduler at local:1 during the bake (No valid workers found) ..." (the scatter again of the lost
+    inputs timed out), a line that blames the wrong thing."""
+    run = subprocess.run([sys.executable, "-c", GIVES_UP], capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    lines = run.stdout.strip().splitlines()
+    assert lines == ["GlintError: the worker processes of the local Dask cluster (local:1) could not be kept running "
+                     "(worker processes ended abnormally 2 times): bake without --scheduler"], run.stdout + run.stderr
