@@ -47,8 +47,8 @@ TASKS_PER_WORKER = 4
 # otherwise print lines of its own beside the bake's one line; a worker that died and was replaced
 # only makes the bake take longer)
 QUIET = logging.CRITICAL
-# `local:N`, or a Dask address: [SCHEME://]HOST:PORT (tcp://, tls://, ws://, wss://, ucx://; no scheme: tcp)
-LOCAL_ADDRESS = re.compile(r"local:(\d+)")
+# `local:N` (local_cluster.LOCAL_ADDRESS), or a Dask address: [SCHEME://]HOST:PORT (tcp://, tls://, ws://,
+# wss://, ucx://; no scheme: tcp)
 REMOTE_ADDRESS = re.compile(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9a-fA-F:.]+\]|[\w.-]+):(\d{1,5})")
 
 _worker_state: Any = None
@@ -113,7 +113,7 @@ def executor_for(settings) -> "LocalExecutor | DaskExecutor":
 
 def check_scheduler_address(address: str) -> str:
     """`address` if it is `local:N` (N >= 1) or [SCHEME://]HOST:PORT, else a one-line GlintError."""
-    local = LOCAL_ADDRESS.fullmatch(address)
+    local = local_cluster.LOCAL_ADDRESS.fullmatch(address)
     if (local and int(local.group(1)) >= 1) or (not local and REMOTE_ADDRESS.fullmatch(address)):
         return address
     raise GlintError(f"bad --scheduler '{address}': expected tcp://HOST:PORT (a running `dask scheduler`) "
@@ -208,13 +208,18 @@ class DaskExecutor:
 
     def __init__(self, address: str):
         self.address = check_scheduler_address(address)
-        local = LOCAL_ADDRESS.fullmatch(address)
+        local = local_cluster.LOCAL_ADDRESS.fullmatch(address)
         self.local_workers = int(local.group(1)) if local else None
-        self._client = self._cluster = self._error = self._server = None
+        self._client = self._error = self._server = None
         self._starting: threading.Thread | None = None
         self._closing = False
         self._failure: GlintError | None = None  # set by _watch_server
-        self._arrived = threading.Event()  # local:N: set once its workers have registered, or it failed
+        # local:N, from its server's reports (_watch_server): the scheduler's address, then the workers in
+        self._local_address: str | None = None
+        self._address_known = threading.Event()  # also set when the server fails
+        self._arrived = threading.Event()  # set once the workers have registered, or the server failed
+        self._workers_up = 0
+        self._watched = threading.Event()  # set when _watch_server has seen the server end
         self._quiet = None  # Dask's log lines kept to QUIET while open
         # for the manifest's statistics.cluster: what the cluster cost this bake
         self.statistics = {"scheduler": address, "workers": 0, "threads": 0, "start_seconds": 0.0,
@@ -237,6 +242,7 @@ class DaskExecutor:
             return
         self._started = time.perf_counter()
         self._server = local_cluster.take_server()  # forked or spawned here, on the main thread
+        self._server.start(self.local_workers, QUIET)
         self.statistics["worker_server"] = self._server.started
         threading.Thread(target=self._watch_server, args=(self._server,), name="glint-dask-server",
                          daemon=True).start()
@@ -262,11 +268,12 @@ class DaskExecutor:
             distributed = _import_distributed()
             self._quiet = distributed.utils.silence_logging_cmgr(QUIET)
             self._quiet.__enter__()
-            if self.local_workers is not None:
-                # the scheduler here; the server forks the workers, which register while the bake goes on
-                self._cluster = local_cluster.start_scheduler(distributed, QUIET, self.local_workers, self._arrived)
-                address = self._cluster.scheduler_address
-                self._server.start_workers(address, self.local_workers, QUIET)
+            if self.local_workers is not None:  # the server has started the scheduler meanwhile (or fails)
+                self._address_known.wait(ARRIVAL_SECONDS)
+                if self._failure is not None or self._local_address is None:
+                    raise self._failure or GlintError(f"the local Dask cluster ({self.address}) did not start in "
+                                                      f"{ARRIVAL_SECONDS} s: bake without --scheduler")
+                address = self._local_address
             else:
                 address = self.address
             try:
@@ -308,20 +315,44 @@ class DaskExecutor:
         return max(1, sum(self.client.nthreads().values()))
 
     def _watch_server(self, server) -> None:
-        """A local:N cluster's worker server that gives up or ends while the bake runs ends the bake: its
-        reason is kept for `_lost`, and the client is closed, which cancels the futures `run` waits on."""
-        reason = server.watch()
-        if self._closing:
-            return
-        self._failure = GlintError(f"the worker processes of the local Dask cluster ({self.address}) could not be "
-                                   f"kept running ({reason or 'their server ended'}): bake without --scheduler")
-        self._arrived.set()
-        client = self._client
-        if client is not None:
-            try:
-                client.close()
-            except Exception:  # closing already
-                pass
+        """A local:N cluster's worker server's reports: the scheduler's address, the workers that came; and
+        a server that gives up or ends while the bake runs ends the bake: the reason is kept for `_lost`
+        (which waits for it: the server stops the scheduler too), and the client is closed, which cancels
+        the futures `run` waits on."""
+        reason = None
+
+        def report(kind: str, text: str) -> None:
+            nonlocal reason
+            if kind == local_cluster.ADDRESS:
+                self._local_address = text
+                self._address_known.set()
+            elif kind == local_cluster.UP:
+                self._workers_up += 1
+                if self._workers_up >= self.local_workers:
+                    self._arrived.set()
+            else:  # FAILED, GAVE_UP
+                reason = text
+                if kind == local_cluster.GAVE_UP:
+                    self._failure = self._server_failure(reason)
+
+        try:
+            server.watch(report)
+            if not self._closing:
+                self._failure = self._failure or self._server_failure(reason or "their server ended")
+                self._address_known.set()
+                self._arrived.set()
+                client = self._client
+                if client is not None:
+                    try:
+                        client.close()
+                    except Exception:  # closing already
+                        pass
+        finally:
+            self._watched.set()
+
+    def _server_failure(self, reason: str) -> GlintError:
+        return GlintError(f"the worker processes of the local Dask cluster ({self.address}) could not be "
+                          f"kept running ({reason}): bake without --scheduler")
 
     def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable) -> Iterator[tuple[int, Any]]:
         client = self.client
@@ -346,9 +377,10 @@ class DaskExecutor:
                 raise self._lost(e) from None
             try:
                 for future in distributed.as_completed(futures, loop=client.loop):
-                    if future.status == "cancelled" and client.status == "running":
-                        continue  # its inputs were lost with the workers that held them: submitted again
-                    yield futures[future], self._result(future)
+                    result = self._result(future)
+                    if result is _INPUTS_LOST:
+                        continue  # submitted again, below
+                    yield futures[future], result
                     del pending[futures[future]]
             finally:
                 for future in futures:
@@ -374,10 +406,18 @@ class DaskExecutor:
         except distributed.KilledWorker as e:  # Dask's own retries spent
             raise GlintError(f"a bake task ended the Dask worker that ran it, on every try ({one_line(e)}); the "
                              "workers may be short of memory: give them more, or bake without --scheduler") from None
-        except (OSError, *CANCELLED) as e:
+        except CANCELLED as e:
+            if self._client is not None and self._client.status == "running" and self._failure is None:
+                # its inputs were lost with the workers that held them (also when its result was lost with
+                # the worker that had just finished it: "Couldn't gather 1 keys, rescheduling")
+                return _INPUTS_LOST
+            raise self._lost(e) from None
+        except OSError as e:
             raise self._lost(e) from None
 
     def _lost(self, e: BaseException) -> GlintError:
+        if self.local_workers is not None and not self._closing:
+            self._watched.wait(local_cluster.STOP_SECONDS + 2)  # did its server stop it? (_watch_server)
         if self._failure is not None:
             return self._failure
         reason = "connection lost" if isinstance(e, CANCELLED) else one_line(e)
@@ -393,9 +433,8 @@ class DaskExecutor:
 
     def _disconnect(self) -> None:
         self._closing = True
-        client, cluster, server = self._client, self._cluster, self._server
-        self._client = self._cluster = self._server = None
-        for part in (client, cluster, server):  # the scheduler closed first: its workers then end by themselves
+        client, server, self._client, self._server = self._client, self._server, None, None
+        for part in (client, server):
             if part is not None:
                 try:
                     part.close()
@@ -404,6 +443,9 @@ class DaskExecutor:
         if self._quiet is not None:
             self._quiet, quiet = None, self._quiet
             quiet.__exit__(None, None, None)
+
+
+_INPUTS_LOST = object()  # DaskExecutor._result of a task to submit again
 
 
 def _pickled_bytes(value) -> int:

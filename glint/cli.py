@@ -12,7 +12,6 @@ import traceback
 
 from glint import __version__
 from glint.bake import local_cluster
-from glint.bake.executor import LOCAL_ADDRESS
 from glint.bench.command import add_bench_parser
 from glint.capture import add_capture_parser
 from glint.core.errors import GlintError, summarised
@@ -89,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "run", None):
         parser.print_help()
         return EXIT_ERROR
-    if argv is None and threading.active_count() == 1 and LOCAL_ADDRESS.fullmatch(getattr(args, "scheduler", None) or ""):
+    if argv is None and threading.active_count() == 1 and local_cluster.LOCAL_ADDRESS.fullmatch(getattr(args, "scheduler", None) or ""):
         # The glint command's own process, which has only imported its modules so far: the one moment
         # a local:N cluster's worker server can be forked from it (bake/local_cluster.py)
         local_cluster.fork_server()

@@ -132,7 +132,7 @@ def test_local_2_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monk
 def test_a_worker_killed_mid_bake_and_the_bake_is_still_the_same_bytes(scene_path, reference, monkeypatch, workers):
     """Once the first result of each stage (light-map tiles, cube maps) is in, the process of a worker
     that is running a task is killed (SIGKILL): Dask runs its tasks again on the other worker or the
-    one the nanny starts in its place, and the bake is the local bake's bytes. With one worker the
+    one the worker server forks in its place (bake/local_cluster.py), and the bake is the local bake's bytes. With one worker the
     scattered inputs die with it: they are scattered again to its successor.
     Deliberate bug tried: no retries (`distributed.scheduler.allowed-failures` 0): the bake ends with
     "a bake task ended the Dask worker that ran it, on every try (Attempted to run task
@@ -354,8 +354,7 @@ def test_a_killed_bake_leaves_no_worker_processes(scene_path, tmp_path):
     """The `glint bake --scheduler local:2` process killed (SIGKILL) while its workers trace: its worker
     server sees its pipe close, stops the workers and ends; within 10 s nothing of the cluster is left.
     Deliberate bug tried: `serve` not watching its command pipe once the workers run (select on nothing):
-    "1 processes of the killed bake's cluster still run" (the server; the workers left when their
-    scheduler went)."""
+    "N processes of the killed bake's cluster still run"."""
     import psutil
 
     out = tmp_path / "killed.bake"
@@ -363,10 +362,10 @@ def test_a_killed_bake_leaves_no_worker_processes(scene_path, tmp_path):
                              "--scheduler", "local:2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     children = []
     deadline = time.monotonic() + 120
-    while len(children) < 3 and time.monotonic() < deadline:  # the server and its two workers
+    while len(children) < 4 and time.monotonic() < deadline:  # the server, its scheduler and two workers
         children = psutil.Process(bake.pid).children(recursive=True)
         time.sleep(0.05)
-    assert len(children) == 3, f"the bake's cluster did not start: {children}"
+    assert len(children) == 4, f"the bake's cluster did not start: {children}"
     bake.kill()
     bake.wait()
     gone, alive = psutil.wait_procs(children, timeout=10)
