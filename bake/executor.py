@@ -57,6 +57,7 @@ _worker_job: Callable | None = None
 
 def _init_worker(setup, setup_args, job) -> None:
     global _worker_state, _worker_job
+    _heap_for_large_arrays()
     _worker_state = setup(*setup_args)
     _worker_job = job
 
@@ -87,6 +88,7 @@ class LocalExecutor:
     def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable) -> Iterator[tuple[int, Any]]:
         tasks = list(enumerate(tasks))
         if self.jobs == 1 or len(tasks) <= 1:
+            _heap_for_large_arrays()
             state = setup(*setup_args)
             for index, task in tasks:
                 yield index, job(state, task)
@@ -161,14 +163,17 @@ TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # glibc's dynamic trim threshold follows th
 
 
 def _heap_for_large_arrays() -> None:
-    """Let glibc keep the path tracer's arrays in the heap, as in a plain Python process at its largest.
+    """Let glibc keep the path tracer's arrays in the heap, in every process that runs bake jobs (the
+    local executor's, a Dask worker's).
 
     Dask's nanny starts its workers with MALLOC_TRIM_THRESHOLD_=65536, which also pins glibc's mmap
     threshold at 128 KiB: every array of the tracer's batches (a few MiB) was then mapped and unmapped
     anew, page faults each time, and a living-room tile took 2.3x as long (2.5-2.6 s against 1.1 s in a
     process without it). The mmap threshold at 32 MiB brought it to 1.15-1.2 s; the trim threshold
     at 64 MiB too, to 1.0-1.04 s (memory up to 64 MiB kept for the next batch instead of handed back
-    to the system at every free). Nothing happens where the C library is not glibc."""
+    to the system at every free): faster than glibc's own dynamic thresholds in a plain process too,
+    so the local executor's processes set them as well (docs/BAKE.md "On a cluster (Dask)"). Nothing
+    happens where the C library is not glibc."""
     import ctypes
 
     try:
