@@ -211,8 +211,9 @@ class DaskExecutor:
 
     distributed = True
 
-    def __init__(self, address: str):
+    def __init__(self, address: str, name: str | None = None):
         self.address = check_scheduler_address(address)
+        self.name = name or address  # in messages and statistics: local:N for a local cluster's client
         local = local_cluster.LOCAL_ADDRESS.fullmatch(address)
         self.local_workers = int(local.group(1)) if local else None
         self._client = self._error = self._server = None
@@ -227,7 +228,7 @@ class DaskExecutor:
         self._watched = threading.Event()  # set when _watch_server has seen the server end
         self._quiet = None  # Dask's log lines kept to QUIET while open
         # for the manifest's statistics.cluster: what the cluster cost this bake
-        self.statistics = {"scheduler": address, "workers": 0, "threads": 0, "start_seconds": 0.0,
+        self.statistics = {"scheduler": self.name, "workers": 0, "threads": 0, "start_seconds": 0.0,
                            "waited_seconds": 0.0, "scatter_seconds": 0.0, "scattered_mib": 0.0, "tasks": 0}
 
     def __enter__(self) -> "DaskExecutor":
@@ -240,7 +241,7 @@ class DaskExecutor:
         """Reach the scheduler now (a remote one: a wrong address fails before any work), or start the
         `local:N` cluster in a background thread (it takes about a second; the caller goes on). Twice is
         once."""
-        if self._starting is not None or self._client is not None:
+        if self._starting is not None or self._client is not None or self._server is not None:
             return
         if self.local_workers is None:
             self._connect()
@@ -248,16 +249,19 @@ class DaskExecutor:
         self._started = time.perf_counter()
         self._server = local_cluster.take_server()  # forked or spawned here, on the main thread
         self._server.start(self.local_workers, QUIET)
-        self.statistics["worker_server"] = self._server.started
+        self.statistics.update(worker_server=self._server.started, workers=self.local_workers,
+                               threads=self.local_workers)
         threading.Thread(target=self._watch_server, args=(self._server,), name="glint-dask-server",
                          daemon=True).start()
-        self._starting = threading.Thread(target=self._connect, name="glint-dask-start", daemon=True)
-        self._starting.start()
 
     @property
     def client(self):
-        """The connected `distributed.Client` (waits for a cluster starting in the background)."""
+        """The connected `distributed.Client` (waits for a cluster starting in the background). A local:N
+        cluster's bake needs none here (its client is the server's: `run`); one is made on demand (tests,
+        benchmarks), which imports Dask."""
         self.start()
+        if self.local_workers is not None and self._client is None and self._error is None:
+            self._connect()
         if self._starting is not None:
             t0 = time.perf_counter()
             self._starting.join()
@@ -268,7 +272,7 @@ class DaskExecutor:
         return self._client
 
     def _connect(self) -> None:
-        t0 = getattr(self, "_started", None) or time.perf_counter()
+        t0 = time.perf_counter()
         try:
             distributed = _import_distributed()
             self._quiet = distributed.utils.silence_logging_cmgr(QUIET)
@@ -284,16 +288,15 @@ class DaskExecutor:
             try:
                 self._client = distributed.Client(address, timeout=CONNECT_SECONDS, set_as_default=False)
             except (OSError, TimeoutError) as e:
-                raise GlintError(f"cannot reach the Dask scheduler at {self.address} ({one_line(e)}): start one "
+                raise GlintError(f"cannot reach the Dask scheduler at {self.name} ({one_line(e)}): start one "
                                  "with `dask scheduler`, or use --scheduler local:N") from None
             if self.local_workers is not None:  # forked from this glint, or spawned from its files
-                self._arrived.wait(ARRIVAL_SECONDS)  # tasks would wait for them anyway; scatter looks for them
+                self._arrived.wait(ARRIVAL_SECONDS)
                 if self._failure is not None:
                     raise self._failure
-                threads = dict.fromkeys(range(self.local_workers), 1)
-            else:
-                self._check_versions()
-                threads = self._client.nthreads()
+                return
+            self._check_versions()
+            threads = self._client.nthreads()
             self.statistics.update(start_seconds=round(time.perf_counter() - t0, 3), workers=len(threads),
                                    threads=sum(threads.values()))
             if self.local_workers is None and not threads:
@@ -359,7 +362,13 @@ class DaskExecutor:
         return GlintError(f"the worker processes of the local Dask cluster ({self.address}) could not be "
                           f"kept running ({reason}): bake without --scheduler")
 
-    def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable) -> Iterator[tuple[int, Any]]:
+    def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable,
+            version: str | None = None) -> Iterator[tuple[int, Any]]:
+        """LocalExecutor.run's results; `version`: the glint version the workers must run (this one's)."""
+        version = version or worker_version()
+        if self.local_workers is not None:
+            yield from self._run_on_local_cluster(setup, setup_args, job, list(tasks), version)
+            return
         client = self.client
         distributed = _import_distributed()
         pending = dict(enumerate(tasks))
@@ -374,7 +383,7 @@ class DaskExecutor:
                 [inputs] = client.scatter([setup_args], broadcast=True, hash=False)
                 self._count(scatter_seconds=time.perf_counter() - t0, tasks=len(pending),
                             scattered_mib=_pickled_bytes(setup_args) / 2 ** 20)
-                futures = {client.submit(_dask_task, setup, inputs, inputs.key, job, task, worker_version(),
+                futures = {client.submit(_dask_task, setup, inputs, inputs.key, job, task, version,
                                          key=f"glint-{getattr(job, '__name__', 'job')}-{index}-{inputs.key}",
                                          pure=False): index
                            for index, task in pending.items()}
@@ -395,8 +404,26 @@ class DaskExecutor:
                 except Exception:  # workers gone or the scheduler lost: nothing left to free there
                     pass
         if pending:
-            raise GlintError(f"the bake's inputs were lost on the Dask cluster at {self.address}: the workers that "
+            raise GlintError(f"the bake's inputs were lost on the Dask cluster at {self.name}: the workers that "
                              f"held them ended, on each of {1 + LOST_INPUTS_RETRIES} tries; bake again")
+
+    def _run_on_local_cluster(self, setup, setup_args, job, tasks, version):
+        """`run` on a local:N cluster: the request goes to its server's client process (bake/local_cluster.py),
+        which runs it with a DaskExecutor of its own (`_run_in_client_process`); results come back as
+        they come, and what the client process counted goes into this executor's statistics."""
+        self.start()
+        t0 = time.perf_counter()
+        for item in self._server.run(_run_in_client_process, setup, setup_args, job, tasks, version, self.name):
+            if item is None:  # the client process is gone: its server gave up, or ended
+                raise self._lost(ConnectionError("the cluster's client process ended"))
+            kind, value = item
+            if kind == "ready":  # the first request: the client connected, the workers are in
+                self.statistics.update(start_seconds=round(time.perf_counter() - self._started, 3),
+                                       waited_seconds=round(time.perf_counter() - t0, 3))
+            elif kind == "result":
+                yield value
+            else:  # "statistics", after each request: the client's running totals
+                self.statistics.update(value)
 
     def _count(self, **amounts) -> None:
         for key, amount in amounts.items():
@@ -426,7 +453,7 @@ class DaskExecutor:
         if self._failure is not None:
             return self._failure
         reason = "connection lost" if isinstance(e, CANCELLED) else one_line(e)
-        return GlintError(f"lost the Dask scheduler at {self.address} during the bake ({reason}); "
+        return GlintError(f"lost the Dask scheduler at {self.name} during the bake ({reason}); "
                           "the previous bake directory is as it was: bake again")
 
     def close(self) -> None:
@@ -451,6 +478,24 @@ class DaskExecutor:
 
 
 _INPUTS_LOST = object()  # DaskExecutor._result of a task to submit again
+
+# In a local:N cluster's client process (bake/local_cluster.py): its DaskExecutor, made on the first request
+_client_executor: DaskExecutor | None = None
+
+
+def _run_in_client_process(setup, setup_args, job, tasks, version, name):
+    """A local:N cluster's request, in its client process: ("ready", None) after connecting (first request
+    only), then ("result", (index, result)) per task, then ("statistics", its running totals)."""
+    global _client_executor
+    if _client_executor is None:
+        address, _ = local_cluster.client_context(ARRIVAL_SECONDS)
+        executor = DaskExecutor(address, name=name)
+        executor.start()
+        _client_executor = executor
+        yield "ready", None
+    for result in _client_executor.run(setup, setup_args, job, tasks, version=version):
+        yield "result", result
+    yield "statistics", {key: _client_executor.statistics[key] for key in ("scatter_seconds", "scattered_mib", "tasks")}
 
 
 def _pickled_bytes(value) -> int:

@@ -2,38 +2,44 @@
 
 Dask's own `LocalCluster` starts each worker through a nanny, whose worker process multiprocessing
 spawns or forks from a fork server that imports Dask and glint first: about 0.8 s on the 2-core
-machine before a task could run, a third of a small scene's whole bake (docs/BAKE.md, "On a
-cluster (Dask)"). Here one *worker server*, a single-threaded process, starts the cluster while
-the bake's process imports Dask for its client:
+machine before a task could run, half a small scene's whole bake; and the bake's process, the client,
+imports Dask (0.2 s) and takes longer to exit with it (0.1 s) (docs/BAKE.md, "On a cluster (Dask)").
+Here one *worker server*, a single-threaded process, starts the whole cluster while the bake
+prepares its work:
 
 - it forks the **scheduler** (`distributed.Scheduler`, loopback TCP, no dashboard) as soon as it has
   imported Dask and been told how many workers, then the N **workers** (`distributed.Worker`, one
-  thread each, no nanny); it forks another worker in the place of one that dies (a nanny's job: Dask
-  runs the dead worker's tasks again, on the others or the new one), at most RESTARTS times; it stops
-  them all and ends when the bake's process closes its pipe or ends.
-- It is *forked* from the bake's process where that is safe: by the `glint` command itself before it
-  has done anything but import its modules (`fork_server`, glint/cli.py), so it has glint already.
-  (Forked before those imports, to import on another core meanwhile, it made the cornell-box bake
-  slower: 2.14-2.27 s against 2.03-2.23 s, five runs each.)
+  thread each, no nanny), and the **client process**, which connects a `DaskExecutor` to the
+  scheduler once the workers are in and runs the bake's requests for it (`WorkerServer.run`: the
+  request pickled over a pipe, each result back as it comes), so that the bake's process never
+  imports Dask. It forks another worker in the place of one that dies (a nanny's job: Dask runs the
+  dead worker's tasks again, on the others or the new one), at most RESTARTS times; it stops them all
+  and ends when the bake's process closes its pipes or ends. Its processes write nothing to the
+  command's output (they report on the status pipe).
+- It is *forked* from the bake's process where that is safe: by the `glint` command first of all,
+  before it has imported more than the standard library (`fork_server`, glint/entry.py), so that it
+  imports Dask and the light-map tasks' modules on the other core while the command imports glint.
   Forking a process that has used OpenImageIO, Embree or Open Image Denoise would copy their thread
   pools without their threads (a child forked after a bake hung in its first EXR write). Anywhere
-  else (glint used as a library, the tests) it is *spawned*: a fresh interpreter that imports Dask
-  and what the tasks run first.
+  else (glint used as a library, the tests) it is *spawned*: a fresh interpreter that imports the
+  same.
 
-Reports come back on a status pipe, a line each (`WorkerServer.watch`): the scheduler's address, each
-worker that has registered, a worker that failed and why, and the server giving up. Workers that end
-by themselves (their scheduler closed or gone) are not replaced. POSIX only (os.fork).
+Reports come back on the status pipe, a line each (`WorkerServer.watch`): the scheduler's address,
+each worker that has registered, a worker that failed and why, and the server giving up. Workers
+that end by themselves (their scheduler closed or gone) are not replaced. POSIX only (os.fork).
 """
 from __future__ import annotations
 
 import os
+import pickle
 import re
 import select
 import signal
+import struct
 import subprocess
 import sys
 import time
-from typing import Callable
+from typing import Callable, Iterator
 
 from glint.core.errors import GlintError, one_line
 
@@ -42,13 +48,21 @@ POLL_SECONDS = 0.05  # how often the server looks for dead workers while it wait
 STOP_SECONDS = 2.0  # a worker's time to end once the server has asked (SIGTERM), before SIGKILL
 WORKER_DEATH_SECONDS = 10  # a worker cut off from its scheduler this long ends itself
 # what the workers' tasks run, imported by a spawned server before it forks them
-TASK_MODULES = ("distributed", "glint.bake.lightmap", "glint.cubemap_stage")
+# (the cube maps' glint.cubemap_stage, with its GL renderer, is imported by a worker on its first such task)
+TASK_MODULES = ("distributed", "glint.bake.lightmap")
 # the kinds of the server's reports, each line "KIND TEXT"
 ADDRESS, UP, FAILED, GAVE_UP = "address", "up", "failed", "gave-up"
 
 LOCAL_ADDRESS = re.compile(r"local:(\d+)")  # --scheduler local:N
 
 _forked: WorkerServer | None = None  # fork_server's, until a cluster takes it
+
+
+def asks_for_local_cluster(args: list[str]) -> bool:
+    """Whether a command line has `--scheduler local:N` (or `--scheduler=local:N`)."""
+    values = [b for a, b in zip(args, args[1:]) if a == "--scheduler"]
+    values += [a.partition("=")[2] for a in args if a.startswith("--scheduler=")]
+    return any(LOCAL_ADDRESS.fullmatch(value) for value in values)
 
 
 def fork_server() -> None:
@@ -72,42 +86,54 @@ def take_server() -> WorkerServer:
 
 
 class WorkerServer:
-    """This side of a worker server: its process and the two pipes (commands to it, reports from it)."""
+    """This side of a worker server: its process and its pipes: commands to it, reports from it, and the
+    requests to and the results from its client process (`run`)."""
 
-    def __init__(self, pid: int, command_fd: int, status_fd: int, popen: subprocess.Popen | None = None):
-        self.pid, self.command_fd, self.status_fd, self.popen = pid, command_fd, status_fd, popen
+    def __init__(self, pid: int, fds: dict[str, int], popen: subprocess.Popen | None = None):
+        self.pid, self.popen = pid, popen
+        self.command_fd, self.status_fd = fds["command"], fds["status"]
+        self.requests_fd, self.results_fd = fds["requests"], fds["results"]
         self.started = "spawned" if popen is not None else "forked"  # how: the module docstring
+
+    @staticmethod
+    def _pipes() -> tuple[dict[str, int], dict[str, int]]:
+        """The server's ends and this side's ends of its four pipes."""
+        command_r, command_w = os.pipe()
+        status_r, status_w = os.pipe()
+        requests_r, requests_w = os.pipe()
+        results_r, results_w = os.pipe()
+        return ({"command": command_r, "status": status_w, "requests": requests_r, "results": results_w},
+                {"command": command_w, "status": status_r, "requests": requests_w, "results": results_r})
 
     @classmethod
     def fork(cls) -> WorkerServer:
-        command_r, command_w = os.pipe()
-        status_r, status_w = os.pipe()
+        theirs, ours = cls._pipes()
         pid = os.fork()
         if pid == 0:  # the server: never returns
             code = 1
             try:
-                os.close(command_w)
-                os.close(status_r)
-                code = serve(command_r, status_w)
+                for fd in ours.values():
+                    os.close(fd)
+                _detach_output()
+                code = serve(**theirs)
             finally:
                 os._exit(code)
-        os.close(command_r)
-        os.close(status_w)
-        return cls(pid, command_w, status_r)
+        for fd in theirs.values():
+            os.close(fd)
+        return cls(pid, ours)
 
     @classmethod
     def spawn(cls) -> WorkerServer:
-        command_r, command_w = os.pipe()
-        status_r, status_w = os.pipe()
-        code = f"import sys; from glint.bake.local_cluster import serve; sys.exit(serve({command_r}, {status_w}))"
+        theirs, ours = cls._pipes()
+        code = f"import sys; from glint.bake.local_cluster import serve; sys.exit(serve(**{theirs!r}))"
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}  # this process's glint
         try:
-            popen = subprocess.Popen([sys.executable, "-c", code], pass_fds=(command_r, status_w), env=env,
-                                     stdin=subprocess.DEVNULL)
+            popen = subprocess.Popen([sys.executable, "-c", code], pass_fds=tuple(theirs.values()), env=env,
+                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         finally:
-            os.close(command_r)
-            os.close(status_w)
-        return cls(popen.pid, command_w, status_r, popen)
+            for fd in theirs.values():
+                os.close(fd)
+        return cls(popen.pid, ours, popen)
 
     def running(self) -> bool:
         if self.popen is not None:
@@ -142,18 +168,47 @@ class WorkerServer:
         except ChildProcessError:  # reaped already
             pass
 
+    def run(self, function: Callable[..., Iterator], *args) -> Iterator:
+        """`function(*args)`'s items, run in the server's client process (module docstring): the request
+        pickled to it, each item pickled back as it comes. An exception there is raised here; None as the
+        last item: the client process is gone (the server gave up or ended)."""
+        _send(self.requests_fd, (function, args))
+        while True:
+            message = _receive(self.results_fd)
+            if message is None:
+                yield None
+                return
+            kind, value = message
+            if kind == "error":
+                raise value
+            if kind == "done":
+                return
+            yield value
+
     def close(self) -> None:
-        """Ask the server to stop its scheduler and workers and end: its pipe closed. It ends by itself
-        (`serve`): nothing waits for it here (`watch` reaps it)."""
-        if self.command_fd is not None:
-            os.close(self.command_fd)
-            self.command_fd = None
+        """Ask the server to stop its client, scheduler and workers and end: its pipes closed. It ends by
+        itself (`serve`): nothing waits for it here (`watch` reaps it)."""
+        for name in ("requests_fd", "command_fd"):
+            if getattr(self, name) is not None:
+                os.close(getattr(self, name))
+                setattr(self, name, None)
 
 
 # -- the server's side -----------------------------------------------------------------------------
-def serve(command_fd: int, status_fd: int) -> int:
-    """The worker server's life: import, wait for "COUNT LOG_LEVEL", fork the scheduler and COUNT
-    workers, keep the workers until the command pipe closes, then stop them all."""
+def _detach_output() -> None:
+    """The server and its children write nothing to the command's output (they report on the status pipe):
+    a `glint bake ... | tee` then ends with the bake, not when the cluster's last process has stopped."""
+    null = os.open(os.devnull, os.O_WRONLY)
+    for fd in (1, 2):
+        os.dup2(null, fd)
+    os.close(null)
+
+
+def serve(command: int, status: int, requests: int, results: int) -> int:
+    """The worker server's life: import, wait for "COUNT LOG_LEVEL", fork the scheduler, COUNT workers
+    and the client process, keep the workers until the command pipe closes, then stop them all. The
+    arguments are the server's ends of its pipes (WorkerServer._pipes)."""
+    command_fd, status_fd = command, status
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the bake's: it closes the cluster
     try:
         for module in TASK_MODULES:
@@ -166,7 +221,8 @@ def serve(command_fd: int, status_fd: int) -> int:
         return 0
     count, log_level = (int(word) for word in line.split())
     address_r, address_w = os.pipe()
-    scheduler = _fork(_run_scheduler, log_level, address_w, close=(command_fd, status_fd, address_r))
+    scheduler = _fork(_run_scheduler, log_level, address_w,
+                      close=(command_fd, status_fd, requests, results, address_r))
     os.close(address_w)
     address = _read_line(address_r)
     os.close(address_r)
@@ -176,10 +232,17 @@ def serve(command_fd: int, status_fd: int) -> int:
         return 1
     _report(status_fd, ADDRESS, address)
 
+    arrivals_r, arrivals_w = os.pipe()  # a byte from each worker that has registered, for the client
+
     def worker(name: str) -> int:
-        return _fork(_run_worker, address, name, log_level, status_fd, close=(command_fd,))
+        return _fork(_run_worker, address, name, log_level, status_fd, arrivals_w,
+                     close=(command_fd, requests, results, arrivals_r))
 
     workers = {worker(f"local-{slot}"): slot for slot in range(count)}
+    client = _fork(_run_client, address, count, log_level, requests, results, arrivals_r,
+                   close=(command_fd, status_fd, arrivals_w))
+    for fd in (requests, results, arrivals_r):
+        os.close(fd)
     restarts = 0
     while True:
         ready, _, _ = select.select([command_fd], [], [], POLL_SECONDS)
@@ -193,15 +256,15 @@ def serve(command_fd: int, status_fd: int) -> int:
             if pid == 0:
                 break
             slot = workers.pop(pid, None)
-            if slot is None or status == 0:  # the scheduler, or a worker ended by itself (its scheduler went)
+            if slot is None or status == 0:  # the scheduler or the client, or a worker that ended by itself
                 continue
             if restarts == RESTARTS:
                 _report(status_fd, GAVE_UP, f"worker processes ended abnormally {restarts + 1} times")
-                _stop([*workers, scheduler])
+                _stop([client, *workers, scheduler])
                 return 1
             restarts += 1
             workers[worker(f"local-{slot}-{restarts}")] = slot
-    _stop([*workers, scheduler])
+    _stop([client, *workers, scheduler])
     return 0
 
 
@@ -256,7 +319,10 @@ def _fork(run: Callable[..., int], *args, close: tuple[int, ...]) -> int:
     code = 1
     try:  # the child: never returns
         for fd in close:
-            os.close(fd)
+            try:
+                os.close(fd)
+            except OSError:  # closed in the server already (a worker forked after the client process)
+                pass
         code = run(*args)
     finally:
         os._exit(code)
@@ -287,7 +353,7 @@ def _run_scheduler(log_level: int, address_fd: int) -> int:
     return 0
 
 
-def _run_worker(address: str, name: str, log_level: int, status_fd: int) -> int:
+def _run_worker(address: str, name: str, log_level: int, status_fd: int, arrivals_fd: int) -> int:
     import asyncio
 
     distributed = _quiet_dask(log_level)
@@ -296,6 +362,7 @@ def _run_worker(address: str, name: str, log_level: int, status_fd: int) -> int:
         async with distributed.Worker(address, nthreads=1, name=name, host="127.0.0.1", dashboard=False,
                                       death_timeout=WORKER_DEATH_SECONDS, silence_logs=log_level) as worker:
             _report(status_fd, UP, name)
+            os.write(arrivals_fd, b"+")
             await worker.finished()
 
     try:
@@ -304,3 +371,78 @@ def _run_worker(address: str, name: str, log_level: int, status_fd: int) -> int:
         _report(status_fd, FAILED, f"worker {name}: {one_line(e)}")
         return 1
     return 0
+
+
+# -- the client process ----------------------------------------------------------------------------
+_client_context: dict = {}
+
+
+def client_context(timeout: float) -> tuple[str, int]:
+    """In the client process: the scheduler's address and the number of workers, once they have all
+    registered (at most `timeout` seconds of waiting: Dask's own waits look every 0.1 s)."""
+    fd, count = _client_context["arrivals"], _client_context["count"]
+    arrived, deadline = 0, time.monotonic() + timeout
+    while arrived < count and time.monotonic() < deadline:
+        ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
+        if ready:
+            arrived += len(os.read(fd, count - arrived))
+    return _client_context["address"], count
+
+
+def _run_client(address: str, count: int, log_level: int, requests_fd: int, results_fd: int,
+                arrivals_fd: int) -> int:
+    """Serve the bake's requests (WorkerServer.run) until its pipe closes: each a function and its
+    arguments, whose items go back one by one, then "done" (or "error" and the exception)."""
+    _quiet_dask(log_level)
+    _client_context.update(address=address, count=count, arrivals=arrivals_fd)
+    while True:
+        try:
+            request = _receive(requests_fd)
+        except Exception as e:  # a request that does not unpickle here
+            _send(results_fd, ("error", GlintError(f"the local Dask cluster's client: {one_line(e)}")))
+            continue
+        if request is None:
+            return 0
+        function, args = request
+        try:
+            for item in function(*args):
+                _send(results_fd, ("item", item))
+            _send(results_fd, ("done", None))
+        except Exception as e:
+            try:
+                pickle.dumps(e)
+            except Exception:
+                e = GlintError(f"on the local Dask cluster: {type(e).__name__}: {one_line(e)}")
+            _send(results_fd, ("error", e))
+
+
+LENGTH = struct.Struct("<Q")
+
+
+def _send(fd: int, value) -> None:
+    data = pickle.dumps(value, protocol=5)
+    view = memoryview(LENGTH.pack(len(data)) + data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def _receive(fd: int):
+    """The next value sent on `fd`, or None at its end."""
+    head = _read_exactly(fd, LENGTH.size)
+    if head is None:
+        return None
+    data = _read_exactly(fd, LENGTH.unpack(head)[0])
+    return None if data is None else pickle.loads(data)
+
+
+def _read_exactly(fd: int, size: int) -> bytes | None:
+    data = bytearray()
+    while len(data) < size:
+        try:
+            chunk = os.read(fd, min(size - len(data), 1 << 24))
+        except OSError:
+            return None
+        if not chunk:
+            return None
+        data += chunk
+    return bytes(data)

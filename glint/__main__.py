@@ -1,4 +1,4 @@
-from glint.cli import main
+from glint.entry import main
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -7,11 +7,9 @@ from __future__ import annotations
 
 import argparse
 import sys
-import threading
 import traceback
 
 from glint import __version__
-from glint.bake import local_cluster
 from glint.bench.command import add_bench_parser
 from glint.capture import add_capture_parser
 from glint.core.errors import GlintError, summarised
@@ -88,10 +86,6 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "run", None):
         parser.print_help()
         return EXIT_ERROR
-    if argv is None and threading.active_count() == 1 and local_cluster.LOCAL_ADDRESS.fullmatch(getattr(args, "scheduler", None) or ""):
-        # The glint command's own process, which has only imported its modules so far: the one moment
-        # a local:N cluster's worker server can be forked from it (bake/local_cluster.py)
-        local_cluster.fork_server()
     try:
         # Warnings collected and not yet summarised are printed however the command ends,
         # before the error line.

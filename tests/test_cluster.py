@@ -81,8 +81,9 @@ def assert_same_bake(bake: Path, reference: Path) -> None:
     assert without_timing(ours) == without_timing(theirs)
 
 
-def test_local_2_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monkeypatch, capsys):
-    """`glint bake --scheduler local:2`, its tasks run last first (Dask priorities), the light maps in
+def test_cluster_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monkeypatch, capsys):
+    """`glint bake --scheduler tcp://...` of a two-worker cluster started here (so that this process is
+    its client), its tasks run last first (Dask priorities), the light maps in
     smaller tiles than the local bake's (bake/lightmap.py tile_size, here 16 tiles of 1626 texels
     against 13 of 2048; a texel's random numbers follow its index): every light map,
     cube map, texture and the meshes are the local bake's bytes, the manifest its own apart from timing
@@ -118,11 +119,14 @@ def test_local_2_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monk
     # tiles of 1626 texels on the cluster (26,012 / (8 x 2 workers)) against the local bake's 2048
     monkeypatch.setattr(lightmap, "TASKS_PER_WORKER", 8)
     out = scene_path.with_name("dask.bake")
-    assert main(["bake", str(scene_path), "-o", str(out), *CLI, "--scheduler", "local:2"]) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  silence_logs=50) as cluster:
+        address = cluster.scheduler_address
+        assert main(["bake", str(scene_path), "-o", str(out), *CLI, "--scheduler", address]) == 0
     assert json.loads((out / "manifest.json").read_text())["statistics"]["lightmaps"]["tiles"] == 16
     assert json.loads((reference / "manifest.json").read_text())["statistics"]["lightmaps"]["tiles"] == 13
     assert_same_bake(out, reference)
-    assert len(counted) == 3 and stats["cluster"] == "local:2" and stats["processes"] >= 1
+    assert len(counted) == 3 and stats["cluster"] == address and stats["processes"] >= 1
     capsys.readouterr()
     assert main(["bake", str(scene_path), "-o", str(out), *CLI]) == 0
     assert "up to date" in capsys.readouterr().out
@@ -362,10 +366,10 @@ def test_a_killed_bake_leaves_no_worker_processes(scene_path, tmp_path):
                              "--scheduler", "local:2"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     children = []
     deadline = time.monotonic() + 120
-    while len(children) < 4 and time.monotonic() < deadline:  # the server, its scheduler and two workers
-        children = psutil.Process(bake.pid).children(recursive=True)
+    while len(children) < 5 and time.monotonic() < deadline:  # the server, its scheduler, client, two workers
+        children = psutil.Process(bake.pid).children(recursive=True)  # (and any short-lived helper process)
         time.sleep(0.05)
-    assert len(children) == 4, f"the bake's cluster did not start: {children}"
+    assert len(children) >= 5, f"the bake's cluster did not start: {children}"
     bake.kill()
     bake.wait()
     gone, alive = psutil.wait_procs(children, timeout=10)
@@ -379,11 +383,11 @@ import os
 from glint.bake import local_cluster
 from glint.bake.executor import DaskExecutor
 from glint.core.errors import GlintError
-local_cluster.RESTARTS = 1  # the forked server has this value too
-local_cluster.fork_server()
-
 def end_the_worker(state, task):
     os._exit(3)
+
+local_cluster.RESTARTS = 1  # the forked server (and its client process) have these too
+local_cluster.fork_server()
 
 with DaskExecutor("local:1") as executor:
     try:
@@ -404,3 +408,19 @@ def test_workers_that_keep_dying_end_the_bake_with_one_line(tmp_path):
     lines = run.stdout.strip().splitlines()
     assert lines == ["GlintError: the worker processes of the local Dask cluster (local:1) could not be kept running "
                      "(worker processes ended abnormally 2 times): bake without --scheduler"], run.stdout + run.stderr
+
+
+def test_a_local_cluster_bake_does_not_import_dask_in_the_bake_process(scene_path, reference, tmp_path):
+    """`glint bake --scheduler local:1` in a fresh interpreter: the bake is the local bake's bytes and
+    `distributed` never entered the bake's own process (the cluster's client is its worker server's,
+    bake/local_cluster.py), which is what keeps the cluster's start and exit off a small bake's time.
+    Deliberate bug tried: DaskExecutor.run for local:N through the in-process client (`self.client`)
+    instead of the server's: "0 ['dask', 'distributed']"."""
+    out = tmp_path / "client.bake"
+    code = ("import sys; from glint.cli import main; "
+            f"code = main(['bake', {str(scene_path)!r}, '-o', {str(out)!r}, *{CLI!r}, '--scheduler', 'local:1']); "
+            "loaded = sorted(m for m in ('dask', 'distributed') if m in sys.modules); "
+            "print(code, loaded)")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert run.stdout.strip().splitlines()[-1] == "0 []", run.stdout + run.stderr
+    assert_same_bake(out, reference)
