@@ -79,7 +79,7 @@ class LocalExecutor:
     def __exit__(self, *exc) -> None:
         pass
 
-    def start(self) -> None:
+    def start(self, modules: tuple[str, ...] = ()) -> None:
         """Nothing to start: the processes are forked by each `run`."""
 
     def workers(self) -> int:
@@ -237,10 +237,10 @@ class DaskExecutor:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def start(self) -> None:
+    def start(self, modules: tuple[str, ...] = ()) -> None:
         """Reach the scheduler now (a remote one: a wrong address fails before any work), or start the
-        `local:N` cluster in a background thread (it takes about a second; the caller goes on). Twice is
-        once."""
+        `local:N` cluster in the background (the caller goes on), its workers with `modules` imported
+        (those the tasks will run beyond the light maps'). Twice is once."""
         if self._starting is not None or self._client is not None or self._server is not None:
             return
         if self.local_workers is None:
@@ -248,7 +248,7 @@ class DaskExecutor:
             return
         self._started = time.perf_counter()
         self._server = local_cluster.take_server()  # forked or spawned here, on the main thread
-        self._server.start(self.local_workers, QUIET)
+        self._server.start(self.local_workers, QUIET, modules)
         self.statistics.update(worker_server=self._server.started, workers=self.local_workers,
                                threads=self.local_workers)
         threading.Thread(target=self._watch_server, args=(self._server,), name="glint-dask-server",

@@ -48,7 +48,8 @@ POLL_SECONDS = 0.05  # how often the server looks for dead workers while it wait
 STOP_SECONDS = 2.0  # a worker's time to end once the server has asked (SIGTERM), before SIGKILL
 WORKER_DEATH_SECONDS = 10  # a worker cut off from its scheduler this long ends itself
 # what the workers' tasks run, imported by a spawned server before it forks them
-# (the cube maps' glint.cubemap_stage, with its GL renderer, is imported by a worker on its first such task)
+# (the cube maps' glint.cubemap_stage, with its GL renderer, only where the bake has cube maps to render:
+# WorkerServer.start's modules)
 TASK_MODULES = ("distributed", "glint.bake.lightmap")
 # the kinds of the server's reports, each line "KIND TEXT"
 ADDRESS, UP, FAILED, GAVE_UP = "address", "up", "failed", "gave-up"
@@ -143,9 +144,10 @@ class WorkerServer:
         except ChildProcessError:
             return False
 
-    def start(self, count: int, log_level: int) -> None:
-        """Start the scheduler and `count` workers, Dask's log lines below `log_level` held back."""
-        os.write(self.command_fd, f"{count} {log_level}\n".encode())
+    def start(self, count: int, log_level: int, modules: tuple[str, ...] = ()) -> None:
+        """Start the scheduler, `count` workers with `modules` imported (besides TASK_MODULES) and the
+        client process, Dask's log lines below `log_level` held back."""
+        os.write(self.command_fd, f"{count} {log_level} {','.join(modules) or '-'}\n".encode())
 
     def watch(self, report: Callable[[str, str], None]) -> None:
         """Hand each of the server's reports to `report(kind, text)` until its pipe closes (the server and
@@ -219,7 +221,13 @@ def serve(command: int, status: int, requests: int, results: int) -> int:
     line = _read_line(command_fd)
     if not line:
         return 0
-    count, log_level = (int(word) for word in line.split())
+    count, log_level, modules = line.split()
+    count, log_level = int(count), int(log_level)
+    for module in modules.split(",") if modules != "-" else ():
+        try:  # the cube maps' module, where the bake will render some: once here, not in every worker
+            __import__(module)
+        except Exception:  # a worker imports it when a task needs it, or says why it cannot
+            pass
     address_r, address_w = os.pipe()
     scheduler = _fork(_run_scheduler, log_level, address_w,
                       close=(command_fd, status_fd, requests, results, address_r))

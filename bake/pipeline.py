@@ -239,10 +239,12 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     if old is not None and announce is not None:
         announce(stale_reason(old, manifest))
     executor = executor_for(settings)
-    if not reuse_lightmaps or _to_render(cubemaps, old, old_dir):
+    probes_to_render = _to_render(cubemaps, old, old_dir)
+    if not reuse_lightmaps or probes_to_render:
         # a remote scheduler is reached now, before anything is written; a local:N cluster starts in
-        # the background while the scene is unwrapped
-        executor.start()
+        # the background while the scene is unwrapped (its workers with the cube maps' module imported
+        # where there are cube maps to render)
+        executor.start(modules=(render_cubemaps.__module__,) if probes_to_render and render_cubemaps else ())
     with executor, BakeDirWriter(bake_dir) as out:
         _write_textures(scene, out.path)
         if reuse_lightmaps:
