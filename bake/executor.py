@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import importlib.util
 import logging
 import multiprocessing as mp
 import pickle
@@ -247,6 +248,8 @@ class DaskExecutor:
             self._connect()
             return
         self._started = time.perf_counter()
+        if importlib.util.find_spec("distributed") is None:  # the server would fail to import it
+            _import_distributed()  # raises the one line that says what to install
         self._server = local_cluster.take_server()  # forked or spawned here, on the main thread
         self._server.start(self.local_workers, QUIET, modules)
         self.statistics.update(worker_server=self._server.started, workers=self.local_workers,

@@ -174,7 +174,9 @@ class WorkerServer:
         """`function(*args)`'s items, run in the server's client process (module docstring): the request
         pickled to it, each item pickled back as it comes. An exception there is raised here; None as the
         last item: the client process is gone (the server gave up or ended)."""
-        _send(self.requests_fd, (function, args))
+        import cloudpickle  # Dask's: functions of a script's __main__ travel by value, as Dask sends them
+
+        _send(self.requests_fd, (function, args), cloudpickle.dumps)
         while True:
             message = _receive(self.results_fd)
             if message is None:
@@ -427,8 +429,8 @@ def _run_client(address: str, count: int, log_level: int, requests_fd: int, resu
 LENGTH = struct.Struct("<Q")
 
 
-def _send(fd: int, value) -> None:
-    data = pickle.dumps(value, protocol=5)
+def _send(fd: int, value, dumps: Callable = pickle.dumps) -> None:
+    data = dumps(value, protocol=5)
     view = memoryview(LENGTH.pack(len(data)) + data)
     while view:
         view = view[os.write(fd, view):]

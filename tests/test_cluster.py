@@ -8,6 +8,7 @@ place (seconds, rays per second, processes, the cluster's address).
 """
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import shutil
@@ -306,6 +307,9 @@ def test_without_dask_the_scheduler_option_says_what_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(GlintError, match=r"pip install 'glint\[cluster\]'"):
         DaskExecutor("tcp://127.0.0.1:8786").start()
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *args: None)  # local:N looks before it forks
+    with pytest.raises(GlintError, match=r"pip install 'glint\[cluster\]'"):
+        DaskExecutor("local:2").start()
 
 
 def test_a_local_bake_does_not_import_dask(tmp_path):
