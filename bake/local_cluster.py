@@ -209,9 +209,9 @@ def _detach_output() -> None:
 
 
 def serve(command: int, status: int, requests: int, results: int) -> int:
-    """The worker server's life: import, wait for "COUNT LOG_LEVEL", fork the scheduler, COUNT workers
-    and the client process, keep the workers until the command pipe closes, then stop them all. The
-    arguments are the server's ends of its pipes (WorkerServer._pipes)."""
+    """The worker server's life: import, wait for "COUNT LOG_LEVEL MODULES" (WorkerServer.start), fork the
+    scheduler, COUNT workers and the client process, keep the workers until the command pipe closes,
+    then stop them all. The arguments are the server's ends of its pipes (WorkerServer._pipes)."""
     command_fd, status_fd = command, status
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the bake's: it closes the cluster
     try:
