@@ -218,7 +218,6 @@ class DaskExecutor:
         local = local_cluster.LOCAL_ADDRESS.fullmatch(address)
         self.local_workers = int(local.group(1)) if local else None
         self._client = self._error = self._server = None
-        self._starting: threading.Thread | None = None
         self._closing = False
         self._failure: GlintError | None = None  # set by _watch_server
         # local:N, from its server's reports (_watch_server): the scheduler's address, then the workers in
@@ -242,7 +241,7 @@ class DaskExecutor:
         """Reach the scheduler now (a remote one: a wrong address fails before any work), or start the
         `local:N` cluster in the background (the caller goes on), its workers with `modules` imported
         (those the tasks will run beyond the light maps'). Twice is once."""
-        if self._starting is not None or self._client is not None or self._server is not None:
+        if self._client is not None or self._server is not None:
             return
         if self.local_workers is None:
             self._connect()
@@ -259,17 +258,11 @@ class DaskExecutor:
 
     @property
     def client(self):
-        """The connected `distributed.Client` (waits for a cluster starting in the background). A local:N
-        cluster's bake needs none here (its client is the server's: `run`); one is made on demand (tests,
-        benchmarks), which imports Dask."""
+        """The connected `distributed.Client`. A local:N cluster's bake needs none here (its client is the
+        server's: `run`); one is made on demand (tests, benchmarks), which imports Dask."""
         self.start()
         if self.local_workers is not None and self._client is None and self._error is None:
             self._connect()
-        if self._starting is not None:
-            t0 = time.perf_counter()
-            self._starting.join()
-            self._starting = None
-            self.statistics["waited_seconds"] = round(time.perf_counter() - t0, 3)
         if self._error is not None:
             raise self._error
         return self._client
@@ -305,11 +298,10 @@ class DaskExecutor:
             if self.local_workers is None and not threads:
                 warn(f"the Dask scheduler at {self.address} has no workers yet: the bake waits for them "
                      f"(start some with `dask worker {self.address} --nthreads 1`)")
-        except BaseException as e:  # kept for the caller's thread (`client`), which reports it
+        except BaseException as e:  # kept, so that `client` reports it again rather than retry
             self._error = e
             self._disconnect()
-            if self._starting is None:
-                raise
+            raise
 
     def _check_versions(self) -> None:
         """Refuse the cluster if a worker runs another glint version (its bytes could differ)."""
@@ -460,10 +452,7 @@ class DaskExecutor:
                           "the previous bake directory is as it was: bake again")
 
     def close(self) -> None:
-        """Disconnect; a `local:N` cluster is shut down (once it has started, if it is starting)."""
-        if self._starting is not None:
-            self._starting.join()
-            self._starting = None
+        """Disconnect; a `local:N` cluster is shut down."""
         self._disconnect()
 
     def _disconnect(self) -> None:
@@ -491,7 +480,7 @@ def _run_in_client_process(setup, setup_args, job, tasks, version, name):
     only), then ("result", (index, result)) per task, then ("statistics", its running totals)."""
     global _client_executor
     if _client_executor is None:
-        address, _ = local_cluster.client_context(ARRIVAL_SECONDS)
+        address = local_cluster.client_context(ARRIVAL_SECONDS)
         executor = DaskExecutor(address, name=name)
         executor.start()
         _client_executor = executor

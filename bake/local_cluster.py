@@ -387,16 +387,16 @@ def _run_worker(address: str, name: str, log_level: int, status_fd: int, arrival
 _client_context: dict = {}
 
 
-def client_context(timeout: float) -> tuple[str, int]:
-    """In the client process: the scheduler's address and the number of workers, once they have all
-    registered (at most `timeout` seconds of waiting: Dask's own waits look every 0.1 s)."""
+def client_context(timeout: float) -> str:
+    """In the client process: the scheduler's address, once all the workers have registered (at most
+    `timeout` seconds of waiting: Dask's own waits look every 0.1 s)."""
     fd, count = _client_context["arrivals"], _client_context["count"]
     arrived, deadline = 0, time.monotonic() + timeout
     while arrived < count and time.monotonic() < deadline:
         ready, _, _ = select.select([fd], [], [], max(0.0, deadline - time.monotonic()))
         if ready:
             arrived += len(os.read(fd, count - arrived))
-    return _client_context["address"], count
+    return _client_context["address"]
 
 
 def _run_client(address: str, count: int, log_level: int, requests_fd: int, results_fd: int,
@@ -431,9 +431,10 @@ LENGTH = struct.Struct("<Q")
 
 def _send(fd: int, value, dumps: Callable = pickle.dumps) -> None:
     data = dumps(value, protocol=5)
-    view = memoryview(LENGTH.pack(len(data)) + data)
-    while view:
-        view = view[os.write(fd, view):]
+    for part in (LENGTH.pack(len(data)), data):  # not joined: a request can be hundreds of MiB
+        view = memoryview(part)
+        while view:
+            view = view[os.write(fd, view):]
 
 
 def _receive(fd: int):
@@ -445,7 +446,7 @@ def _receive(fd: int):
     return None if data is None else pickle.loads(data)
 
 
-def _read_exactly(fd: int, size: int) -> bytes | None:
+def _read_exactly(fd: int, size: int) -> bytearray | None:
     data = bytearray()
     while len(data) < size:
         try:
@@ -455,4 +456,4 @@ def _read_exactly(fd: int, size: int) -> bytes | None:
         if not chunk:
             return None
         data += chunk
-    return bytes(data)
+    return data  # not copied to bytes: pickle and struct read a bytearray
