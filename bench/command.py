@@ -4,7 +4,7 @@
     glint bench SCENE --mitsuba    the viewer's images against Mitsuba 3 (bench/mitsuba.py)
     glint bench --stress           the numerical stress suite on its own scenes (bench/stress.py)
 
-The one place that knows all three: glint/cli.py adds the parser, and the measurements
+The one place that knows all three: glint/cli.py has it add the options, and the measurements
 themselves import none of each other's commands.
 """
 from __future__ import annotations
@@ -26,19 +26,18 @@ from glint.bench.bench import (
 from glint.bench.mitsuba import add_mitsuba_options, cmd_bench_mitsuba
 from glint.bench.stress import add_stress_options, run_stress
 from glint.core.errors import GlintError
-from glint.services import SCENE_HELP, add_bake_options
+from glint.options import SCENE_HELP, add_bake_options
 
 
-def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
+def add_bench_options(p: argparse.ArgumentParser) -> None:
+    """`glint bench`'s options, on the parser glint/cli.py made for it."""
     methods = "; ".join(f"{m.key}: {m.label}" for m in METHODS.values())
-    p = subparsers.add_parser(
-        "bench", parents=[common_parent], help="run time against error of the specular integration methods",
-        description="For each camera, method and sample count: GPU milliseconds per pass and the error "
-                    "against the converged reference (PSNR of the displayed images, relative MSE of the "
-                    "radiance, FLIP when installed), over the whole image, the pixels with view-dependent "
-                    "materials and each such material. Writes bench.csv, bench.json, bench.md and bench.png into "
-                    "the output directory. Bakes first when the bake is missing or stale.",
-        epilog=f"Methods: {methods}. The errors are deterministic; the times are not.")
+    p.description = ("For each camera, method and sample count: GPU milliseconds per pass and the error "
+                     "against the converged reference (PSNR of the displayed images, relative MSE of the "
+                     "radiance, FLIP when installed), over the whole image, the pixels with view-dependent "
+                     "materials and each such material. Writes bench.csv, bench.json, bench.md and bench.png into "
+                     "the output directory. Bakes first when the bake is missing or stale.")
+    p.epilog = f"Methods: {methods}. The errors are deterministic; the times are not."
     p.add_argument("scene", metavar="SCENE", nargs="?", help=SCENE_HELP + " (not with --stress)")
     p.add_argument("-o", "--output", type=Path, metavar="DIR",
                    help="directory for bench.csv, bench.json, bench.md, bench.png (made if missing; default: "
@@ -75,7 +74,6 @@ def add_bench_parser(subparsers, common_parent: argparse.ArgumentParser) -> argp
                         "mitsuba.csv, mitsuba.json, mitsuba.png (bench/mitsuba.py)")
     add_mitsuba_options(p)
     p.set_defaults(run=run_bench)
-    return p
 
 
 def run_bench(args) -> int:

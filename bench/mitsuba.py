@@ -61,7 +61,7 @@ from glint.viewer.context import headless_context
 from glint.viewer.gl import describe
 from glint.viewer.renderer import Renderer
 
-# Mitsuba is optional (glint[test]): imported by the functions that need it, so the rest works without.
+# Mitsuba is optional (glint[bench], and part of glint[test]): imported by the functions that need it, so the rest works without.
 
 VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")  # fastest first
 DEFAULT_REFERENCE_SPP = 4096
@@ -72,7 +72,7 @@ SHORT_RENDER = 1.0  # seconds: shorter Mitsuba renders are timed three times
 MIN_LLVM = 16
 PROBE_TIMEOUT = 180
 SEED_CURVE = 1 << 20  # the curve's seeds, apart from the reference's 0, 1, 2, ...
-INSTALL_HINT = "pip install 'glint[test]'"
+INSTALL_HINT = "pip install 'glint[bench]'"
 _PROBE = ("import sys, mitsuba as mi; mi.set_variant(sys.argv[1]); "
           "s = mi.cornell_box(); s['sensor']['film']['width'] = s['sensor']['film']['height'] = 8; "
           "import numpy as np; print(float(np.array(mi.render(mi.load_dict(s), spp=2)).mean()))")

@@ -38,7 +38,7 @@ import math
 from glint.bake.lights import LUMA as _LUMA
 from glint.core import bsdf as ref
 
-# Mitsuba and drjit are optional (glint[test]): imported by the functions that need them, so the rest works without.
+# Mitsuba and drjit are optional (glint[bench], and part of glint[test]): imported by the functions that need them, so the rest works without.
 
 LUMA = [float(x) for x in _LUMA]  # Python floats: numpy scalars would leak into drjit's scalar variant
 

@@ -17,7 +17,7 @@ MARGIN = 0.1  # metres from facet borders and from other objects (the box is 2 m
 
 
 def _mitsuba():
-    import mitsuba as mi  # optional (glint[test]): imported only when a reference is rendered
+    import mitsuba as mi  # optional (glint[bench], and part of glint[test]): imported only when a reference is rendered
 
     mi.set_variant("scalar_rgb")
     return mi

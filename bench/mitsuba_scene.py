@@ -57,7 +57,7 @@ from glint.bench import mitsuba_bsdf
 from glint.core.scene import Scene
 from glint.viewer.gpu_scene import surface_tangents
 
-# Mitsuba and drjit are optional (glint[test]): imported by the functions that need them, so the rest works without.
+# Mitsuba and drjit are optional (glint[bench], and part of glint[test]): imported by the functions that need them, so the rest works without.
 
 SPOT_PLUGIN = "glint_spot"
 ROUGH_GLASS_M = 1e-3  # Beckmann m below which glass is Mitsuba's smooth `dielectric`

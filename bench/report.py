@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from glint.core.atomic import atomic_path, atomic_write_text
+from glint.core.errors import GlintError
 from glint.core.image_io import write_image
 
 
@@ -65,8 +66,11 @@ def write_png(path: Path, srgb: np.ndarray) -> None:
 
 def pyplot():
     """matplotlib.pyplot on the Agg back end (files only, no display)."""
-    import matplotlib  # here, not at the top: it takes longer to import than the rest of glint
-
+    try:  # here, not at the top: it takes longer to import than the rest of glint; and optional
+        import matplotlib
+    except ImportError:
+        raise GlintError("the measurement tools' plots need matplotlib, which is not installed: "
+                         "pip install 'glint[bench]'") from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

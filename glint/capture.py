@@ -33,10 +33,8 @@ from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
+from glint.options import SCENE_HELP, add_bake_options, add_edit_option
 from glint.services import (
-    SCENE_HELP,
-    add_bake_options,
-    add_edit_option,
     check_writable,
     number,
     parse_size,
@@ -69,15 +67,14 @@ MAX_MIRROR_BUDGET = 64
 _VECTOR_ARG = re.compile(r"^-[\d.]")  # "-1,2,3" is a value, not an option
 
 
-def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p = subparsers.add_parser(
-        "capture", parents=[common_parent], help="render images headless (PNG or EXR), no window needed",
-        description="Render a scene without a window or display (EGL; Mesa's llvmpipe where there is no "
-                    "GPU) into a PNG (tone-mapped sRGB) or an OpenEXR file (linear radiance, float32, "
-                    "before exposure and tone mapping). Bakes first when the bake is missing or stale. "
-                    "The same command gives byte-identical files.",
-        epilog="Vectors are X,Y,Z in metres, world space, Y up; a negative first value works as is "
-               "(--eye -1,1.5,2).")
+def add_capture_options(p: argparse.ArgumentParser) -> None:
+    """`glint capture`'s options, on the parser glint/cli.py made for it."""
+    p.description = ("Render a scene without a window or display (EGL; Mesa's llvmpipe where there is no "
+                     "GPU) into a PNG (tone-mapped sRGB) or an OpenEXR file (linear radiance, float32, "
+                     "before exposure and tone mapping). Bakes first when the bake is missing or stale. "
+                     "The same command gives byte-identical files.")
+    p.epilog = ("Vectors are X,Y,Z in metres, world space, Y up; a negative first value works as is "
+                "(--eye -1,1.5,2).")
     # argparse would read "-1,2,3" as an unknown option; vectors may start with a minus sign.
     p._negative_number_matcher = _VECTOR_ARG
     p.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
@@ -124,7 +121,6 @@ def add_capture_parser(subparsers, common_parent: argparse.ArgumentParser) -> ar
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
     add_edit_option(p.add_argument_group("edits (the sidecar's keys, docs/SCENES.md)"))
     p.set_defaults(run=cmd_capture)
-    return p
 
 
 # -- argument checks (all before the bake, so mistakes cost nothing) ------------------------------

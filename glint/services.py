@@ -6,7 +6,6 @@ above the bake and the viewer: `bake_scene` hands the bake its one GPU stage
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import re
@@ -20,82 +19,28 @@ from glint.bake.edits import edited_bake_dir, edited_bake_keys
 from glint.bake.gltf_loader import load_scene
 from glint.bake.lightmap import INVALID_WARN_SHARE, UNLIT_WARN_SHARE
 from glint.bake.pipeline import BakeReport
-from glint.bake.settings import PRESETS, BakeSettings, resolve_settings
+from glint.bake.settings import BakeSettings, resolve_settings
 from glint.core.bake_dir import default_bake_dir, read_manifest
 from glint.core.errors import GlintError, summarised
 from glint.core.scene import Scene
-from glint.cubemap_stage import render_cubemaps
 from glint.scenes import BUILTIN, resolve
 from glint.viewer.camera import find_named
-
-SCENE_HELP = ("a built-in scene name (see `glint scenes`) or a .glb/.gltf file; "
-              "an optional NAME.glint.toml beside the file adds lights, sky, material overrides and bake settings")
-
-
-def _whole(minimum: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a whole number: '{text}'")
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}: '{text}'")
-        return value
-    return parse
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: '{text}'")
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be positive: '{text}'")
-    return value
-
-
-def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_existing: bool = True) -> None:
-    """The bake's options, for `bake` and for the commands that bake first (`view`, `capture`,
-    `bench`); `out_flags` name the bake-directory option (capture's -o is its image);
-    `keeps_existing`: an existing bake keeps its settings unless an option is given (run_bake)."""
-    presets = "; ".join(f"{k}: {v['samples']} samples, {v['texels_per_metre']:g} texels/m" for k, v in PRESETS.items())
-    p.add_argument(*out_flags, dest="out", type=Path, metavar="DIR",
-                   help="bake directory (default: NAME.bake beside the scene file; "
-                        "built-in scenes bake into ~/.cache/glint or $GLINT_CACHE)")
-    p.add_argument("-q", "--quality", choices=list(PRESETS),
-                   help=("quality preset (default: an existing bake is used with the settings it was made with; "
-                         "a new one gets the sidecar's [bake] quality, else preview)" if keeps_existing else
-                         "quality preset (default: the sidecar's [bake] quality, else preview)") + f" — {presets}")
-    p.add_argument("--samples", type=_whole(1), metavar="N", help="paths per texel (overrides the preset)")
-    p.add_argument("--texels-per-metre", type=_positive_float, metavar="T", dest="texels_per_metre",
-                   help="light-map resolution (overrides the preset)")
-    p.add_argument("-j", "--jobs", type=_whole(0), metavar="N",
-                   help="worker processes (default: the sidecar's [bake] jobs, else 0 = one per core)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="bake on a Dask cluster: the light-map tiles and cube maps become tasks on its workers. "
-                        "ADDRESS is tcp://HOST:PORT of a running `dask scheduler` (workers started with `dask worker "
-                        "tcp://HOST:PORT --nthreads 1`, each with this glint version and, for the cube maps, EGL: "
-                        "a GPU driver or Mesa's llvmpipe), or local:N for a cluster of N worker processes on this "
-                        "machine (--jobs is then unused). The bake is the same bytes as without it; needs "
-                        "pip install 'glint[cluster]' "
-                        "(docs/BAKE.md \"On a cluster (Dask)\")")
-    p.add_argument("--no-denoise", action="store_true", help="keep the path-traced noise (no Open Image Denoise)")
-    p.add_argument("--force", action="store_true", help="bake everything again even if up to date")
-
-
-def add_edit_option(p) -> None:
-    """`--set KEY=VALUE` (repeatable), for `bake`, `capture` and `view` (bake/edits.py)."""
-    p.add_argument("--set", dest="edits", action="append", default=[], metavar="KEY=VALUE",
-                   help="change one sidecar key for this run, on top of NAME.glint.toml (repeatable): KEY a "
-                        "TOML key path, VALUE a TOML value, checked as the sidecar is, e.g. "
-                        "--set 'materials.\"Floor\".kd=[0.3, 0.2, 0.1]' --set 'bake.quality=\"draft\"'. "
-                        "The edited scene bakes into NAME.edit-<hash>.bake beside the bake directory, "
-                        "starting from the unedited bake, which stays as it is (docs/SCENES.md)")
-
 
 def open_scene(scene_arg: str, edits: list = ()) -> tuple[Scene, str | None]:
     """SCENE argument (and `--set` assignments) -> (Scene, builtin name or None)."""
     return load_scene(resolve(scene_arg), edits), (scene_arg if scene_arg in BUILTIN else None)
+
+
+def render_cubemaps(*args, **kwargs):
+    """glint.cubemap_stage.render_cubemaps, imported when a bake has cube maps to render: the
+    renderer and moderngl are no cost to a bake without any (or one that is up to date)."""
+    from glint.cubemap_stage import render_cubemaps as render
+
+    return render(*args, **kwargs)
+
+
+# The bake has a cluster's workers import the stage's module before its tasks arrive (pipeline.py).
+render_cubemaps.__module__ = "glint.cubemap_stage"
 
 
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,

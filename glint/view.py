@@ -1,6 +1,6 @@
 """`glint view SCENE`: bake when needed, then walk through the scene in a window.
 
-glint/cli.py adds the sub-command with `add_view_parser(subparsers, common)`.
+glint/cli.py gives the sub-command its options with `add_view_options(parser)`.
 Without a display the command stops before baking with one line that points to
 `glint capture`, which renders the same frames headless.
 """
@@ -20,21 +20,21 @@ from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError, one_line
 from glint.cubemap_stage import ProbeRefresher
 from glint.scenes import BUILTIN, resolve
-from glint.services import SCENE_HELP, add_bake_options, add_edit_option, parse_size, run_bake
+from glint.options import SCENE_HELP, add_bake_options, add_edit_option
+from glint.services import parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 from glint.viewer.controls import KEY_HELP, WalkControls
 
 DEFAULT_SIZE = "1280x720"
 
 
-def add_view_parser(subparsers, common_parent: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    p = subparsers.add_parser(
-        "view", parents=[common_parent], help="walk through a scene in a window (bakes first if needed)",
-        description=textwrap.fill("Open a window on a scene and walk through it. The scene is baked first "
+def add_view_options(p: argparse.ArgumentParser) -> None:
+    """`glint view`'s options, on the parser glint/cli.py made for it."""
+    p.description = textwrap.fill("Open a window on a scene and walk through it. The scene is baked first "
                                   "when its bake directory is missing or out of date (the bake options "
-                                  "below apply). Needs a display; `glint capture` renders frames without one.",
-                                  78),
-        epilog="keys and mouse:\n" + KEY_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+                                  "below apply). Needs a display; `glint capture` renders frames without one.", 78)
+    p.epilog = "keys and mouse:\n" + KEY_HELP
+    p.formatter_class = argparse.RawDescriptionHelpFormatter
     p.add_argument("scene", metavar="SCENE", help=SCENE_HELP)
     p.add_argument("--size", default=DEFAULT_SIZE, metavar="WxH",
                    help=f"window size in pixels (default {DEFAULT_SIZE})")
@@ -46,7 +46,6 @@ def add_view_parser(subparsers, common_parent: argparse.ArgumentParser) -> argpa
     add_bake_options(p, out_flags=("--bake-dir", "-o", "--out"))  # --bake-dir as capture and bench; -o kept
     add_edit_option(p)
     p.set_defaults(run=cmd_view)
-    return p
 
 
 def missing_display() -> str | None:

@@ -40,7 +40,7 @@ ALLOWED = {
     "commands": {"core", "bake", "viewer", "scenes", "services", "commands", "bench"},
     "bench": {"core", "bake", "viewer", "scenes", "shaders", "services", "commands", "bench"},
 }
-SERVICES = {"glint.services", "glint.cubemap_stage"}
+SERVICES = {"glint.services", "glint.options", "glint.cubemap_stage"}
 
 
 def layer(module: str) -> str:

@@ -70,9 +70,21 @@ def test_scene_without_light(tmp_path):
 
 
 def test_bad_option_values(tmp_path):
-    for args in (("--samples", "0"), ("--quality", "ultra"), ("--texels-per-metre", "-1"), ("--jobs", "x")):
+    """A mistake on the command line is one line naming the option and the value, exit 2, not
+    argparse's usage block (glint/cli.py ArgumentParser.error). Deliberate bug tried: the plain
+    argparse.ArgumentParser: the usage block fails `assert len(lines) == 1`."""
+    for args, words in ((("--samples", "0"), ("--samples", "at least 1", "'0'")),
+                        (("--quality", "ultra"), ("--quality", "invalid choice", "ultra")),
+                        (("--texels-per-metre", "-1"), ("--texels-per-metre", "positive")),
+                        (("--jobs", "x"), ("--jobs", "not a whole number")),
+                        (("-j", "-1"), ("--jobs", "at least 0")),
+                        (("--frobnicate",), ("unrecognized arguments", "--frobnicate"))):
         result = glint("bake", "cornell-box", *args, "-o", tmp_path / "x.bake")
-        assert result.returncode == 2 and "Traceback" not in result.stderr
+        assert_one_line_error(result, "glint: bake: ", *words)
+        assert "usage:" not in result.stderr
+    assert_one_line_error(glint("bake"), "required", "SCENE")
+    assert_one_line_error(glint("capture", "cornell-box"), "required", "-o/--output")
+    assert_one_line_error(glint("frob"), "invalid choice", "frob", "glint --help")
     assert not (tmp_path / "x.bake").exists()
 
 

@@ -21,7 +21,8 @@ from conftest import write_room
 from glint.cli import main
 from glint.core.errors import WarningKind, summarised, warn
 from glint.scenes.gltf_writer import GltfWriter, quad, room_faces
-from glint.services import add_bake_options, run_bake
+from glint.options import add_bake_options
+from glint.services import run_bake
 
 FAST = ["-q", "draft", "--samples", "4", "--texels-per-metre", "4", "--no-denoise", "-j", "1"]
 SLIVERS = 12  # objects with 2 good triangles and 1 of zero area
