@@ -12,9 +12,10 @@ cameras)" and re-baked the light maps (the up-to-date check compared them exactl
 Deliberate bugs tried (each fails the test named): the sidecar's bytes hashed instead of its TOML
 content (test_a_sidecar_with_only_a_comment_is_no_change); `scene.source` compared in same_inputs
 (test_a_bake_moved_with_its_scene_is_up_to_date, both cases); same_inputs back to comparing the
-whole manifest (test_last_bit_differences_of_derived_floats_are_no_change); VERSION_NAMES'
-"transport" entry dropped and stale_reason back to its fixed "made by an older glint"
-(test_a_new_integrator_version_says_which).
+whole manifest (test_last_bit_differences_of_derived_floats_are_no_change, and the naming test); VERSION_NAMES'
+stale_reason back to its fixed "made by an older glint" without the version
+(test_a_new_integrator_version_says_which); cameras compared exactly in changed_inputs
+(test_a_camera_a_last_bit_apart_is_not_named).
 """
 from __future__ import annotations
 
@@ -177,3 +178,19 @@ def test_a_manifest_without_inputs_stays_readable(tmp_path, capsys):
     assert "up to date, nothing to do" in bake(scene, out, capsys)
     line = stale_line(bake(scene, out, capsys, "--samples", "4"))
     assert "changed: bake settings (samples 8 -> 4)" in line and "older glint" not in line, line
+
+
+def test_a_camera_a_last_bit_apart_is_not_named(tmp_path, capsys):
+    """When something did change (a setting), a camera direction computed a last bit differently on
+    another machine is not named with it. Catches stale_reason comparing derived floats exactly
+    (was: "changed: ..., cameras" for a camera nobody moved)."""
+    from glint.core.skipped import stale_reason
+
+    scene = write_room(tmp_path / "room.glb", sidecar=CAMERA)
+    bake(scene, tmp_path / "room.bake", capsys)
+    old = json.loads((tmp_path / "room.bake" / "manifest.json").read_text())
+    new = json.loads(json.dumps(old))
+    new["cameras"][0]["forward"] = [float(np.nextafter(x, 2.0)) for x in new["cameras"][0]["forward"]]
+    new["settings"]["samples"] = 16
+    assert new["cameras"] != old["cameras"]
+    assert stale_reason(old, new) == "changed: bake settings (samples 8 -> 16)"
