@@ -17,6 +17,7 @@ import json
 
 import numpy as np
 
+from glint.core.bake_dir import FORMAT_VERSION
 from glint.core.scene import Scene
 
 # Bump when the integrator or the unwrap changes what they produce.
@@ -98,3 +99,24 @@ def transport_hash(scene: Scene, settings, geometry: str) -> str:
 def cubemap_hash(transport: str, inputs: dict) -> str:
     """`inputs`: everything of one cube map besides the light-mapped scene (bake/cubemap.py)."""
     return _Hasher(f"cubemap-v{CUBEMAP_VERSION}").value(transport).value(inputs).hexdigest()
+
+
+def stage_versions() -> dict:
+    """The versions of what glint makes of the same inputs (the manifest's `inputs.versions`): a bake
+    made with others is redone (the stage hashes include them too); core/skipped.py VERSION_NAMES
+    names them."""
+    return {"format": FORMAT_VERSION, "geometry": GEOMETRY_VERSION, "transport": TRANSPORT_VERSION,
+            "cubemap": CUBEMAP_VERSION}
+
+
+def object_hashes(obj) -> dict:
+    """Short hashes of one object's positions, normals, indices and texture coordinates, rounded to
+    float32 first (a last-bit difference of the float64 transform seldom survives): they only name
+    what changed in a stale bake's line (core/skipped.py), they decide nothing."""
+    def short(a) -> str | None:
+        if a is None:
+            return None
+        a = np.asarray(a)
+        return _Hasher("").array(a.astype(np.float32) if a.dtype.kind == "f" else a.astype(np.int64)).hexdigest()[:12]
+    return {"positions": short(obj.positions), "normals": short(obj.normals), "indices": short(obj.indices),
+            "uvs": short(obj.uvs)}

@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
+from urllib.parse import unquote
 
 import numpy as np
 from tqdm import tqdm
@@ -26,6 +27,7 @@ from glint.bake.lightmap import bake_lightmaps, two_sided_objects, warn_texels
 from glint.bake.settings import PROBE_SETTINGS, BakeSettings
 from glint.bake.texels import rasterize_texels
 from glint.bake.unwrap import Atlas, ObjectCharts, unwrap
+from glint.bake.sidecar import parse_toml, read_sidecar_text, sidecar_path
 from glint.core.bake_dir import FORMAT_VERSION, BakeDirWriter, load_meshes, read_manifest, save_meshes, write_json
 from glint.core.errors import GlintError
 from glint.core.geometry import plane_of
@@ -68,14 +70,65 @@ def probe_line(cm: dict) -> str:
 
 
 def source_hash(scene: Scene, *, edits: bool = True) -> str:
-    """Hash of the glTF and sidecar files' bytes and (unless `edits` is False) the `--set` edits."""
-    h = hashlib.sha256()
-    for path in (scene.source, scene.sidecar):
-        if path is not None and Path(path).exists():
-            h.update(Path(path).read_bytes())
+    """Hash of the scene's content, the one thing besides the settings and glint's stage versions that
+    decides whether a bake is up to date (bake_scene): the glTF file's bytes and those of the files it
+    names (buffers, images), the sidecar's content as TOML reads it (comments, layout and key order are
+    not content; no sidecar is an empty one), the sky map's bytes and (unless `edits` is False) the
+    `--set` edits. No path enters it: a bake moves between folders, installs and machines."""
+    h = hashlib.sha256(b"glint-scene-content-2")
+    for data in _scene_files(scene):
+        h.update(len(data).to_bytes(8, "little"))
+        h.update(data)
+    h.update(json.dumps(sidecar_content(scene), sort_keys=True).encode())
     if edits and scene.edits:  # only then: unedited scenes keep the hashes of existing bakes
         h.update(json.dumps(list(scene.edits)).encode())
     return h.hexdigest()[:32]
+
+
+def _scene_files(scene: Scene):
+    """The bytes of the glTF file, of the files its buffers and images name by relative URI, and of
+    the sky map: everything on disk the scene's content comes from besides the sidecar."""
+    if scene.source is None or not Path(scene.source).is_file():
+        return
+    path = Path(scene.source)
+    data = path.read_bytes()
+    yield data
+    tree = None
+    try:
+        if data[:4] == b"glTF":
+            length = int.from_bytes(data[12:16], "little")
+            tree = json.loads(data[20:20 + length])
+        else:
+            tree = json.loads(data)
+    except (ValueError, UnicodeDecodeError):
+        tree = None
+    for item in [*(tree or {}).get("buffers", []), *(tree or {}).get("images", [])] if isinstance(tree, dict) else []:
+        uri = item.get("uri") if isinstance(item, dict) else None
+        if isinstance(uri, str) and not uri.startswith("data:"):
+            file = path.parent / unquote(uri)
+            yield file.read_bytes() if file.is_file() else b""
+    if scene.sky is not None and scene.sky.source and Path(scene.sky.source).is_file():
+        yield Path(scene.sky.source).read_bytes()
+
+
+def sidecar_content(scene: Scene) -> dict:
+    """The sidecar's tables as TOML reads them ({} without one), JSON-ready: what the bake reads of it."""
+    path = scene.sidecar if scene.sidecar is not None else (sidecar_path(scene.source) if scene.source else None)
+    text = read_sidecar_text(Path(path)) if path is not None else None
+    if text is None:
+        return {}
+    return json.loads(json.dumps(parse_toml(text, Path(path)), sort_keys=True, default=str))
+
+
+def bake_inputs(scene: Scene) -> dict:
+    """The manifest's `inputs`: glint's stage versions (bake/hashing.py), the sidecar's content and
+    per-object content hashes. The versions decide, with the scene's hash and the settings, whether
+    a bake is up to date; the rest only names what changed (core/skipped.py stale_reason)."""
+    path = scene.sidecar if scene.sidecar is not None else (sidecar_path(scene.source) if scene.source else None)
+    content = sidecar_content(scene)
+    side = {"file": Path(path).name, "content": content} if path is not None and Path(path).is_file() else None
+    return {"versions": hashing.stage_versions(), "sidecar": side,
+            "objects": {obj.name: hashing.object_hashes(obj) for obj in scene.objects}}
 
 
 def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
@@ -222,8 +275,13 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         "settings": {**settings.transport_dict(), "quality": settings.quality, **_probe_settings(settings)},
         "stages": {"geometry": geometry, "lightmaps": transport,
                    "cubemaps": {str(plan.index): plan.hash for plan in cubemaps}},
+        "inputs": bake_inputs(scene),
         **description,
     }
+    # Up to date: the same scene content, settings and stage versions, whatever the paths and the
+    # machine (derived floats may differ there in the last bit: they decide nothing here).
+    if old is not None and old_dir == bake_dir and same_inputs(old, manifest):
+        return BakeReport(bake_dir, "up-to-date", old)
 
     reuse_geometry = old is not None and old["stages"].get("geometry") == geometry
     reuse_lightmaps = reuse_geometry and old["stages"].get("lightmaps") == transport
@@ -232,9 +290,6 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         manifest["lightmaps"] = old["lightmaps"]
         manifest["lightmaps_back"] = old.get("lightmaps_back", [])
         manifest["statistics"] = dict(old["statistics"])
-        if old_dir == bake_dir and {k: v for k, v in old.items() if k != "statistics"} == \
-                {k: v for k, v in manifest.items() if k != "statistics"}:
-            return BakeReport(bake_dir, "up-to-date", old)
 
     if old is not None and announce is not None:
         announce(stale_reason(old, manifest))
@@ -274,6 +329,18 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         write_json(out.path / "manifest.json", manifest)
         out.commit()
     return BakeReport(bake_dir, status, manifest, redone)
+
+
+def same_inputs(old: dict, new: dict) -> bool:
+    """Whether the bake of manifest `old` is up to date for `new`: the same scene content (`scene.hash`,
+    source_hash), settings and stage versions (`inputs.versions`). A manifest written before it
+    recorded them (no `inputs`) is up to date when its stages and description equal `new`'s, as before."""
+    if "inputs" not in old:  # the stages (which decide atlas and light maps) and the description
+        return all(old.get(k) == v for k, v in json.loads(json.dumps(new)).items() if k not in ("scene", "inputs")) \
+            and (old.get("scene") or {}).get("name") == new["scene"]["name"]
+    return ((old.get("scene") or {}).get("hash") == new["scene"]["hash"]
+            and old.get("settings") == json.loads(json.dumps(new["settings"]))
+            and (old.get("inputs") or {}).get("versions") == new["inputs"]["versions"])
 
 
 def _to_render(plans: list[CubeMapPlan], old: dict | None, old_dir: Path) -> list[CubeMapPlan]:

@@ -2,6 +2,12 @@
 
     manifest.json          versioned description (see `FORMAT_VERSION`): scene hash, per-stage
                            input hashes, settings, statistics, materials, lights, cameras, objects;
+                           `scene.hash` is of the scene's content (bake/pipeline.py source_hash: no
+                           path in it) and `scene.source` the absolute path, for information only: a
+                           bake is up to date for the same content hash, settings and optional
+                           `inputs.versions` (the stage versions; `inputs` also holds the sidecar's
+                           content and per-object hashes, which only name what changed; absent in
+                           older bake dirs, which stay readable: no version change), wherever it lies;
                            optional `statistics.last_bake`: what the bake that wrote it redid and
                            reused and why (core/skipped.py; absent in older bake dirs, which stay
                            readable: no version change); optional `statistics.ignored_features`:

@@ -18,6 +18,8 @@ say what it skipped:
 """
 from __future__ import annotations
 
+from pathlib import Path
+
 NO_LOBE = "no view-dependent lobe"
 PLANAR = "planar: mirror pass instead"
 DIFFUSE_ROLE = "role diffuse (sidecar): lobes not shown"
@@ -54,16 +56,96 @@ def _lobes(material: dict, transmit: bool) -> list:
     return [lobe for lobe in material.get("lobes") or [] if (lobe.get("kind") == "transmit") == transmit]
 
 
+def _close(a, b, rel: float = 1e-9) -> bool:
+    """Equal, floats within `rel` (a camera's or light's direction computed on another machine may
+    differ in the last bit: that is no change)."""
+    if isinstance(a, float) or isinstance(b, float):
+        return (isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool)
+                and abs(a - b) <= rel * max(abs(a), abs(b), 1e-300))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_close(a[k], b[k], rel) for k in a)
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_close(x, y, rel) for x, y in zip(a, b))
+    return a == b
+
+
+# TOML tables of the sidecar whose entries are named tables of their own ([objects."Box"], [cameras.Door]).
+_NAMED_TABLES = ("materials", "objects", "cameras", "camera_paths")
+
+
+def sidecar_changes(old: dict | None, new: dict | None) -> list[str]:
+    """The sidecar's change between two manifests' `inputs.sidecar` ({file, content} or None), e.g.
+    ["sidecar room.glint.toml changed: [bake] samples, [cameras.Door]"]; [] when the same."""
+    old_content, new_content = (old or {}).get("content") or {}, (new or {}).get("content") or {}
+    if (old or None) is None and (new or None) is None or old_content == new_content and bool(old) == bool(new):
+        return []
+    keys = []
+    for table in sorted(set(old_content) | set(new_content), key=lambda t: (t not in new_content, t)):
+        a, b = old_content.get(table), new_content.get(table)
+        if a == b:
+            continue
+        if not (isinstance(a, dict) or isinstance(b, dict)):
+            keys.append(table)
+            continue
+        a, b = a if isinstance(a, dict) else {}, b if isinstance(b, dict) else {}
+        changed = [k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
+        if table in _NAMED_TABLES:  # [objects.Box] role where the entry changed, [cameras.Door] where it came or went
+            for k in changed:
+                x, y = a.get(k), b.get(k)
+                inner = sorted(n for n in set(x) | set(y) if x.get(n) != y.get(n)) \
+                    if isinstance(x, dict) and isinstance(y, dict) else []
+                keys.append(f"[{table}.{k}]" + (" " + " ".join(inner) if inner else ""))
+        else:
+            keys.append(f"[{table}] " + " ".join(changed) if changed else f"[{table}]")
+    name = (new or old)["file"]
+    what = "appeared" if not old else "disappeared" if not new else "changed"
+    if what == "changed" and old["file"] != new["file"]:
+        name = f"{old['file']} -> {new['file']}"
+    return [f"sidecar {name} {what}" + (f" ({_phrase(keys)})" if keys else "")]
+
+
+# What each entry of the manifest's `inputs.versions` (bake/hashing.py stage_versions) is, in a stale line.
+VERSION_NAMES = {"format": "bake format", "geometry": "unwrap version", "transport": "light-map integrator version",
+                 "cubemap": "cube-map renderer version"}
+
+
+def version_changes(old: dict, new: dict) -> list[str]:
+    """glint's stage versions that differ between two manifests' `inputs.versions`, e.g.
+    ["light-map integrator version 2 -> 3"]; [] when the same or when `old` records none."""
+    a, b = (old.get("inputs") or {}).get("versions"), (new.get("inputs") or {}).get("versions") or {}
+    if a is None:
+        return []
+    return [f"{VERSION_NAMES.get(k, k)} {a.get(k)} -> {v}" for k, v in b.items() if a.get(k) != v]
+
+
 def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
     """The inputs that differ between two manifests, by the stage they invalidate (bake/hashing.py):
-    {"geometry": [...], "light maps": [...], "manifest": [...]}, each a list of short phrases
-    such as "kd of Floor" or "cameras"."""
-    out: dict[str, list[str]] = {"geometry": [], "light maps": [], "manifest": []}
-    if old.get("stages", {}).get("geometry") != new["stages"]["geometry"]:
+    {"files": [...], "geometry": [...], "light maps": [...], "manifest": [...]}, each a list of short
+    phrases such as "sidecar room.glint.toml changed ([bake] samples)", "positions of Box",
+    "kd of Floor" or "cameras". "files" names what changed in the scene's files (the sidecar's
+    tables and keys, each object's content) besides what the stages name."""
+    out: dict[str, list[str]] = {"files": [], "geometry": [], "light maps": [], "manifest": []}
+    old_inputs, new_inputs = old.get("inputs") or {}, new.get("inputs") or {}
+    if "inputs" in old:
+        out["files"] += sidecar_changes(old_inputs.get("sidecar"), new_inputs.get("sidecar"))
+    old_objects_c, new_objects_c = old_inputs.get("objects"), new_inputs.get("objects") or {}
+    if old_objects_c is not None:
+        added = [n for n in new_objects_c if n not in old_objects_c]
+        removed = [n for n in old_objects_c if n not in new_objects_c]
+        if added:
+            out["geometry"].append("objects added: " + _phrase(added))
+        if removed:
+            out["geometry"].append("objects removed: " + _phrase(removed))
+        for name, hashes in new_objects_c.items():
+            o = old_objects_c.get(name)
+            what = [k for k, v in hashes.items() if o is not None and o.get(k) != v]
+            if what:
+                out["geometry" if set(what) - {"uvs"} else "light maps"].append(f"{', '.join(what)} of {name}")
+    if old.get("stages", {}).get("geometry") != new["stages"]["geometry"] and not out["geometry"]:
         out["geometry"].append("geometry or light-map resolution")
     old_settings = old.get("settings") or {}
     changed = [f"{k} {old_settings.get(k)} -> {v}" for k, v in new["settings"].items()
-               if k != "quality" and old_settings.get(k) != v]
+               if k != "quality" and not _close(old_settings.get(k), v)]
     if changed:
         out["light maps"].append("bake settings (" + ", ".join(changed) + ")")
     old_materials, new_materials = _by_name(old.get("materials")), _by_name(new["materials"])
@@ -75,11 +157,11 @@ def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
             continue
         for key, what in (("kd", "kd"), ("emission", "emission"), ("double_sided", "sides"),
                           ("kd_texture", "kd texture")):
-            if o.get(key) != m.get(key):
+            if not _close(o.get(key), m.get(key)):
                 out["light maps"].append(f"{what} of {name}")
-        if _lobes(o, True) != _lobes(m, True):
+        if not _close(_lobes(o, True), _lobes(m, True)):
             out["light maps"].append(f"glass lobes of {name}")
-        if _lobes(o, False) != _lobes(m, False):  # the bake's paths scatter by them (bake/scatter.py)
+        if not _close(_lobes(o, False), _lobes(m, False)):  # the bake's paths scatter by them (bake/scatter.py)
             out["light maps"].append(f"lobes of {name}")
     old_objects, old_names = _by_name(old.get("objects")), [m["name"] for m in old.get("materials") or []]
     for name, obj in _by_name(new["objects"]).items():
@@ -91,13 +173,13 @@ def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
             out["light maps"].append(f"material of {name}")
         if o.get("role") != obj.get("role"):
             out["manifest"].append(f"role of {name}")
-        elif o.get("cubemap") != obj.get("cubemap"):
+        elif not _close(o.get("cubemap"), obj.get("cubemap")):
             out["manifest"].append(f"cube map of {name}")  # size, centre or bounding planes
     for key, what in (("lights", "lights"), ("sky", "sky")):
-        if old.get(key) != new.get(key):
+        if not _close(old.get(key), new.get(key)):
             out["light maps"].append(what)
     for key, what in (("cameras", "cameras"), ("camera_paths", "camera paths")):
-        if old.get(key) != new.get(key):
+        if not _close(old.get(key), new.get(key)):
             out["manifest"].append(what)
     return out
 
@@ -108,16 +190,28 @@ def _phrase(items: list[str], limit: int = 3) -> str:
 
 def stale_reason(old: dict, new: dict) -> str:
     """One phrase of why a bake with manifest `old` is redone for `new`, e.g.
-    "changed: kd of Floor, bake settings (samples 32 -> 128)"."""
+    "changed: kd of Floor, bake settings (samples 32 -> 128)", "changed: sidecar room.glint.toml
+    appeared ([objects.Box])" or "made by an older glint (light-map integrator version 2 -> 3)".
+    "made by an older glint" only where glint's stage versions differ, or the old manifest records
+    none and nothing else differs."""
     changes = changed_inputs(old, new)
-    items = changes["geometry"] + changes["light maps"] + changes["manifest"]
-    return ("changed: " + _phrase(items)) if items else "made by an older glint"
+    items = changes["files"] + changes["geometry"] + changes["light maps"] + changes["manifest"]
+    versions = version_changes(old, new)
+    if not items and not versions:
+        if "inputs" not in old:
+            versions = ["its manifest records no stage versions"]
+        elif (old.get("scene") or {}).get("hash") != new["scene"]["hash"]:
+            items = [f"scene file {Path(new['scene'].get('source') or new['scene']['name']).name}"
+                     " (nothing the bake reads)"]
+    parts = ([f"made by an older glint ({', '.join(versions)})"] if versions else []) + (
+        ["changed: " + _phrase(items)] if items else [])
+    return "; ".join(parts) or "changed: nothing found (bake with --force to redo it)"
 
 
 def bake_record(status: str, old: dict | None, new: dict, cube_maps: dict, *, forced: bool = False) -> dict:
     """What the bake that writes `new` did and why (after `old`, the previous manifest or None);
     `status` as bake/pipeline.py's BakeReport, `cube_maps` its cube-map statistics."""
-    changes = changed_inputs(old, new) if old is not None else {"geometry": [], "light maps": [], "manifest": []}
+    changes = changed_inputs(old, new) if old is not None else {"files": [], "geometry": [], "light maps": [], "manifest": []}
     if old is None:
         why = "--force" if forced else "no earlier bake of this format"
     elif status == "full":
@@ -135,7 +229,7 @@ def bake_record(status: str, old: dict | None, new: dict, cube_maps: dict, *, fo
         "unwrap": "redone" if status == "full" else "reused",
         "light_maps": "re-baked" if status in ("full", "lightmaps") else "reused",
         "why": why,
-        "changed": changes["geometry"] + changes["light maps"] + changes["manifest"],
+        "changed": changes["files"] + changes["geometry"] + changes["light maps"] + changes["manifest"],
         "cube_maps_rendered": int(cube_maps.get("rendered", 0)),
         "cube_maps_reused": int(cube_maps.get("reused", 0)),
     }
