@@ -37,8 +37,9 @@ All tables are optional:
 
 `diffuse_roughness` sits in [bake] rather than [materials] because [materials]
 is keyed by material name (a material could be called "diffuse_roughness").
-Wrong types and unknown values are errors naming the file and key; unknown
-keys are warnings (a typo should not silently do nothing, nor stop the work).
+Wrong types and values outside a key's range are errors naming the file, table, key,
+value and what is allowed (each key's rule: bake/schema.py); unknown keys are warnings
+(a typo should not silently do nothing, nor stop the work).
 
 The per-object cube-map settings reach the bake as `Object.options`
 ({"cubemap_size": int, "bounding_planes": bool | [{point, normal}], "shared_probe": bool}, empty when the sidecar
