@@ -47,6 +47,14 @@ MIN_CLUSTER_TILE = 256  # texels per job at the least, on a cluster of many work
 INVALID_WARN_SHARE = 0.30
 UNLIT_WARN_SHARE = 0.10
 WARN_OBJECTS = 3  # objects the warning names
+# Exposure: `glint capture` and `glint view` show radiance x 2^EV (default EV 0) through the ACES curve
+# (viewer/passes/tonemap.py). A lit surface's typical radiance should be near middle grey; the bake warns
+# when the median radiance kd/pi E of its lit texels lies more than DARK_STOPS below it (ACES then shows
+# it below 6 % sRGB: nearly black) or BRIGHT_STOPS above it (above 99 %: white), and suggests an
+# --exposure that brings it to middle grey. The built-in living-room's median lies 3.6 stops below
+# (draft bake): dim, not black, so no warning.
+MIDDLE_GREY = 0.18
+DARK_STOPS, BRIGHT_STOPS = 4.0, 5.0
 
 
 @dataclass
@@ -61,9 +69,11 @@ class LightmapPages:
     back_irradiance: list[np.ndarray]
     back_baked: list[np.ndarray]
     back_texels: int = 0  # of `texels`, back sides
-    unlit: int = 0  # surface texels (front texels) that no light reached on any side
+    unlit: int = 0  # surface texels (front texels) of non-emissive objects that no light reached on any side
     invalid_by_object: np.ndarray | None = None  # (objects,) int64 invalid texels (both sides)
     unlit_by_object: np.ndarray | None = None  # (objects,) int64 unlit surface texels
+    # median radiance kd/pi E (W/(m^2 sr), grey) of the lit surface texels of non-emissive objects; None: none lit
+    median_radiance: float | None = None
     trace_seconds: float = 0.0  # the path tracing of the tiles (the stage's parallel part), wall clock
     tiles: int = 0  # tasks the texels were traced in
 
@@ -102,6 +112,11 @@ def tile_size(texels: int, executor) -> int:
 def two_sided_objects(scene: Scene) -> np.ndarray:
     """(objects,) bool: which objects get a back side in the light maps."""
     return np.array([scene.material_of(o).two_sided for o in scene.objects], bool)
+
+
+def emissive_objects(scene: Scene) -> np.ndarray:
+    """(objects,) bool: which objects' material emits (emission above 0; an emissive texture multiplies it)."""
+    return np.array([bool(np.max(m.emission) > 0) for m in map(scene.material_of, scene.objects)], bool)
 
 
 def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None,
@@ -151,11 +166,39 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     lit[back] |= E[front:].max(axis=1) > 0
     some_valid = valid[:front].copy()
     some_valid[back] |= valid[front:]
-    unlit = ~lit & some_valid  # a texel invalid on every side is counted as invalid only
+    # a texel invalid on every side is counted as invalid only; an emitter's texels are seen by their
+    # emission, never black: not unlit
+    unlit = ~lit & some_valid & ~emissive_objects(scene)[objects]
     unlit_by_object = np.bincount(objects[unlit], minlength=count)
+    median_radiance = _median_radiance(scene, objects, E[:front], lit & valid[:front] & ~emissive_objects(scene)[objects])
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
-                         unlit_by_object=unlit_by_object, trace_seconds=trace_seconds, tiles=len(tasks))
+                         unlit_by_object=unlit_by_object, median_radiance=median_radiance, trace_seconds=trace_seconds, tiles=len(tasks))
+
+
+def _median_radiance(scene: Scene, objects: np.ndarray, E: np.ndarray, texels: np.ndarray) -> float | None:
+    """The median of kd/pi E (grey: the means of kd's and E's channels) over `texels` (a mask of the
+    front texels; `objects`: each texel's object); None when it selects none."""
+    if not texels.any():
+        return None
+    kd = np.array([float(np.mean(np.clip(scene.material_of(o).kd, 0.0, 1.0))) for o in scene.objects])
+    return float(np.median(kd[objects[texels]] / np.pi * E[texels].mean(axis=1)))
+
+
+def exposure_warning(median_radiance: float | None) -> str | None:
+    """What to do when the default exposure shows the scene nearly black or white (module constants),
+    with the --exposure (whole stops) that brings the median lit radiance to middle grey; None when fine."""
+    if not median_radiance or median_radiance <= 0:
+        return None
+    stops = float(np.log2(MIDDLE_GREY / median_radiance))
+    if -BRIGHT_STOPS <= stops <= DARK_STOPS:
+        return None
+    dark = stops > 0
+    return (f"the scene will look {'nearly black' if dark else 'washed out'} at the default exposure: the median "
+            f"radiance of its lit surfaces is {median_radiance:.3g} W/(m^2 sr), {abs(stops):.1f} stops "
+            f"{'below' if dark else 'above'} middle grey ({MIDDLE_GREY}); capture with --exposure "
+            f"{round(stops):d}, or make the lights {'brighter' if dark else 'dimmer'} (glTF point and spot lights "
+            "are in candela, directional ones in lux; docs/SCENES.md \"Lights\")")
 
 
 def _pages(pages: list[TexelPage], covers: list[np.ndarray], E: np.ndarray, valid: np.ndarray, settings):
@@ -201,8 +244,9 @@ def texel_warnings(result: LightmapPages, scene: Scene) -> list[str]:
 
 
 def warn_texels(result: LightmapPages, scene: Scene) -> None:
-    for message in texel_warnings(result, scene):
-        warn(message)
+    for message in texel_warnings(result, scene) + [exposure_warning(result.median_radiance)]:
+        if message:
+            warn(message)
 
 
 def _cut_out(scene: Scene, page: TexelPage) -> np.ndarray:

@@ -430,6 +430,7 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
                        "triangles": int(sum(len(o.indices) for o in scene.objects))},
             "lightmaps": {"seconds": round(t2 - t1, 3), "texels": result.texels, "back_texels": result.back_texels,
                           "invalid_texels": result.invalid, "unlit_texels": result.unlit,
+                          "median_radiance": result.median_radiance,
                           "invalid_objects": worst(result.invalid_by_object),
                           "unlit_objects": worst(result.unlit_by_object),
                           "samples": settings.samples, "rays": int(result.rays),

@@ -37,8 +37,9 @@ All tables are optional:
 
 `diffuse_roughness` sits in [bake] rather than [materials] because [materials]
 is keyed by material name (a material could be called "diffuse_roughness").
-Wrong types and unknown values are errors naming the file and key; unknown
-keys are warnings (a typo should not silently do nothing, nor stop the work).
+Wrong types and values outside a key's range are errors naming the file, table, key,
+value and what is allowed (each key's rule: bake/schema.py); unknown keys are warnings
+(a typo should not silently do nothing, nor stop the work).
 
 The per-object cube-map settings reach the bake as `Object.options`
 ({"cubemap_size": int, "bounding_planes": bool | [{point, normal}], "shared_probe": bool}, empty when the sidecar
@@ -48,21 +49,19 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from glint.bake.bounding_planes import MAX_PLANES
 from glint.bake.material_mapping import DIFFUSE_ROUGHNESS, parse_material_override
-from glint.bake.settings import COMMAND_LINE_ONLY, BakeSettings
-from glint.bake.validate import check_number as _number
-from glint.bake.validate import check_rgb as _rgb
-from glint.bake.validate import check_vec3 as _vec3
+from glint.bake.schema import BAKE, CAMERAS, LIGHTS, OBJECTS, PATH_KEY, PLANE, SCHEMA, SKY, checked
+from glint.bake.settings import COMMAND_LINE_ONLY
 from glint.bake.validate import warn_unknown_keys as _unknown
 from glint.core.errors import GlintError
 from glint.core.image_io import read_image
-from glint.core.scene import ROLES, Camera, CameraPath, Sky
+from glint.core.scene import Camera, CameraPath, Sky
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -70,15 +69,10 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 SUFFIX = ".glint.toml"
-TABLES = ("bake", "lights", "sky", "materials", "objects", "cameras", "camera_paths")
+TABLES = tuple(SCHEMA)
 # [bake] keys the bake understands (bake/settings.py) and the material rule's threshold;
-# others pass through with a warning.
-BAKE_KEYS = tuple(f.name for f in fields(BakeSettings) if f.name not in COMMAND_LINE_ONLY) + ("diffuse_roughness",)
-QUALITIES = ("draft", "preview", "final")
-UNITS = ("photometric", "radiometric")
-DEFAULT_YFOV_DEG = 50.0
-OBJECT_KEYS = ("role", "cubemap_size", "bounding_planes", "shared_probe")
-CUBEMAP_SIZE_RANGE = (4, 4096)  # an explicit cube-map face size: a power of two in this range
+# others pass through with a warning. Every key's rule: bake/schema.py.
+BAKE_KEYS = tuple(key for key in BAKE if key not in COMMAND_LINE_ONLY)
 
 
 @dataclass
@@ -143,23 +137,15 @@ def parse_sidecar(data: dict, path: Path) -> Sidecar:
 
     bake = dict(data.get("bake", {}))
     _unknown(bake, BAKE_KEYS, name, "[bake] ", w)
-    if "quality" in bake and bake["quality"] not in QUALITIES:
-        raise GlintError(f"{name}: [bake] quality must be one of {', '.join(QUALITIES)}, "
-                         f"not {bake['quality']!r}")
-    if "texels_per_metre" in bake:
-        _number(bake["texels_per_metre"], f"{name}: [bake] texels_per_metre", positive=True)
-    if "diffuse_roughness" in bake:
-        side.diffuse_roughness = _number(bake["diffuse_roughness"],
-                                         f"{name}: [bake] diffuse_roughness", minimum=0.0)
+    for key in BAKE_KEYS:
+        if key in bake:
+            BAKE[key].check(bake[key], f"{name}: [bake]", key)
+    side.diffuse_roughness = checked(BAKE, bake, "diffuse_roughness", f"{name}: [bake]")
     side.bake = bake
 
     lights = data.get("lights", {})
-    _unknown(lights, ("units",), name, "[lights] ", w)
-    units = lights.get("units", "photometric")
-    if units not in UNITS:
-        raise GlintError(f"{name}: [lights] units must be \"photometric\" or \"radiometric\", "
-                         f"not {units!r}")
-    side.units = units
+    _unknown(lights, LIGHTS, name, "[lights] ", w)
+    side.units = checked(LIGHTS, lights, "units", f"{name}: [lights]")
 
     if "sky" in data:
         side.sky = _sky(data["sky"], side.path, w)
@@ -172,13 +158,9 @@ def parse_sidecar(data: dict, path: Path) -> Sidecar:
         where = f"{name}: [objects.\"{obj_name}\"]"
         if not isinstance(table, dict):
             raise GlintError(f"{where} must be a table")
-        _unknown(table, OBJECT_KEYS, name, f"[objects.\"{obj_name}\"] ", w)
+        _unknown(table, OBJECTS, name, f"[objects.\"{obj_name}\"] ", w)
         if "role" in table:
-            role = table["role"]
-            if role not in ROLES:
-                raise GlintError(f"{where}: unknown role {role!r}; use one of "
-                                 f"{', '.join(ROLES)}")
-            side.objects[obj_name] = role
+            side.objects[obj_name] = checked(OBJECTS, table, "role", where)
         options = _cubemap_options(table, name, obj_name, w)
         if options:
             side.object_options[obj_name] = options
@@ -197,17 +179,9 @@ def _cubemap_options(table: dict, name: str, obj_name: str, w: list[str]) -> dic
     of an [objects."NAME"] table."""
     where = f"{name}: [objects.\"{obj_name}\"]"
     options = {}
-    if "cubemap_size" in table:
-        size, (lo, hi) = table["cubemap_size"], CUBEMAP_SIZE_RANGE
-        if (isinstance(size, bool) or not isinstance(size, int) or not lo <= size <= hi
-                or size & (size - 1)):
-            raise GlintError(f"{where} cubemap_size must be a power of two from {lo} to {hi}, "
-                             f"not {size!r}")
-        options["cubemap_size"] = size
-    if "shared_probe" in table:
-        if not isinstance(table["shared_probe"], bool):
-            raise GlintError(f"{where} shared_probe must be true or false, not {table['shared_probe']!r}")
-        options["shared_probe"] = table["shared_probe"]
+    for key in ("cubemap_size", "shared_probe"):
+        if key in table:
+            options[key] = checked(OBJECTS, table, key, where)
     if "bounding_planes" in table:
         planes = table["bounding_planes"]
         if isinstance(planes, bool):
@@ -225,15 +199,15 @@ def _cubemap_options(table: dict, name: str, obj_name: str, w: list[str]) -> dic
 def _plane(plane, where: str, name: str, prefix: str, w: list[str]) -> dict:
     if not isinstance(plane, dict):
         raise GlintError(f"{where} must be a table {{ point = [x, y, z], normal = [x, y, z] }}")
-    _unknown(plane, ("point", "normal"), name, prefix, w)
-    for key in ("point", "normal"):
+    _unknown(plane, PLANE, name, prefix, w)
+    for key in PLANE:
         if key not in plane:
             raise GlintError(f"{where}: missing '{key}'")
-    normal = _vec3(plane["normal"], f"{where} normal")
+    normal = checked(PLANE, plane, "normal", where)
     length = float(np.linalg.norm(normal))
     if not length > 1e-12:
         raise GlintError(f"{where} normal must not be zero")
-    return {"point": _vec3(plane["point"], f"{where} point").tolist(), "normal": (normal / length).tolist()}
+    return {"point": checked(PLANE, plane, "point", where).tolist(), "normal": (normal / length).tolist()}
 
 
 def look_at(name: str, eye, target, yfov: float, up=(0.0, 1.0, 0.0), *, where: str = "",
@@ -257,22 +231,13 @@ def _camera(cam_name: str, table, name: str, w: list[str]) -> Camera:
     where = f"{name}: [cameras.{cam_name}]"
     if not isinstance(table, dict):
         raise GlintError(f"{where} must be a table")
-    _unknown(table, ("eye", "target", "yfov", "up", "znear", "zfar", "aspect"), name,
-             f"[cameras.{cam_name}] ", w)
+    _unknown(table, CAMERAS, name, f"[cameras.{cam_name}] ", w)
     for key in ("eye", "target"):
         if key not in table:
             raise GlintError(f"{where}: missing '{key}'")
-    yfov = _number(table.get("yfov", DEFAULT_YFOV_DEG), f"{where} yfov", positive=True)
-    if yfov >= 180:
-        raise GlintError(f"{where} yfov is in degrees and must be below 180")
-    aspect = table.get("aspect")
-    return look_at(cam_name, _vec3(table["eye"], f"{where} eye"),
-                   _vec3(table["target"], f"{where} target"), math.radians(yfov),
-                   _vec3(table.get("up", [0, 1, 0]), f"{where} up"), where=where,
-                   znear=_number(table.get("znear", 0.01), f"{where} znear", positive=True),
-                   zfar=_number(table.get("zfar", 1000.0), f"{where} zfar", positive=True),
-                   aspect=None if aspect is None else _number(aspect, f"{where} aspect",
-                                                              positive=True))
+    v = {key: checked(CAMERAS, table, key, where) for key in CAMERAS if key in table or CAMERAS[key].default is not None}
+    return look_at(cam_name, v["eye"], v["target"], math.radians(v["yfov"]), v["up"], where=where,
+                   znear=v["znear"], zfar=v["zfar"], aspect=v.get("aspect"))
 
 
 def _camera_path(path_name: str, table, name: str, w: list[str]) -> CameraPath:
@@ -290,19 +255,19 @@ def _camera_path(path_name: str, table, name: str, w: list[str]) -> CameraPath:
         kw = f"{where} keys[{i}]"
         if not isinstance(key, dict):
             raise GlintError(f"{kw} must be a table {{ time, eye, target }}")
-        _unknown(key, ("time", "eye", "target", "yfov"), name,
+        _unknown(key, PATH_KEY, name,
                  f"[camera_paths.{path_name}] keys[{i}] ", w)
         for k in ("time", "eye", "target"):
             if k not in key:
                 raise GlintError(f"{kw}: missing '{k}'")
-        t = _number(key["time"], f"{kw} time")
+        t = checked(PATH_KEY, key, "time", kw)
         if t <= last:
             raise GlintError(f"{kw}: times must increase ({t} after {last})")
         last = t
-        item = {"time": t, "eye": _vec3(key["eye"], f"{kw} eye").tolist(),
-                "target": _vec3(key["target"], f"{kw} target").tolist()}
+        item = {"time": t, "eye": checked(PATH_KEY, key, "eye", kw).tolist(),
+                "target": checked(PATH_KEY, key, "target", kw).tolist()}
         if "yfov" in key:
-            item["yfov"] = math.radians(_number(key["yfov"], f"{kw} yfov", positive=True))
+            item["yfov"] = math.radians(checked(PATH_KEY, key, "yfov", kw))
         out.append(item)
     return CameraPath(name=path_name, keys=out)
 
@@ -313,18 +278,16 @@ def _sky(table, path: Path, w: list[str]) -> Sky:
     With a map, `Sky.map` already includes the strength and `Sky.radiance` is (1, 1, 1).
     """
     name = path.name
-    _unknown(table, ("radiance", "map", "strength"), name, "[sky] ", w)
-    strength = _number(table.get("strength", 1.0), f"{name}: [sky] strength", minimum=0.0)
+    _unknown(table, SKY, name, "[sky] ", w)
+    strength = checked(SKY, table, "strength", f"{name}: [sky]")
     if "radiance" in table and "map" in table:
         raise GlintError(f"{name}: [sky] give either 'radiance' or 'map', not both")
     if "map" in table:
-        if not isinstance(table["map"], str):
-            raise GlintError(f"{name}: [sky] map must be a file name (string)")
-        map_path = (path.parent / table["map"]).resolve()
+        map_path = (path.parent / checked(SKY, table, "map", f"{name}: [sky]")).resolve()
         image = read_sky_map(map_path, where=f"{name}: [sky] map")
         return Sky(radiance=np.ones(3, np.float32), map=image * np.float32(strength),
                    source=str(map_path))
-    radiance = _rgb(table.get("radiance", 1.0), f"{name}: [sky] radiance", minimum=0.0)
+    radiance = checked(SKY, table, "radiance", f"{name}: [sky]")
     return Sky(radiance=(radiance * strength).astype(np.float32))
 
 

@@ -21,6 +21,14 @@ from glint.core.geometry import face_cross
 # its object's bounding-box diagonal (1e-12 * (10 m)^2 = 1e-10 m^2), or when two of
 # its corners are the same vertex. Such triangles have no normal and no texels.
 DEGENERATE_AREA = 1e-12
+# Coordinates farther from the origin than this (metres, world space) are refused: float32 positions
+# there are 0.06 m apart and a light map of such a scene would need astronomically many pages; a
+# scene this large is a unit mistake (centimetres or millimetres exported as metres, or a stray vertex).
+MAX_COORDINATE = 1e6
+# Per material, so summarised in one line (glint.core.errors.WarningKind).
+BRIGHT_KD = WarningKind("{n} materials have kd above 1 (a surface that would create light); clamped to 1")
+BRIGHT_KS = WarningKind("{n} materials have a lobe whose ks is above 1 (it would reflect more light than "
+                        "it receives); clamped to 1")
 
 
 def add_warning(warnings: list[str], message: str, kind: WarningKind | None = None,
@@ -39,6 +47,17 @@ def check_finite_positions(name: str, positions: np.ndarray, source: str) -> Non
             f"{source}: object '{name}' has {int(bad.sum())} vertex position(s) that are "
             f"NaN or infinite (first at vertex {int(np.argmax(bad))}); fix or remove it "
             f"in the modelling tool and export again")
+
+
+def check_extent(name: str, positions: np.ndarray, source: str) -> None:
+    """Coordinates beyond MAX_COORDINATE: name the object, its bounding box and the limit, and stop."""
+    if len(positions) and float(np.abs(positions).max()) > MAX_COORDINATE:
+        lo, hi = positions.min(axis=0), positions.max(axis=0)
+        box = ", ".join(f"{a:.3g}..{b:.3g}" for a, b in zip(lo, hi))
+        raise GlintError(
+            f"{source}: object '{name}' reaches {float(np.abs(positions).max()):.3g} m from the origin "
+            f"(bounding box x, y, z: {box} m); glint takes coordinates within {MAX_COORDINATE:.0e} m: "
+            f"check the export's units and scale, or remove stray vertices")
 
 
 def degenerate_triangles(positions: np.ndarray, indices: np.ndarray) -> np.ndarray:
@@ -96,6 +115,7 @@ def validate_scene(scene) -> None:
                          f"mesh object (lines and points are not rendered)")
     for obj in scene.objects:
         check_finite_positions(obj.name, obj.positions, source)
+        check_extent(obj.name, obj.positions, source)
         if not 0 <= obj.material < len(scene.materials):
             raise GlintError(f"{source}: object '{obj.name}' refers to missing material "
                              f"{obj.material}")
@@ -104,6 +124,7 @@ def validate_scene(scene) -> None:
         if not all(np.all(np.isfinite(np.asarray(v, np.float32))) for v in values):
             raise GlintError(f"{source}: material '{mat.name}' has values too large for "
                              f"32-bit floats (kd, emission or a lobe)")
+        warn_above_one(mat, source, scene.warnings)
     for light in scene.point_lights + scene.spot_lights + scene.directional_lights:
         power = getattr(light, "intensity", getattr(light, "irradiance", None))
         if not np.all(np.isfinite(np.asarray(power, np.float32))):
@@ -115,6 +136,23 @@ def validate_scene(scene) -> None:
             f"{source}: the scene has no light; add one of: an emissive material "
             f"(emissiveFactor > 0), a KHR_lights_punctual point/spot/directional light "
             f"(Blender: export with 'Punctual Lights' on), or a [sky] table in {sidecar}")
+
+
+def warn_above_one(mat, source: str, warnings: list[str]) -> None:
+    """kd or a lobe's ks above 1 would create light: the bake and the viewer clamp them to 1; say so."""
+    kd = float(np.max(mat.kd))
+    if kd > 1:
+        add_warning(warnings, f"{source}: material '{mat.name}' has kd {_rgb_text(mat.kd)} above 1 (a surface "
+                              "that would create light); clamped to 1", BRIGHT_KD, mat.name, detail=f"{kd:g}")
+    ks = max((float(np.max(lobe.ks)) for lobe in mat.lobes), default=0.0)
+    if ks > 1:
+        add_warning(warnings, f"{source}: material '{mat.name}' has a lobe with ks {ks:g} above 1 (it would "
+                              "reflect more light than it receives); clamped to 1", BRIGHT_KS, mat.name,
+                    detail=f"{ks:g}")
+
+
+def _rgb_text(v) -> str:
+    return "[" + ", ".join(f"{float(x):g}" for x in np.asarray(v).reshape(-1)) + "]"
 
 
 # -- value checks for the sidecar and material extras ----------------------------------

@@ -10,32 +10,30 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from glint.bake.schema import BAKE
 from glint.bake.settings import PRESETS
+from glint.core.errors import GlintError
 
 SCENE_HELP = ("a built-in scene name (see `glint scenes`) or a .glb/.gltf file; "
               "an optional NAME.glint.toml beside the file adds lights, sky, material overrides and bake settings")
 
 
-def _whole(minimum: int):
-    def parse(text: str) -> int:
+def _setting(key: str):
+    """argparse type of the option of the bake setting `key`: the text read as a number where it is
+    one, then checked by the setting's rule (glint.bake.schema.BAKE), the sidecar's [bake] key's."""
+    def parse(text: str):
+        value = text
+        for kind in (int, float):
+            try:
+                value = kind(text)
+                break
+            except ValueError:
+                pass
         try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a whole number: '{text}'")
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}: '{text}'")
-        return value
+            return BAKE[key].check(value, "", "")
+        except GlintError as err:
+            raise argparse.ArgumentTypeError(str(err)) from None
     return parse
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: '{text}'")
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"must be positive: '{text}'")
-    return value
 
 
 def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_existing: bool = True) -> None:
@@ -50,10 +48,10 @@ def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_e
                    help=("quality preset (default: an existing bake is used with the settings it was made with; "
                          "a new one gets the sidecar's [bake] quality, else preview)" if keeps_existing else
                          "quality preset (default: the sidecar's [bake] quality, else preview)") + f" — {presets}")
-    p.add_argument("--samples", type=_whole(1), metavar="N", help="paths per texel (overrides the preset)")
-    p.add_argument("--texels-per-metre", type=_positive_float, metavar="T", dest="texels_per_metre",
+    p.add_argument("--samples", type=_setting("samples"), metavar="N", help="paths per texel (overrides the preset)")
+    p.add_argument("--texels-per-metre", type=_setting("texels_per_metre"), metavar="T", dest="texels_per_metre",
                    help="light-map resolution (overrides the preset)")
-    p.add_argument("-j", "--jobs", type=_whole(0), metavar="N",
+    p.add_argument("-j", "--jobs", type=_setting("jobs"), metavar="N",
                    help="worker processes (default: the sidecar's [bake] jobs, else 0 = one per core)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="bake on a Dask cluster: the light-map tiles and cube maps become tasks on its workers. "

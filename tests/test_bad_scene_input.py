@@ -151,7 +151,7 @@ def test_no_light_names_the_three_ways(tmp_path):
 @pytest.mark.parametrize("sidecar, expected", [
     ('[bake]\nquality = "draft"\nsamples = \n', ["scene.glint.toml", "line 3"]),  # bad TOML: file and line
     ('[sky]\nradiance = "blue"\n', ["scene.glint.toml", "[sky] radiance"]),  # wrong type
-    ('[objects."Floor"]\nrole = "shiny"\n', ["unknown role 'shiny'", "planar", "scene.glint.toml"]),
+    ('[objects."Floor"]\nrole = "shiny"\n', ["role must be one of diffuse, curved, planar, transmissive, not 'shiny'", "planar", "scene.glint.toml"]),
     ('[materials."Mat"]\nlobes = [ { kind = "refract", mx = 0.1 } ]\n', ["lobes[0] kind", "refract"]),
     ('[sky]\nmap = "nowhere.exr"\n', ["[sky] map", "nowhere.exr"]),  # missing sky map
 ], ids=["bad-toml", "wrong-type", "unknown-role", "bad-lobe", "missing-sky-map"])

@@ -73,11 +73,11 @@ def test_bad_option_values(tmp_path):
     """A mistake on the command line is one line naming the option and the value, exit 2, not
     argparse's usage block (glint/cli.py ArgumentParser.error). Deliberate bug tried: the plain
     argparse.ArgumentParser: the usage block fails `assert len(lines) == 1`."""
-    for args, words in ((("--samples", "0"), ("--samples", "at least 1", "'0'")),
+    for args, words in ((("--samples", "0"), ("--samples", "at least 1", "not 0")),
                         (("--quality", "ultra"), ("--quality", "invalid choice", "ultra")),
-                        (("--texels-per-metre", "-1"), ("--texels-per-metre", "positive")),
-                        (("--jobs", "x"), ("--jobs", "not a whole number")),
-                        (("-j", "-1"), ("--jobs", "at least 0")),
+                        (("--texels-per-metre", "-1"), ("--texels-per-metre", "above 0", "not -1")),
+                        (("--jobs", "x"), ("--jobs", "whole number", "'x'")),
+                        (("-j", "-1"), ("--jobs", "at least 0", "not -1")),
                         (("--frobnicate",), ("unrecognized arguments", "--frobnicate"))):
         result = glint("bake", "cornell-box", *args, "-o", tmp_path / "x.bake")
         assert_one_line_error(result, "glint: bake: ", *words)

@@ -55,7 +55,7 @@ def test_parse_assignment_reads_toml_keys_and_values():
     ('materials."Floor".kd=[0.3, -0.2, 0.1]', "kd must be at least 0.0, not -0.2"),
     ('materials."Floor".lobes=[{ m = 0 }]', "lobes[0] m must be positive, not 0"),
     ('materials."Floor".lobes=[{ r0 = 1.5 }]', "r0 must be between 0 and 1"),
-    ('objects."Box".role="shiny"', "unknown role 'shiny'"),
+    ('objects."Box".role="shiny"', "role must be one of diffuse, curved, planar, transmissive, not 'shiny'"),
     ('bake.quality=draft', "strings need quotes"),
     ('bake.quality="fast"', "quality must be one of draft, preview, final"),
     ('materials."Floor".kdd=0.3', "unknown key 'kdd' (known: kd, emission, lobes)"),

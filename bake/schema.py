@@ -1,0 +1,151 @@
+"""The sidecar's schema: every key of every table but [materials] (bake/material_mapping.py checks
+those), with its type, its range or choices and its default, and the one check that applies it.
+
+The sidecar reader (bake/sidecar.py), the bake settings (bake/settings.py `resolve_settings`: the
+[bake] keys, the command line's `--samples`, `--texels-per-metre`, `-j`) and `--set` (bake/edits.py,
+through the sidecar reader) all check a value with `Key.check`, so a key has one rule and one
+message: "NAME.glint.toml: [bake] padding must be a whole number from 0 to 64, not -5". Unknown
+keys are warnings (bake/validate.py warn_unknown_keys, with each table's known keys from here).
+docs/SCENES.md "The sidecar" lists the same ranges.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from glint.bake.material_mapping import DIFFUSE_ROUGHNESS
+from glint.core.errors import GlintError
+from glint.core.scene import ROLES
+
+KINDS = ("whole", "number", "bool", "choice", "string", "vec3", "rgb", "power2")
+
+
+@dataclass(frozen=True)
+class Key:
+    """One sidecar key: `kind` (KINDS), the range lo..hi (`above`/`below`: that end excluded) or
+    the `choices`, and the `default` (None: none, or given elsewhere)."""
+
+    kind: str
+    lo: float | None = None
+    hi: float | None = None
+    above: bool = False
+    below: bool = False
+    choices: tuple = ()
+    default: object = None
+
+    def allowed(self) -> str:
+        """What the key takes, in words: 'a whole number from 0 to 64', 'a number above 0'."""
+        if self.kind == "bool":
+            return "true or false"
+        if self.kind == "choice":
+            return "one of " + ", ".join(self.choices)
+        if self.kind == "string":
+            return "a string"
+        if self.kind == "power2":
+            return f"a power of two from {_num(self.lo)} to {_num(self.hi)}"
+        noun = {"whole": "a whole number", "number": "a number", "vec3": "a list of 3 numbers",
+                "rgb": "a number or a list of 3 numbers (RGB)"}[self.kind]
+        low = None if self.lo is None else f"above {_num(self.lo)}" if self.above else f"from {_num(self.lo)}"
+        high = None if self.hi is None else f"below {_num(self.hi)}" if self.below else f"to {_num(self.hi)}"
+        if low and high:
+            return f"{noun} {low} {'and ' if self.above or self.below else ''}{high}"
+        if low:
+            return f"{noun} {low if self.above else f'of at least {_num(self.lo)}'}"
+        return f"{noun} {high}" if high else noun
+
+    def check(self, value, where: str, key: str):
+        """`value` checked and converted (int, float, bool, str, or an (3,) array for vec3 and rgb);
+        a one-line GlintError "{where} {key} must be ..., not VALUE" otherwise. `key` "": `where`
+        names the value alone (a command-line option)."""
+        ok = {"choice": lambda v: isinstance(v, str) and v in self.choices,"bool": lambda v: isinstance(v, bool), "string": lambda v: isinstance(v, str),
+              "vec3": lambda v: isinstance(v, list) and len(v) == 3 and all(map(self._in_range, v)),
+              "rgb": lambda v: (self._in_range(v) if _is_number(v)
+                                else isinstance(v, list) and len(v) == 3 and all(map(self._in_range, v)))
+              }.get(self.kind, self._in_range)(value)
+        if not ok:
+            raise GlintError(" ".join(filter(None, (where, key, "must be"))) + f" {self.allowed()}, not {value!r}")
+        if self.kind in ("vec3", "rgb"):
+            return np.array([value] * 3 if _is_number(value) else value, np.float64)
+        if self.kind in ("whole", "power2"):
+            return int(value)
+        return float(value) if self.kind == "number" else value
+
+    def _in_range(self, v) -> bool:
+        if not _is_number(v) or not math.isfinite(v):
+            return False
+        if self.kind in ("whole", "power2") and not float(v).is_integer():
+            return False
+        if self.kind == "power2" and int(v) & (int(v) - 1):
+            return False
+        lo_ok = self.lo is None or (v > self.lo if self.above else v >= self.lo)
+        hi_ok = self.hi is None or (v < self.hi if self.below else v <= self.hi)
+        return lo_ok and hi_ok
+
+
+def _num(x) -> str:
+    """A bound as written: 4294967295, 0.5 (not 4.29497e+09)."""
+    return str(int(x)) if float(x).is_integer() else f"{x:g}"
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+QUALITIES = ("draft", "preview", "final")
+# max_page_size: xatlas itself packs up to 32768 (17.7 s and 0.9 GB for one chart filling the page,
+# measured), but one page beyond 8192^2 texels is more than 1 GiB of float RGBA in the bake and a
+# texture larger than many GPUs take; below 64 a page holds hardly a chart and its padding.
+BAKE = {
+    "quality": Key("choice", choices=QUALITIES, default="preview"),
+    "samples": Key("whole", lo=1, default=128),  # hemisphere paths per texel
+    "texels_per_metre": Key("number", lo=0, above=True, default=16.0),  # light-map resolution
+    "padding": Key("whole", lo=0, hi=64, default=2),  # texels between charts
+    "max_page_size": Key("whole", lo=64, hi=8192, default=2048),
+    "max_depth": Key("whole", lo=1, hi=1024, default=64),  # bounces of a path
+    "denoise": Key("bool", default=True),
+    # texels seeing more back faces than this share are invalid (inside walls)
+    "backface_threshold": Key("number", lo=0, hi=1, default=0.2),
+    "seed": Key("whole", lo=0, hi=2 ** 32 - 1, default=0),
+    "jobs": Key("whole", lo=0, default=0),  # 0: one per core
+    # a Dask scheduler's address or local:N (bake/executor.py checks its form); command line only
+    "scheduler": Key("string"),
+    "probe_sharing": Key("number", lo=0, default=1.0),  # 0: a probe per object
+    "cubemap_budget": Key("whole", lo=1, default=2048),  # probes
+    "cubemap_budget_mib": Key("number", lo=0, above=True, default=512.0),
+    # glTF dielectrics at least this rough get no lobe (bake/material_mapping.py); > 1 disables the rule
+    "diffuse_roughness": Key("number", lo=0, default=DIFFUSE_ROUGHNESS),
+}
+LIGHTS = {"units": Key("choice", choices=("photometric", "radiometric"), default="photometric")}
+SKY = {
+    "radiance": Key("rgb", lo=0, default=1.0),  # W/(m^2 sr), linear RGB
+    "map": Key("string"),  # an equirectangular EXR/HDR, relative to the sidecar
+    "strength": Key("number", lo=0, default=1.0),
+}
+OBJECTS = {
+    "role": Key("choice", choices=ROLES),
+    "cubemap_size": Key("power2", lo=4, hi=4096),  # default: bake/cubemap.py's rule
+    "bounding_planes": Key("bool"),  # or a list of planes: bake/sidecar.py reads those
+    "shared_probe": Key("bool"),
+}
+PLANE = {"point": Key("vec3"), "normal": Key("vec3")}
+CAMERAS = {
+    "eye": Key("vec3"), "target": Key("vec3"),
+    "yfov": Key("number", lo=0, hi=180, above=True, below=True, default=50.0),  # degrees
+    "up": Key("vec3", default=[0.0, 1.0, 0.0]),
+    "znear": Key("number", lo=0, above=True, default=0.01),
+    "zfar": Key("number", lo=0, above=True, default=1000.0),
+    "aspect": Key("number", lo=0, above=True),  # default: the image's
+}
+PATH_KEY = {"time": Key("number"), "eye": Key("vec3"), "target": Key("vec3"),
+            "yfov": Key("number", lo=0, hi=180, above=True, below=True)}
+CAMERA_PATHS = {"keys": None}  # a list of PATH_KEY tables: bake/sidecar.py reads it
+SCHEMA = {"bake": BAKE, "lights": LIGHTS, "sky": SKY, "materials": None, "objects": OBJECTS,
+          "cameras": CAMERAS, "camera_paths": CAMERA_PATHS}
+
+
+def checked(schema: dict, table: dict, key: str, where: str):
+    """`table[key]` checked by `schema[key]`, or the key's default (checked too) when absent."""
+    spec = schema[key]
+    return spec.check(table[key] if key in table else spec.default, where, key)
