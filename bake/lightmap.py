@@ -196,7 +196,7 @@ def exposure_warning(median_radiance: float | None) -> str | None:
     dark = stops > 0
     return (f"the scene will look {'nearly black' if dark else 'washed out'} at the default exposure: the median "
             f"radiance of its lit surfaces is {median_radiance:.3g} W/(m^2 sr), {abs(stops):.1f} stops "
-            f"{'below' if dark else 'above'} middle grey ({MIDDLE_GREY}); capture with --exposure "
+            f"{'below' if dark else 'above'} middle grey ({MIDDLE_GREY}); view or capture it with --exposure "
             f"{round(stops):d}, or make the lights {'brighter' if dark else 'dimmer'} (glTF point and spot lights "
             "are in candela, directional ones in lux; docs/SCENES.md \"Lights\")")
 

@@ -21,7 +21,7 @@ from glint.core.errors import GlintError, one_line
 from glint.cubemap_stage import ProbeRefresher
 from glint.scenes import BUILTIN, resolve
 from glint.options import SCENE_HELP, add_bake_options, add_edit_option
-from glint.services import parse_size, run_bake
+from glint.services import number, parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 from glint.viewer.controls import KEY_HELP, WalkControls
 
@@ -40,6 +40,9 @@ def add_view_options(p: argparse.ArgumentParser) -> None:
                    help=f"window size in pixels (default {DEFAULT_SIZE})")
     p.add_argument("--camera", metavar="NAME",
                    help="start at this camera of the scene (default: its first camera, else a view of the whole scene)")
+    p.add_argument("--exposure", default="0", metavar="EV",
+                   help="exposure in stops: radiance x 2^EV before the tone curve (default 0); a bake whose "
+                        "scene would look nearly black or washed out says which value to use")
     p.add_argument("--fullscreen", action="store_true", help="start in fullscreen (F toggles it)")
     p.add_argument("--vsync", action=argparse.BooleanOptionalAction, default=True,
                    help="wait for the monitor's refresh (default: on); --no-vsync shows the real frame rate")
@@ -95,6 +98,7 @@ def sidecar_saver(scene_arg: str, scene_path: Path, original: list[dict], edits=
 
 def cmd_view(args) -> int:
     width, height = parse_size(args.size)
+    exposure = number(args.exposure, "--exposure", lo=-100, hi=100)
     reason = missing_display()
     if reason:  # before baking: the bake would be wasted on a machine that cannot show it
         raise no_window(args.scene, reason)
@@ -123,7 +127,7 @@ def cmd_view(args) -> int:
     rebaker = background_rebake(manifest, report.bake_dir, args.edits)  # the worker loads the scene as edited
     try:
         viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
-                              pbr_mapping=pbr_mapping, on_save=save, lightmap_source=rebaker,
+                              pbr_mapping=pbr_mapping, on_save=save, lightmap_source=rebaker, exposure=exposure,
                               on_edit=None if rebaker is None else rebaker.edit)
         run(viewer)
     finally:

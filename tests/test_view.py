@@ -433,3 +433,33 @@ def test_main_loop_runs_until_escape(room_bake):
     viewer = Scripted(ctx=wnd.ctx, wnd=wnd, bake=room_bake, controls=WalkControls(manifest["cameras"], [], HOME))
     run(viewer)  # returns only once the window closes; destroys the context
     assert wnd.frames >= 3 and wnd.is_closing
+
+
+def test_exposure_reaches_the_window(room_bake, tmp_path):
+    """`glint view --exposure EV` scales the window's radiance by 2^EV before the tone curve, as
+    capture's does (the bake's dark-scene warning names it for both); a bad value is one line before
+    any bake. Deliberate bug tried: ViewerWindow not passing exposure to its Renderer: the two frames
+    are equal."""
+    from glint.viewer.window import ViewerWindow
+
+    means = []
+    for ev in (0.0, 1.0):
+        wnd = headless_window((64, 48))
+        manifest = room_bake.manifest
+        controls = WalkControls(manifest["cameras"], manifest["camera_paths"], HOME)
+        viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=room_bake, controls=controls, name="room",
+                              screenshot_dir=tmp_path, panel=False, exposure=ev)
+        try:
+            frame(wnd)
+            linear = viewer.renderer.read_linear()[..., :3].astype(np.float64)
+            means.append((viewer.renderer.read_srgb().astype(np.float64).mean(), linear.mean()))
+        finally:
+            viewer.renderer.release()
+            wnd.destroy()
+    (srgb0, lin0), (srgb1, lin1) = means
+    assert lin1 == pytest.approx(lin0, rel=1e-6)  # the radiance is the same; only the display changes
+    assert srgb1 > srgb0 + 10, means
+
+    result = glint("view", "cornell-box", "--exposure", "bright", env={**os.environ, "GLINT_CACHE": str(tmp_path / "c")})
+    assert "bad --exposure 'bright'" in one_line(result) and result.returncode == 2
+    assert not (tmp_path / "c").exists()

@@ -103,8 +103,8 @@ class ViewerWindow(moderngl_window.WindowConfig):
 
     def __init__(self, *, bake, controls: WalkControls, supersample: int = 1, name: str = "glint",
                  screenshot_dir: Path | None = None, panel: bool = True, on_edit=None, on_save=None,
-                 pbr_mapping=None, lightmap_source=None, **kwargs):
-        """panel: the material panel when imgui-bundle is installed (else a warning, and the window
+                 pbr_mapping=None, lightmap_source=None, exposure: float = 0.0, **kwargs):
+        """exposure: stops, radiance x 2^exposure before the tone curve (`glint view --exposure`); panel: the material panel when imgui-bundle is installed (else a warning, and the window
         without it); on_edit(materials), on_save(materials): the command layer's callbacks with the
         whole list of manifest material entries as edited; pbr_mapping: the glTF-style controls'
         mapping (viewer/panel.py); lightmap_source: an object whose `poll()` returns None or new
@@ -119,8 +119,8 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.name = name
         self.screenshot_dir = Path.cwd() if screenshot_dir is None else Path(screenshot_dir)
         self.screenshots: list[Path] = []
-        self.renderer = Renderer(self.ctx, bake, supersample=supersample, blend_frames=BLEND_FRAMES,
-                                 max_frames=MAX_STILL_FRAMES)
+        self.renderer = Renderer(self.ctx, bake, supersample=supersample, exposure=exposure,
+                                 blend_frames=BLEND_FRAMES, max_frames=MAX_STILL_FRAMES)
         self.blit = raster_program(self.ctx, "blit.vert", "blit.frag")
         self.triangle = self.ctx.vertex_array(self.blit, [])
         self.overlay = Overlay(self.ctx, self.blit, self.triangle)
