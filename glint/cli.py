@@ -13,6 +13,7 @@ from glint import __version__
 from glint.bench.command import add_bench_parser
 from glint.capture import add_capture_parser
 from glint.core.errors import GlintError, summarised
+from glint.core.signals import exit_status, handle_termination
 from glint.core.skipped import summary_line
 from glint.scenes import BUILTIN
 from glint.services import SCENE_HELP, add_bake_options, add_edit_option, fidelity_line, run_bake
@@ -81,6 +82,7 @@ def cmd_bake(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    handle_termination()  # SIGTERM and SIGHUP: as Ctrl-C (core/signals.py)
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "run", None):
@@ -96,9 +98,11 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         print(f"glint: {e}", file=sys.stderr)
         return EXIT_ERROR
-    except KeyboardInterrupt:
-        print("glint: interrupted; nothing was half-written", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGTERM / SIGHUP (core/signals.py Terminated)
+        name, status = exit_status(e)
+        print(f"glint: {'interrupted' if status == EXIT_INTERRUPTED else f'terminated ({name})'}; "
+              "nothing was half-written", file=sys.stderr)
+        return status
     except Exception as e:  # a bug: still one line unless --debug
         if args.debug:
             traceback.print_exc()
