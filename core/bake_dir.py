@@ -175,6 +175,28 @@ def check_bake_target(target: Path, option: str | None = None) -> None:
                          f"would delete; move {'it' if len(foreign) == 1 else 'them'} out, or {advice}")
 
 
+def remove_dead_temporaries(target: Path) -> None:
+    """Remove what a killed bake of `target` left beside it (BakeDirWriter's `.NAME.<pid>.<random>.tmp`,
+    exactly that pattern, once process pid is gone), and put back or remove its `.NAME.old-<pid>` (the
+    previous bake a commit set aside: back in place when the target is missing, else removed)."""
+    target = Path(target)
+    name = re.escape(target.name)
+    temporary = re.compile(rf"\.{name}\.(\d+)\.[a-z0-9_]{{8}}\.tmp")  # tempfile.mkdtemp's 8 characters
+    aside = re.compile(rf"\.{name}\.old-(\d+)")
+    try:
+        entries = list(os.scandir(target.parent if str(target.parent) else "."))
+    except OSError:
+        return
+    for entry in entries:
+        match = temporary.fullmatch(entry.name) or aside.fullmatch(entry.name)
+        if not (match and entry.is_dir(follow_symlinks=False)) or pid_alive(int(match.group(1))):
+            continue
+        if match.re is aside and not os.path.lexists(target) and is_bake(Path(entry.path)):
+            os.rename(entry.path, target)  # the previous bake, set aside by a cut commit
+        elif match.re is temporary or is_bake(Path(entry.path)):
+            shutil.rmtree(entry.path, ignore_errors=True)
+
+
 class BakeDirWriter:
     """Write a bake into a temporary directory; `commit()` swaps it into place.
 
@@ -197,26 +219,13 @@ class BakeDirWriter:
         parent = self.target.parent
         try:
             parent.mkdir(parents=True, exist_ok=True)
-            self._remove_dead_temporaries()
+            remove_dead_temporaries(self.target)
             self.path = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.{os.getpid()}.", suffix=".tmp", dir=parent))
         except OSError as e:
             raise GlintError(f"cannot create the bake directory in {parent}: {e.strerror}") from e
         (self.path / "lightmaps").mkdir()
         (self.path / "textures").mkdir()
         return self
-
-    def _remove_dead_temporaries(self) -> None:
-        name = re.escape(self.target.name)
-        temporary = re.compile(rf"\.{name}\.(\d+)\.[a-z0-9_]{{8}}\.tmp")  # tempfile.mkdtemp's 8 characters
-        aside = re.compile(rf"\.{name}\.old-(\d+)")
-        for entry in os.scandir(self.target.parent):
-            match = temporary.fullmatch(entry.name) or aside.fullmatch(entry.name)
-            if not (match and entry.is_dir(follow_symlinks=False)) or pid_alive(int(match.group(1))):
-                continue
-            if match.re is aside and not os.path.lexists(self.target) and is_bake(Path(entry.path)):
-                os.rename(entry.path, self.target)  # the previous bake, set aside by a cut commit
-            elif match.re is temporary or is_bake(Path(entry.path)):
-                shutil.rmtree(entry.path, ignore_errors=True)
 
     def reuse(self, old_dir: Path, relative: str) -> None:
         """Carry a file of the previous bake over unchanged (hard link when possible)."""

@@ -14,12 +14,15 @@ workers) and dies silently on SIGTERM (how a pool is stopped), with no traceback
 """
 from __future__ import annotations
 
+import ctypes
 import os
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 from typing import Iterator
 
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
 NAMES = {signal.SIGINT: "SIGINT", signal.SIGTERM: "SIGTERM", signal.SIGHUP: "SIGHUP"}
 
 
@@ -50,10 +53,16 @@ def exit_status(interrupt: KeyboardInterrupt) -> tuple[str, int]:
 
 
 def quiet_child() -> None:
-    """In a worker process: Ctrl-C and SIGHUP ignored (the command stops its workers), SIGTERM kills at once."""
+    """In a worker process: Ctrl-C and SIGHUP ignored (the command stops its workers), SIGTERM kills at
+    once; on Linux it also gets SIGTERM when its parent dies (a SIGKILLed bake leaves no worker running)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        except (OSError, AttributeError):
+            pass
 
 
 @contextmanager

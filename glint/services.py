@@ -21,7 +21,7 @@ from glint.bake.gltf_loader import load_scene
 from glint.bake.lightmap import INVALID_WARN_SHARE, UNLIT_WARN_SHARE
 from glint.bake.pipeline import BakeReport
 from glint.bake.settings import PRESETS, BakeSettings, resolve_settings
-from glint.core.bake_dir import check_bake_target, default_bake_dir, read_manifest
+from glint.core.bake_dir import check_bake_target, default_bake_dir, read_manifest, remove_dead_temporaries
 from glint.core.errors import GlintError, summarised
 from glint.core.scene import Scene
 from glint.cubemap_stage import render_cubemaps
@@ -216,9 +216,11 @@ def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool =
 
 
 def check_bake_dir(bake_dir: Path, option: str, outputs: list[tuple[str, Path]] = ()) -> None:
-    """A one-line GlintError, before any work, unless a bake may write `bake_dir` (core/bake_dir.py
+    """Remove what a killed bake of `bake_dir` left beside it (remove_dead_temporaries); then a one-line
+    GlintError, before any work, unless a bake may write `bake_dir` (core/bake_dir.py
     check_bake_target: absent, empty or a glint bake) and none of `outputs` ((option, path) of the
     command's output files) is the bake directory or lies inside it (a bake replaces it whole)."""
+    remove_dead_temporaries(bake_dir)  # a killed bake's, also when this one finds the bake up to date
     check_bake_target(bake_dir, option)
     real = Path(os.path.realpath(bake_dir))
     for name, path in outputs:
