@@ -53,16 +53,26 @@ def pid_alive(pid: int) -> bool:
     return True
 
 
-def _remove_dead_temporaries(path: Path) -> None:
-    """Remove `path`'s temporary files (`.STEM.PID.tmp.EXT`, exactly) whose process is gone."""
-    pattern = re.compile(rf"\.{re.escape(path.stem)}\.(\d+)\.tmp{re.escape(path.suffix)}")
+def dead_leftovers(path: Path, *patterns: re.Pattern) -> list[tuple[os.DirEntry, re.Match]]:
+    """The entries beside `path` (in its folder) whose name fully matches one of `patterns` and whose
+    process (the pattern's first group, a pid) is gone, with the match: what a killed glint left."""
     try:
         entries = list(os.scandir(path.parent if str(path.parent) else "."))
     except OSError:
-        return
+        return []
+    found = []
     for entry in entries:
-        match = pattern.fullmatch(entry.name)
-        if match and entry.is_file(follow_symlinks=False) and not pid_alive(int(match.group(1))):
+        match = next(filter(None, (p.fullmatch(entry.name) for p in patterns)), None)
+        if match and not pid_alive(int(match.group(1))):
+            found.append((entry, match))
+    return found
+
+
+def _remove_dead_temporaries(path: Path) -> None:
+    """Remove `path`'s temporary files (`.STEM.PID.tmp.EXT`, exactly) whose process is gone."""
+    pattern = re.compile(rf"\.{re.escape(path.stem)}\.(\d+)\.tmp{re.escape(path.suffix)}")
+    for entry, _ in dead_leftovers(path, pattern):
+        if entry.is_file(follow_symlinks=False):
             try:
                 os.unlink(entry.path)
             except OSError:

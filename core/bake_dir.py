@@ -61,7 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glint.core.atomic import atomic_write_text, pid_alive
+from glint.core.atomic import atomic_write_text, dead_leftovers
 from glint.core.errors import GlintError
 from glint.core.image_io import read_image, sample_bilinear
 from glint.core.signals import deferred_signals
@@ -183,13 +183,8 @@ def remove_dead_temporaries(target: Path) -> None:
     name = re.escape(target.name)
     temporary = re.compile(rf"\.{name}\.(\d+)\.[a-z0-9_]{{8}}\.tmp")  # tempfile.mkdtemp's 8 characters
     aside = re.compile(rf"\.{name}\.old-(\d+)")
-    try:
-        entries = list(os.scandir(target.parent if str(target.parent) else "."))
-    except OSError:
-        return
-    for entry in entries:
-        match = temporary.fullmatch(entry.name) or aside.fullmatch(entry.name)
-        if not (match and entry.is_dir(follow_symlinks=False)) or pid_alive(int(match.group(1))):
+    for entry, match in dead_leftovers(target, temporary, aside):
+        if not entry.is_dir(follow_symlinks=False):
             continue
         if match.re is aside and not os.path.lexists(target) and is_bake(Path(entry.path)):
             os.rename(entry.path, target)  # the previous bake, set aside by a cut commit
