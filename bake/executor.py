@@ -35,6 +35,7 @@ from typing import Any, Callable, Iterable, Iterator
 
 from glint.bake import local_cluster
 from glint.core.errors import GlintError, one_line, warn
+from glint.core.signals import deferred_signals, quiet_child
 
 # What a future of a lost scheduler raises (Dask cancels every future when its connection is gone).
 CANCELLED = (asyncio.CancelledError, concurrent.futures.CancelledError)
@@ -58,6 +59,7 @@ _worker_job: Callable | None = None
 
 def _init_worker(setup, setup_args, job) -> None:
     global _worker_state, _worker_job
+    quiet_child()  # Ctrl-C, SIGTERM, SIGHUP are the bake's: it stops the pool (no traceback of a worker's)
     _heap_for_large_arrays()
     _worker_state = setup(*setup_args)
     _worker_job = job
@@ -96,7 +98,8 @@ class LocalExecutor:
             return
         # fork: workers inherit the scene without pickling it
         ctx = mp.get_context("fork")
-        pool = ctx.Pool(min(self.jobs, len(tasks)), _init_worker, (setup, setup_args, job))
+        with deferred_signals():  # a signal between a fork and its worker's quiet_child is the bake's
+            pool = ctx.Pool(min(self.jobs, len(tasks)), _init_worker, (setup, setup_args, job))
         try:
             yield from pool.imap_unordered(_run_task, tasks)
             pool.close()

@@ -29,6 +29,7 @@ import numpy as np
 import xatlas
 
 from glint.core.errors import GlintError, WarningKind, warn
+from glint.core.signals import deferred_signals, quiet_child
 
 # More pages than this means the density is far too high for the scene: refuse
 # rather than spend minutes packing and gigabytes baking.
@@ -189,12 +190,16 @@ def _isolated(fn, *args):
     for attempt in range(XATLAS_TRIES):
         receive, send = ctx.Pipe(duplex=False)
         child = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
-        child.start()
+        with deferred_signals():  # until the child's quiet_child, a signal is the parent's
+            child.start()
         send.close()
         try:
             ok, value = receive.recv()
         except EOFError:  # the child died without answering
             ok, value = None, None
+        except BaseException:  # Ctrl-C, SIGTERM: the child stops too
+            child.terminate()
+            raise
         finally:
             receive.close()
             child.join()
@@ -207,6 +212,7 @@ def _isolated(fn, *args):
 
 
 def _child(send, fn, args) -> None:
+    quiet_child()
     try:
         send.send((True, fn(*args)))
     except BaseException as e:  # report it to the parent, which raises it

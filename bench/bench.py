@@ -369,7 +369,7 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
 def run_sweep(args) -> int:
     """`glint bench SCENE`: the sweep of the module docstring (bench/command.py chooses it)."""
     parsed = check_arguments(args)
-    report = run_bake(args, progress=sys.stderr.isatty())
+    report = run_bake(args, progress=sys.stderr.isatty(), outputs=[("-o", parsed["output"])])
     bake = Bake(report.bake_dir)
     size = parsed["size"]
     cameras = choose_cameras(bake.manifest, args.camera, size[0] / size[1])

@@ -268,7 +268,7 @@ def cmd_bench_mitsuba(args) -> int:
     setup_variant = choose_variant(args.mitsuba_variant)
     import mitsuba as mi  # present: choose_variant checked
 
-    report = run_bake(args, progress=sys.stderr.isatty())
+    report = run_bake(args, progress=sys.stderr.isatty(), outputs=[("-o", parsed["output"])])
     bake = Bake(report.bake_dir)
     scene, _ = open_scene(args.scene)  # the bake's own loading path: the same materials
     size = parsed["size"]

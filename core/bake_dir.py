@@ -51,24 +51,32 @@
                            probe's input hash by i
 
 A bake is written into a temporary sibling directory and renamed into place, so an
-interrupted bake never leaves a half-written result (`BakeDirWriter`).
+interrupted bake never leaves a half-written result (`BakeDirWriter`). glint writes, replaces or
+removes only a directory that is a glint bake (its manifest says `format: glint-bake`, any
+version) holding nothing but a bake's files, or one that is empty or absent; anything else is
+refused (`check_bake_target`), by the commands before any work and by the writer itself.
 """
 from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from glint.core.atomic import atomic_write_text
+from glint.core.atomic import atomic_write_text, dead_leftovers
 from glint.core.errors import GlintError
 from glint.core.image_io import read_image, sample_bilinear
+from glint.core.signals import deferred_signals
 
 FORMAT_VERSION = 1
 MANIFEST = "manifest.json"
+# What a bake directory holds (any version): its top-level entries, and in its folders .exr files only
+BAKE_FILES = {MANIFEST, "meshes.npz", "sky.exr"}
+BAKE_FOLDERS = {"lightmaps", "textures", "cubemaps"}
 
 
 def default_bake_dir(scene_path: Path, builtin: str | None = None) -> Path:
@@ -111,22 +119,109 @@ def load_meshes(path: Path, count: int) -> list[dict]:
     return meshes
 
 
+def _names(names: list[str]) -> str:
+    """"a", "a and b", "a, b and 3 more"."""
+    names = sorted(names)
+    shown = names[:2]
+    rest = len(names) - len(shown)
+    if rest:
+        return f"{', '.join(shown)} and {rest} more"
+    return " and ".join(shown)
+
+
+def _foreign(bake_dir: Path) -> list[str]:
+    """The entries of a glint bake directory that no bake writes (relative names)."""
+    out = []
+    for entry in os.scandir(bake_dir):
+        if entry.name in BAKE_FOLDERS and entry.is_dir(follow_symlinks=False):
+            out += [f"{entry.name}/{e.name}" for e in os.scandir(entry.path)
+                    if not (e.name.endswith(".exr") and e.is_file(follow_symlinks=False))]
+        elif not (entry.name in BAKE_FILES and entry.is_file(follow_symlinks=False)):
+            out.append(entry.name)
+    return out
+
+
+def is_bake(path: Path) -> bool:
+    """Whether `path` holds a glint bake's manifest, of any version."""
+    try:
+        return json.loads((Path(path) / MANIFEST).read_text()).get("format") == "glint-bake"
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def check_bake_target(target: Path, option: str | None = None) -> None:
+    """A one-line GlintError unless a bake may write `target`: absent, an empty directory, or a glint
+    bake directory (any version) that holds nothing but a bake's files. `option` (e.g. "-o") is named
+    in the advice."""
+    target = Path(target)
+    advice = f"give a new or empty directory{f' with {option}' if option else ''}"
+    if target.name in ("", ".", ".."):
+        raise GlintError(f"{option + ' ' if option else ''}{target}: a bake replaces its directory as a whole, "
+                         f"so it needs a directory of its own; {advice}, e.g. room.bake")
+    if target.is_symlink() and not target.exists():
+        raise GlintError(f"{target} is a broken symbolic link; {advice}")
+    if not target.exists():
+        return
+    if not target.is_dir():
+        raise GlintError(f"{target} is a file, not a bake directory; {advice}")
+    real, cwd = target.resolve(), Path.cwd().resolve()
+    if real == cwd or real in cwd.parents:
+        raise GlintError(f"{target} holds the current directory, which a bake would replace; {advice}")
+    try:
+        names = os.listdir(target)
+        foreign = _foreign(target) if is_bake(target) else None
+    except OSError as e:
+        raise GlintError(f"cannot read {target}: {e.strerror or e}") from e
+    if not names:
+        return
+    if foreign is None:
+        raise GlintError(f"{target} is not a glint bake directory (it holds {_names(names)}); {advice}")
+    if foreign:
+        raise GlintError(f"{target} is a glint bake directory but also holds {_names(foreign)}, which a new bake "
+                         f"would delete; move {'it' if len(foreign) == 1 else 'them'} out, or {advice}")
+
+
+def remove_dead_temporaries(target: Path) -> None:
+    """Remove what a killed bake of `target` left beside it (BakeDirWriter's `.NAME.<pid>.<random>.tmp`,
+    exactly that pattern, once process pid is gone), and put back or remove its `.NAME.old-<pid>` (the
+    previous bake a commit set aside: back in place when the target is missing, else removed)."""
+    target = Path(target)
+    name = re.escape(target.name)
+    temporary = re.compile(rf"\.{name}\.(\d+)\.[a-z0-9_]{{8}}\.tmp")  # tempfile.mkdtemp's 8 characters
+    aside = re.compile(rf"\.{name}\.old-(\d+)")
+    for entry, match in dead_leftovers(target, temporary, aside):
+        if not entry.is_dir(follow_symlinks=False):
+            continue
+        if match.re is aside and not os.path.lexists(target) and is_bake(Path(entry.path)):
+            os.rename(entry.path, target)  # the previous bake, set aside by a cut commit
+        elif match.re is temporary or is_bake(Path(entry.path)):
+            shutil.rmtree(entry.path, ignore_errors=True)
+
+
 class BakeDirWriter:
     """Write a bake into a temporary directory; `commit()` swaps it into place.
 
-    Leaving the `with` block without commit (an error, Ctrl-C) deletes the
-    temporary directory and leaves any previous bake untouched.
+    Leaving the `with` block without commit (an error, Ctrl-C, SIGTERM) deletes the temporary
+    directory and leaves any previous bake untouched. The target must be absent, empty or a bake
+    (`check_bake_target`): checked on entering and again at the commit. The temporary directory is
+    the target's sibling `.NAME.<pid>.<random>.tmp`; the ones a killed bake (SIGKILL) left are
+    removed on entering, once their process is gone, as is its `.NAME.old-<pid>` (the previous bake
+    set aside by a commit: put back in place when the commit was cut between its two renames).
     """
 
     def __init__(self, target: Path):
-        self.target = Path(target)
+        target = Path(target)
+        # a symbolic link to a bake directory: the directory is replaced, the link stays
+        self.target = target.resolve() if target.is_symlink() and target.exists() else target
         self.path: Path | None = None
 
     def __enter__(self) -> "BakeDirWriter":
+        check_bake_target(self.target)
         parent = self.target.parent
         try:
             parent.mkdir(parents=True, exist_ok=True)
-            self.path = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.", suffix=".tmp", dir=parent))
+            remove_dead_temporaries(self.target)
+            self.path = Path(tempfile.mkdtemp(prefix=f".{self.target.name}.{os.getpid()}.", suffix=".tmp", dir=parent))
         except OSError as e:
             raise GlintError(f"cannot create the bake directory in {parent}: {e.strerror}") from e
         (self.path / "lightmaps").mkdir()
@@ -147,16 +242,18 @@ class BakeDirWriter:
         os.umask(umask)
         os.chmod(self.path, 0o777 & ~umask)  # mkdtemp made it private; a bake dir is an ordinary folder
         old = None
-        if self.target.exists():
-            old = self.target.with_name(f".{self.target.name}.old-{os.getpid()}")
-            os.rename(self.target, old)
-        try:
-            os.rename(self.path, self.target)
-        except OSError:
-            if old is not None:
-                os.rename(old, self.target)  # put the previous bake back
-            raise
-        self.path = None
+        with deferred_signals():  # neither rename without the other
+            check_bake_target(self.target)  # the last guard: what is there now may have changed since
+            if self.target.exists():
+                old = self.target.with_name(f".{self.target.name}.old-{os.getpid()}")
+                os.rename(self.target, old)
+            try:
+                os.rename(self.path, self.target)
+            except OSError:
+                if old is not None:
+                    os.rename(old, self.target)  # put the previous bake back
+                raise
+            self.path = None
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
 

@@ -35,6 +35,7 @@ from glint.core.errors import GlintError
 from glint.core.image_io import write_image
 from glint.options import SCENE_HELP, add_bake_options, add_edit_option
 from glint.services import (
+    check_outputs,
     check_writable,
     number,
     parse_size,
@@ -167,8 +168,12 @@ def check_arguments(args) -> dict:
         if np.linalg.norm(parsed["up"]) < 1e-12:
             raise GlintError("--up must not be zero")
     check_writable(out, "-o")
+    outputs = [("-o", f) for f in (frame_paths(out, parsed["frames"]) if args.path is not None else [out])]
     if args.stats is not None:
         check_writable(Path(args.stats), "--stats")
+        outputs.append(("--stats", Path(args.stats)))
+    check_outputs(outputs)
+    parsed["outputs"] = outputs
     return parsed
 
 
@@ -214,7 +219,7 @@ def frame_paths(out: Path, count: int) -> list[Path]:
 def cmd_capture(args) -> int:
     parsed = check_arguments(args)
     out = Path(args.output)
-    report = run_bake(args, progress=sys.stderr.isatty())
+    report = run_bake(args, progress=sys.stderr.isatty(), outputs=parsed["outputs"])
 
     bake = Bake(report.bake_dir)
     views = choose_views(bake.manifest, args, parsed)

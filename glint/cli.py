@@ -19,6 +19,7 @@ from typing import Callable
 
 from glint import __version__
 from glint.core.errors import GlintError, summarised
+from glint.core.signals import exit_status, handle_termination
 
 EXIT_ERROR = 2
 EXIT_INTERNAL = 1
@@ -152,6 +153,7 @@ def cmd_bake(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    handle_termination()  # SIGTERM and SIGHUP: as Ctrl-C (core/signals.py)
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser(argv)
     try:
@@ -173,9 +175,11 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         print(f"glint: {e}", file=sys.stderr)
         return EXIT_ERROR
-    except KeyboardInterrupt:
-        print("glint: interrupted; nothing was half-written", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGTERM / SIGHUP (core/signals.py Terminated)
+        name, status = exit_status(e)
+        print(f"glint: {'interrupted' if status == EXIT_INTERRUPTED else f'terminated ({name})'}; "
+              "nothing was half-written", file=sys.stderr)
+        return status
     except Exception as e:  # a bug: still one line unless --debug
         if args.debug:
             traceback.print_exc()

@@ -60,6 +60,7 @@ from glint.bake.executor import TASKS_PER_WORKER
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
+from glint.core.signals import quiet_child
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
 from glint.viewer.cubemaps import finite_radiance, mip_chain
@@ -121,10 +122,15 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
         try:
             with ProcessPoolExecutor(processes, mp_context=spawn, initializer=_start_worker,
                                      initargs=(str(bake_dir),)) as pool:
-                for done in as_completed([pool.submit(_worker_task, task) for task in probe_tasks(plans)]):
-                    for _ in range(done.result()):
-                        if progress is not None:
-                            progress()
+                try:
+                    for done in as_completed([pool.submit(_worker_task, task) for task in probe_tasks(plans)]):
+                        for _ in range(done.result()):
+                            if progress is not None:
+                                progress()
+                except BaseException:  # Ctrl-C, SIGTERM, an error: stop the workers, not wait for them
+                    for process in list((getattr(pool, "_processes", None) or {}).values()):
+                        process.terminate()
+                    raise
         except BrokenProcessPool as e:  # a worker died (out of memory, killed): one line, no traceback
             raise GlintError(f"a cube-map worker process stopped before its probes were rendered ({e}); "
                              "bake again, or with --jobs 1") from None
@@ -253,6 +259,7 @@ _worker: dict = {}
 
 def _start_worker(bake_dir: str) -> None:
     """ProcessPoolExecutor initializer of the local worker processes."""
+    quiet_child()  # Ctrl-C and SIGHUP are the bake's, which stops its workers
     _worker["probes"] = ProbeWorker(bake_dir)
 
 

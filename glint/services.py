@@ -20,7 +20,7 @@ from glint.bake.gltf_loader import load_scene
 from glint.bake.lightmap import INVALID_WARN_SHARE, UNLIT_WARN_SHARE
 from glint.bake.pipeline import BakeReport
 from glint.bake.settings import BakeSettings, resolve_settings
-from glint.core.bake_dir import default_bake_dir, read_manifest
+from glint.core.bake_dir import check_bake_target, default_bake_dir, read_manifest, remove_dead_temporaries
 from glint.core.errors import GlintError, summarised
 from glint.core.scene import Scene
 from glint.scenes import BUILTIN, resolve
@@ -118,19 +118,29 @@ def check_view_names(scene: Scene, args) -> None:
                    "the scene has none (sidecar [camera_paths])")
 
 
-def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool = True) -> BakeReport:
+def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool = True,
+             outputs: list[tuple[str, Path]] = ()) -> BakeReport:
     """Bake, or find up to date, the scene of a command's arguments (add_bake_options).
 
     `reuse`: an existing bake keeps its settings (settings_for); `glint bake` passes False, so
     its presets and sidecar apply as given. When an existing bake must be redone, one line on
     stderr says why before the work starts. `explain`: after a bake that did work, one line on
     stderr says what the scene will look like wrong (fidelity_line); `glint bake` passes False
-    and prints it last itself."""
-    scene, builtin = open_scene(args.scene, getattr(args, "edits", None) or ())
+    and prints it last itself. `outputs`: the command's output files as (option, path), refused
+    where they are or lie inside the bake directory. The bake directory must be absent, empty or a
+    glint bake (check_bake_target): checked before the scene is loaded."""
+    option = "-o" if getattr(args, "command", None) == "bake" else "--bake-dir"
+    edits = getattr(args, "edits", None) or ()
+    builtin = args.scene if args.scene in BUILTIN else None
+    seed = args.out or default_bake_dir(resolve(args.scene), builtin)
+    if not edits:  # with edits the seed is only read; the edited scene's directory is checked below
+        check_bake_dir(seed, option, outputs)
+    scene, builtin = open_scene(args.scene, edits)
     check_view_names(scene, args)  # before the bake: a typo costs nothing
-    bake_dir = seed = args.out or default_bake_dir(scene.source, builtin)
+    bake_dir = seed
     if scene.edits:  # never the unedited scene's directory: it stays valid (bake/edits.py)
         bake_dir = edited_bake_dir(seed, scene.edits)
+        check_bake_dir(bake_dir, option, outputs)
     existing = (read_manifest(bake_dir) or (read_manifest(seed) if scene.edits else None)
                 if reuse and not args.force else None)
     seeded = scene.edits and read_manifest(bake_dir) is None and read_manifest(seed) is not None
@@ -148,6 +158,33 @@ def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool =
     if line:
         print(f"glint: {line}", file=sys.stderr)
     return report
+
+
+def check_bake_dir(bake_dir: Path, option: str, outputs: list[tuple[str, Path]] = ()) -> None:
+    """Remove what a killed bake of `bake_dir` left beside it (remove_dead_temporaries); then a one-line
+    GlintError, before any work, unless a bake may write `bake_dir` (core/bake_dir.py
+    check_bake_target: absent, empty or a glint bake) and none of `outputs` ((option, path) of the
+    command's output files) is the bake directory or lies inside it (a bake replaces it whole)."""
+    remove_dead_temporaries(bake_dir)  # a killed bake's, also when this one finds the bake up to date
+    check_bake_target(bake_dir, option)
+    real = Path(os.path.realpath(bake_dir))
+    for name, path in outputs:
+        out = Path(os.path.realpath(path))
+        if out == real or real in out.parents:
+            raise GlintError(f"{name} {path} is {'' if out == real else 'inside '}the bake directory {bake_dir}, "
+                             f"which a bake replaces as a whole; write it elsewhere")
+
+
+def check_outputs(outputs: list[tuple[str, Path]]) -> None:
+    """A one-line GlintError, before any work, when two of a command's output files ((option, path))
+    are one file: the second would be written over the first."""
+    seen: dict[str, tuple[str, Path]] = {}
+    for name, path in outputs:
+        key = os.path.realpath(path)
+        if key in seen:
+            first, first_path = seen[key]
+            raise GlintError(f"{first} {first_path} and {name} {path} are the same file; give them different names")
+        seen[key] = (name, path)
 
 
 # -- argument checks shared by capture, view and bench --------------------------------------------
