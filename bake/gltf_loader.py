@@ -38,7 +38,6 @@ Conventions:
 from __future__ import annotations
 
 import base64
-import io
 import json
 import struct
 import urllib.parse
@@ -46,12 +45,20 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
+from PIL import UnidentifiedImageError
 
 from glint.bake.edits import edited_sidecar
+from glint.bake.gltf_schema import check_types
 from glint.bake.material_mapping import MATERIAL_EXTENSIONS, apply_override, material_from_gltf
 from glint.bake.roles import assign_roles
 from glint.bake.sidecar import read_sidecar
+from glint.bake.texture_image import (
+    MAX_DECODE_PIXELS,
+    MAX_TEXTURE_PIXELS,
+    MAX_TEXTURE_SIDE,
+    ImageRefused,
+    decode_texture,
+)
 from glint.bake.validate import (
     add_warning,
     check_finite_positions,
@@ -59,7 +66,7 @@ from glint.bake.validate import (
     repair_normals,
     validate_scene,
 )
-from glint.core.errors import GlintError, WarningKind, summarised
+from glint.core.errors import GlintError, WarningKind, one_line, summarised
 from glint.core.geometry import face_cross
 from glint.core.scene import Camera, DirectionalLight, Material, Object, PointLight, Scene, SpotLight
 
@@ -93,6 +100,10 @@ ZERO_NORMALS = WarningKind("{n} objects have zero-length normals ({normals:,} in
 NO_IMAGE = WarningKind("{n} materials' base colour textures have no PNG/JPEG source; ignored")
 UNREADABLE = WarningKind("{n} base colour images cannot be read; their materials use "
                          "baseColorFactor only")
+LARGE_IMAGE = WarningKind(f"{{n}} images are larger than glint keeps ({MAX_TEXTURE_PIXELS / 1e6:.1f} Mpx, "
+                          f"{MAX_TEXTURE_SIDE} a side); downscaled")
+HUGE_IMAGE = WarningKind(f"{{n}} images declare more pixels than glint decodes ({MAX_DECODE_PIXELS / 1e6:.0f} Mpx); "
+                         "not read, their materials go without them")
 SPOT_CONES = WarningKind("{n} spot lights have cone angles outside 0 <= inner < outer <= pi/2; "
                          "clamped")
 ORTHOGRAPHIC = WarningKind("{n} cameras are orthographic; only perspective cameras are "
@@ -110,6 +121,13 @@ NO_UVS = WarningKind("{n} objects have a textured material but not the texture c
                      "it names; the texel at (0, 0) is used everywhere")
 LIGHT_RANGE = WarningKind("{n} lights have a range, not supported; inverse-square falloff "
                           "everywhere")
+# An accessor without a bufferView (zeros, with sparse values on them) and a meshopt bufferView's
+# decoded data take their size from a count in the JSON, not from bytes in the file, so a corrupt
+# count (2**31) would have numpy or meshopt allocate gigabytes before anything else fails. 256 MiB
+# is 22 million float32 VEC3 elements: far past any accessor of a scene glint bakes in a day
+# (docs/BAKE.md's largest, the staircase, has 1.1 million vertices). Accessors read from a buffer
+# are limited by the file's own bytes instead.
+MAX_UNBACKED_BYTES = 256 << 20
 _WRAP_MODES = {10497: "REPEAT", 33071: "CLAMP_TO_EDGE", 33648: "MIRRORED_REPEAT"}  # glTF 5.26
 _NEAREST = 9728
 
@@ -179,9 +197,11 @@ def read_gltf(path: Path) -> GltfDocument:
                          f"column {err.colno}: {err.msg}") from None
     if not isinstance(tree, dict):
         raise GlintError(f"{name}: malformed glTF: the JSON is not an object")
-    version = str(tree.get("asset", {}).get("version", "2.0"))
+    asset = tree.get("asset")
+    version = str(asset.get("version", "2.0")) if isinstance(asset, dict) else "2.0"
     if not version.startswith("2"):
         raise GlintError(f"{name}: glTF version {version} is not supported (need 2.0)")
+    check_types(tree, name)
     doc = GltfDocument(path=path, json=tree)
     for i, buf in enumerate(_list(tree, "buffers", name)):
         doc.buffers.append(_buffer_bytes(buf, i, path, binary))
@@ -410,6 +430,10 @@ class _SceneBuilder:
             data = self._read_view(a["bufferView"], a.get("byteOffset", 0), count, ctype,
                                    ncomp, where)
         else:  # all zeros unless sparse values replace some
+            size = count * ncomp * np.dtype(_COMPONENTS[ctype]).itemsize
+            if size > MAX_UNBACKED_BYTES:
+                raise self.bad(f"{where} has no bufferView and a count of {count:,}: {_mib(size)} of zeros, "
+                               f"more than glint makes without data in the file ({_mib(MAX_UNBACKED_BYTES)})")
             data = np.zeros((count, ncomp), _COMPONENTS[ctype])
         if "sparse" in a:
             sp = a["sparse"]
@@ -493,6 +517,9 @@ class _SceneBuilder:
         if not (isinstance(count, int) and count >= 0 and isinstance(stride, int) and stride > 0
                 and mode in ("ATTRIBUTES", "TRIANGLES", "INDICES")):
             raise self.bad(f"{where} has count {count!r}, byteStride {stride!r}, mode {mode!r}")
+        if count * stride > MAX_UNBACKED_BYTES:
+            raise self.bad(f"{where} decodes to {count:,} elements of {stride} bytes ({_mib(count * stride)}), "
+                           f"more than glint decodes for one bufferView ({_mib(MAX_UNBACKED_BYTES)})")
         try:
             rows = meshopt.decode_gltf_buffer(bytes(buffer[v0:v0 + vlen]), count, stride, mode,
                                               None if filt == "NONE" else filt)
@@ -677,7 +704,10 @@ class _SceneBuilder:
         return wrap, sampler.get("magFilter") == _NEAREST
 
     def _decode_image(self, index: int, where: str) -> np.ndarray | None:
+        """(H, W, 4) float32 of image `index`, within bake/texture_image.py's limits (a warning when
+        shrunk), or None with a warning when it cannot be read or declares too many pixels to decode."""
         image = self.item("images", index, f"{where} texture")
+        name = _image_name(image, index)
         try:
             if "bufferView" in image:
                 view = self.item("bufferViews", image["bufferView"], f"image {index}")
@@ -690,15 +720,29 @@ class _SceneBuilder:
                 if uri.startswith("data:"):
                     data = base64.b64decode(uri.split(",", 1)[1])
                 else:
-                    data = (self.doc.path.parent / urllib.parse.unquote(uri)).read_bytes()
-            with Image.open(io.BytesIO(data)) as img:
-                rgba = np.asarray(img.convert("RGBA"), np.float32) / 255.0
+                    file = self.doc.path.parent / urllib.parse.unquote(uri)
+                    if not file.is_file():  # nor a device (/dev/zero) or a folder
+                        raise FileNotFoundError(f"no file {file}")
+                    data = file.read_bytes()
+            rgba, declared, kept = decode_texture(data)
+        except ImageRefused as refused:
+            w, h = refused.size
+            self.warn(f"{where}: image '{name}' declares {w}x{h} pixels, more than glint decodes "
+                      f"({MAX_DECODE_PIXELS / 1e6:.0f} Mpx); not read, the material goes without it",
+                      HUGE_IMAGE, name, detail=f"{w}x{h}", ignored=["images too large to decode"])
+            return None
         except Exception as err:  # any unreadable image: warn and fall back to the factor
-            self.warn(f"{where}: cannot read base colour texture (image {index}: "
-                      f"{type(err).__name__}: {err}); using baseColorFactor only",
-                      UNREADABLE, _image_name(image, index),
+            reason = ("not an image Pillow reads" if isinstance(err, UnidentifiedImageError)
+                      else f"{type(err).__name__}: {one_line(err)}")
+            self.warn(f"{where}: cannot read base colour texture (image {index}: {reason}); "
+                      "using baseColorFactor only", UNREADABLE, name,
                       ignored=["unreadable base colour images"])
             return None
+        if kept != declared:
+            self.warn(f"{where}: image '{name}' is {declared[0]}x{declared[1]} pixels, more than glint keeps "
+                      f"({MAX_TEXTURE_PIXELS / 1e6:.1f} Mpx, {MAX_TEXTURE_SIDE} a side); downscaled to "
+                      f"{kept[0]}x{kept[1]}", LARGE_IMAGE, name,
+                      detail=f"{declared[0]}x{declared[1]} -> {kept[0]}x{kept[1]}")
         return rgba
 
     # ---- geometry
@@ -796,7 +840,9 @@ class _SceneBuilder:
                           "(COLOR_0), not supported; ignored", VERTEX_ALPHA, name,
                           ignored=["COLOR_0 alpha"])
         if "NORMAL" in attrs:
-            normals = self.accessor(attrs["NORMAL"], f"'{node_name}' NORMAL")[:, :3]
+            normals = self.accessor(attrs["NORMAL"], f"'{node_name}' NORMAL")
+            if normals.shape[1] != 3:
+                raise self.bad(f"object '{node_name}' NORMAL accessor is not VEC3")
             if len(normals) != n:
                 raise self.bad(f"object '{node_name}' NORMAL count differs from POSITION")
             # Inverse transpose up to a positive factor: cofactor * sign(det).
@@ -809,7 +855,9 @@ class _SceneBuilder:
             else (0, None)
         uv_name = f"TEXCOORD_{texcoord}"
         if uv_name in attrs:
-            uvs = self.accessor(attrs[uv_name], f"'{node_name}' {uv_name}")[:, :2]
+            uvs = self.accessor(attrs[uv_name], f"'{node_name}' {uv_name}")
+            if uvs.shape[1] != 2:
+                raise self.bad(f"object '{node_name}' {uv_name} accessor is not VEC2")
             if len(uvs) != n:
                 raise self.bad(f"object '{node_name}' {uv_name} count differs from POSITION")
             uvs = uvs.astype(np.float64)
@@ -1087,6 +1135,11 @@ def texture_transform_matrix(ext: dict, where: str = "KHR_texture_transform") ->
     t = np.array([[1.0, 0.0, offset[0]], [0.0, 1.0, offset[1]], [0.0, 0.0, 1.0]])
     r = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
     return t @ r @ np.diag([scale[0], scale[1], 1.0])
+
+
+def _mib(size: int) -> str:
+    """A byte count for a message: '24,576 MiB'."""
+    return f"{size / (1 << 20):,.0f} MiB"
 
 
 def _image_name(image: dict, index: int) -> str:
