@@ -5,7 +5,7 @@ import os
 from dataclasses import asdict, dataclass, fields, replace
 
 from glint.bake.executor import check_scheduler_address
-from glint.bake.schema import BAKE
+from glint.bake.sidecar_schema import BAKE
 
 # samples: hemisphere paths per texel; texels_per_metre: light-map resolution.
 # Measured times per preset are in docs/BAKE.md.
@@ -27,7 +27,7 @@ def _default(key: str):
 
 @dataclass(frozen=True)
 class BakeSettings:
-    """The bake's settings; each field's default, range and meaning: bake/schema.py BAKE."""
+    """The bake's settings; each field's default, range and meaning: bake/sidecar_schema.py BAKE."""
     quality: str = _default("quality")
     samples: int = _default("samples")
     texels_per_metre: float = _default("texels_per_metre")
@@ -60,7 +60,7 @@ class BakeSettings:
 
 def resolve_settings(sidecar: dict | None = None, **cli) -> BakeSettings:
     """Preset of the chosen quality, then sidecar [bake] keys, then explicit command-line values; each
-    value checked by its key's rule (bake/schema.py BAKE), the command line's named as its option."""
+    value checked by its key's rule (bake/sidecar_schema.py BAKE), the command line's named as its option."""
     sidecar = dict(sidecar or {})
     names = {f.name for f in fields(BakeSettings)}
     sources = (("[bake]", sidecar), ("", cli))

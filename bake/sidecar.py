@@ -38,7 +38,7 @@ All tables are optional:
 `diffuse_roughness` sits in [bake] rather than [materials] because [materials]
 is keyed by material name (a material could be called "diffuse_roughness").
 Wrong types and values outside a key's range are errors naming the file, table, key,
-value and what is allowed (each key's rule: bake/schema.py); unknown keys are warnings
+value and what is allowed (each key's rule: bake/sidecar_schema.py); unknown keys are warnings
 (a typo should not silently do nothing, nor stop the work).
 
 The per-object cube-map settings reach the bake as `Object.options`
@@ -56,7 +56,7 @@ import numpy as np
 
 from glint.bake.bounding_planes import MAX_PLANES
 from glint.bake.material_mapping import DIFFUSE_ROUGHNESS, parse_material_override
-from glint.bake.schema import BAKE, CAMERAS, LIGHTS, OBJECTS, PATH_KEY, PLANE, SCHEMA, SKY, checked
+from glint.bake.sidecar_schema import BAKE, CAMERAS, LIGHTS, OBJECTS, PATH_KEY, PLANE, SCHEMA, SKY, checked
 from glint.bake.settings import COMMAND_LINE_ONLY
 from glint.bake.validate import warn_unknown_keys as _unknown
 from glint.core.errors import GlintError
@@ -71,7 +71,7 @@ else:  # pragma: no cover
 SUFFIX = ".glint.toml"
 TABLES = tuple(SCHEMA)
 # [bake] keys the bake understands (bake/settings.py) and the material rule's threshold;
-# others pass through with a warning. Every key's rule: bake/schema.py.
+# others pass through with a warning. Every key's rule: bake/sidecar_schema.py.
 BAKE_KEYS = tuple(key for key in BAKE if key not in COMMAND_LINE_ONLY)
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from glint.bake.schema import BAKE
+from glint.bake.sidecar_schema import BAKE
 from glint.bake.settings import PRESETS
 from glint.core.errors import GlintError
 
@@ -20,7 +20,7 @@ SCENE_HELP = ("a built-in scene name (see `glint scenes`) or a .glb/.gltf file; 
 
 def _setting(key: str):
     """argparse type of the option of the bake setting `key`: the text read as a number where it is
-    one, then checked by the setting's rule (glint.bake.schema.BAKE), the sidecar's [bake] key's."""
+    one, then checked by the setting's rule (glint.bake.sidecar_schema.BAKE), the sidecar's [bake] key's."""
     def parse(text: str):
         value = text
         for kind in (int, float):

@@ -247,5 +247,5 @@ def test_missing_mitsuba_is_one_line(monkeypatch):
     from glint.core.errors import GlintError
 
     monkeypatch.setitem(sys.modules, "mitsuba", None)
-    with pytest.raises(GlintError, match=r"pip install 'glint\[test\]'"):
+    with pytest.raises(GlintError, match=r"pip install 'glint\[bench\]'"):
         choose_variant("auto")

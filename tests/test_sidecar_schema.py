@@ -1,4 +1,4 @@
-"""The sidecar's schema (bake/schema.py): every key range-checked in one place, with one message, from
+"""The sidecar's schema (bake/sidecar_schema.py): every key range-checked in one place, with one message, from
 the sidecar file, the command line and `--set` alike."""
 import pytest
 
