@@ -1,4 +1,4 @@
-"""Draco- and meshopt-compressed glTF read like the uncompressed file (bake/gltf_loader.py).
+"""Draco- and meshopt-compressed glTF read like the uncompressed file (bake/gltf_accessors.py).
 
 The compressed files are made here from the uncompressed ones (scenes/gltf_writer.py and
 conftest.write_room): `draco()` encodes each primitive with DracoPy as KHR_draco_mesh_compression
@@ -6,7 +6,7 @@ describes (the accessors lose their bufferView; the extension maps semantics to 
 unique ids), `meshopt_file()` re-encodes every bufferView with the meshopt package as
 EXT_meshopt_compression describes (the original data moves to a fallback buffer with no data).
 
-Deliberate bugs these catch (each tried in bake/gltf_loader.py, each failed the tests named):
+Deliberate bugs these catch (each tried in bake/gltf_accessors.py, each failed the tests named):
 - Draco POSITION and NORMAL ids swapped in the lookup: the matches, reordered, swapped-ids and
   room-bake tests.
 - the Draco bufferView's byteOffset ignored (decoding from the buffer's start): the same four
@@ -28,7 +28,8 @@ import numpy as np
 import pytest
 from conftest import FAST, write_room
 
-from glint.bake.gltf_loader import load_scene, read_gltf
+from glint.bake.gltf_container import read_gltf
+from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import resolve_settings
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError

@@ -25,7 +25,7 @@ import shutil
 import numpy as np
 from conftest import write_room
 
-from glint.bake import gltf_loader, hashing, pipeline
+from glint.bake import gltf_loader, gltf_scene, hashing, pipeline
 from glint.cli import main
 
 DRAFT = ["-q", "draft", "--samples", "8", "--texels-per-metre", "6", "--no-denoise", "-j", "1"]
@@ -105,14 +105,14 @@ def test_last_bit_differences_of_derived_floats_are_no_change(tmp_path, capsys, 
     bake(scene, out, capsys)
     before = files(out)
     old_geometry = json.loads((out / "manifest.json").read_text())["stages"]["geometry"]
-    original = gltf_loader.local_matrix
+    original = gltf_scene.local_matrix
 
     def nudged(node, where="node"):
         m = original(node, where)
         m[:3, 3] = np.nextafter(m[:3, 3], np.inf)
         return m
 
-    monkeypatch.setattr(gltf_loader, "local_matrix", nudged)
+    monkeypatch.setattr(gltf_scene, "local_matrix", nudged)
     settings = pipeline.BakeSettings(samples=8, texels_per_metre=6.0, denoise=False, quality="draft")
     assert hashing.geometry_hash(gltf_loader.load_scene(scene), settings) != old_geometry  # the nudge is real
     output = bake(scene, out, capsys)
