@@ -12,8 +12,8 @@ as float32 (cast ints in the body: `int(n)`). `outputs` maps names to widths the
 outputs start at zero. Results come back as float32 arrays of shape (N,) or (N, k).
 
 All inputs share one shader storage buffer and all outputs another, at bindings
-IN_BINDING and OUT_BINDING (above those of viewer/gpu_scene.py). Programs are cached by
-source text, so a test that calls the same body many times compiles it once.
+IN_BINDING and OUT_BINDING (above those of viewer/gpu_materials.py and cubemaps.py). Programs are
+cached by source text, so a test that calls the same body many times compiles it once.
 """
 from __future__ import annotations
 

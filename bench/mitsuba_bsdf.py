@@ -15,7 +15,7 @@ f_s |cos(theta_l)| / pdf (the path integrator's convention).
 Frame and sides, as the viewer shades (shaders/raster_surface.glsl, specular.glsl):
 - n is the shading normal (interpolated vertex normals); anisotropic lobes need the tangent,
   which the converter (bench/mitsuba_scene.py) stores per vertex as the mesh attributes
-  `vertex_tangent` and `vertex_bitangent_sign`, computed by viewer/gpu_scene.py's `tangents` /
+  `vertex_tangent` and `vertex_bitangent_sign`, computed by viewer/tangent_frames.py's `tangents` /
   `axis_tangents`: t = tangent Gram-Schmidt against n, b = sign n x t. Isotropic materials
   use Mitsuba's own shading frame (the BSDF is invariant under a rotation about n).
 - The side is the geometric one (winding, as gl_FrontFacing). The back of a one-sided

@@ -8,7 +8,7 @@ against it. What maps to what:
   counter-clockwise faces (Mitsuba's front side too), the vertex normals (Mitsuba's shading
   frame, as the viewer interpolates them) and TEXCOORD_0 as Mitsuba's uv. Per-vertex tangents
   for anisotropic lobes (mesh attributes read by bench/mitsuba_bsdf.py), from the viewer's own
-  function (viewer/gpu_scene.py `surface_tangents`: TANGENT, MikkTSpace, or a world axis; its
+  function (viewer/tangent_frames.py `surface_tangents`: TANGENT, MikkTSpace, or a world axis; its
   vertex splits are the mesh's).
 - Normal maps: Mitsuba's `normalmap` BSDF around the material's, with the map as a linear
   `bitmap` (glTF's scale applied to x and y, renormalised and re-encoded as 0..1). Mitsuba
@@ -55,7 +55,7 @@ import numpy as np
 
 from glint.bench import mitsuba_bsdf
 from glint.core.scene import Scene
-from glint.viewer.gpu_scene import surface_tangents
+from glint.viewer.tangent_frames import surface_tangents
 
 # Mitsuba and drjit are optional (glint[bench], and part of glint[test]): imported by the functions that need them, so the rest works without.
 

@@ -1,5 +1,5 @@
-// The section 3.3 material (Eq. 3.6: kd/pi + lobes, plus emission) as viewer/gpu_scene.py packs
-// it into shader storage buffers (std430). Flags (MAT_*) come in as defines from gpu_scene.py and
+// The section 3.3 material (Eq. 3.6: kd/pi + lobes, plus emission) as viewer/gpu_materials.py packs
+// it into shader storage buffers (std430). Flags (MAT_*) come in as defines from gpu_materials.py and
 // bindings from gl_bindings.py, so the Python packer and this declaration cannot drift apart.
 
 struct Material {

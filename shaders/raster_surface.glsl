@@ -18,7 +18,7 @@ in vec3 v_position;
 in vec3 v_normal;
 in vec4 v_tangent;
 in vec2 v_uv;
-in vec3 v_color;  // glTF COLOR_0 in 0..1; -1 for objects without (viewer/gpu_scene.py)
+in vec3 v_color;  // glTF COLOR_0 in 0..1; -1 for objects without (viewer/gpu_meshes.py)
 in vec2 v_lm_uv;
 flat in int v_lm_page;
 flat in int v_object;
@@ -47,7 +47,7 @@ struct RasterSurface {
 };
 
 // Coverage of MASK and BLEND materials (glTF 3.9.4 "Alpha Coverage"): alpha = the material's
-// baseColorFactor alpha x the base colour texture's alpha (viewer/gpu_scene.py uploads it for these
+// baseColorFactor alpha x the base colour texture's alpha (viewer/gpu_textures.py uploads it for these
 // materials only). MASK keeps alpha >= alphaCutoff. BLEND has no order-independent answer in a
 // deferred renderer; it keeps a fragment where a 4 x 4 ordered-dither threshold lies below alpha,
 // so a block of supersamples keeps the fraction alpha and the resolve averages it (docs/SCENES.md),

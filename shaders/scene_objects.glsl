@@ -1,4 +1,4 @@
-// Per object of the scene (viewer/gpu_scene.py SCENE_OBJECT_DTYPE, std430), indexed by the object id
+// Per object of the scene (viewer/gpu_objects.py SCENE_OBJECT_DTYPE, std430), indexed by the object id
 // every vertex carries: what a raster pass used to set as per-draw uniforms, so that one multi-draw
 // draws them all (viewer/draw_list.py).
 

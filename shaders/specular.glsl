@@ -52,7 +52,7 @@
 #include "mirror_buffer.glsl"
 
 // The regular patterns in (xi1, xi2) space (viewer/lobe_patterns.py), all lobes' in one buffer;
-// per lobe x: first position, y: count, z: pattern kind (viewer/gpu_scene.py PATTERN_KINDS).
+// per lobe x: first position, y: count, z: pattern kind (viewer/gpu_materials.py PATTERN_KINDS).
 layout(std430, binding = PATTERN_BINDING) readonly buffer PatternBuffer { vec2 pattern_xi[]; };
 layout(std430, binding = LOBE_PATTERN_BINDING) readonly buffer LobePatternBuffer { ivec4 lobe_patterns[]; };
 

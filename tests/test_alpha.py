@@ -351,7 +351,7 @@ def test_blend_coverage_is_resolved_by_supersampling(tmp_path):
     noise (the wall's light map differs by the leaf's shadow, linear in its coverage).
 
     Deliberate bug this catches (tried): BLEND drawn opaque (no MAT_ALPHA_BLEND flag in
-    viewer/gpu_scene.py) gives the opaque leaf, 2x off the mean."""
+    viewer/gpu_materials.py) gives the opaque leaf, 2x off the mean."""
     solid = np.full((8, 8), 255, np.uint8)
     opaque = capture(write_wall_scene(tmp_path / "opaque.glb", None, texture_alpha=solid), tmp_path / "o.exr",
                      supersample=4)

@@ -18,7 +18,7 @@ from glint.bench import glsl_eval
 from glint.core import bsdf as B
 
 RTOL = 1e-4
-KINDS = {"reflect": 0.0, "transmit": 1.0}  # LOBE_REFLECT, LOBE_TRANSMIT in ks.a (viewer/gpu_scene.py)
+KINDS = {"reflect": 0.0, "transmit": 1.0}  # LOBE_REFLECT, LOBE_TRANSMIT in ks.a (viewer/gpu_materials.py)
 ROUGHNESS = [(1e-4, 1e-4), (1e-3, 1e-3), (0.01, 0.01), (0.1, 0.1), (0.3, 0.3), (1.0, 1.0),
              (0.01, 1.0), (1.0, 0.01), (1e-4, 1e-2), (0.5, 0.005)]
 R0 = [0.0, 0.04, 0.5, 1.0]

@@ -70,7 +70,7 @@ def object_ids(scene, camera, size: int, sub: int = SUPERSAMPLE) -> np.ndarray:
 def test_cornell_box_capture_matches_mitsuba(tmp_path):
     """Deliberate bugs this catches (tried, never committed), with the whole-image MAE (2.09 %,
     bound 5 %) that alone let both pass:
-    - the light maps x1.05 at their upload (viewer/gpu_scene.py `_lightmaps`): every surface's
+    - the light maps x1.05 at their upload (viewer/gpu_lightmaps.py): every surface's
       bias goes to +4.4 % (ceiling) .. +5.7 % (large box), from -0.55 .. +0.61 %, past the
       +-2.5 % bound, and its MAE to 4.5 .. 6.7 % (bounds 3 % / 5.5 %); whole image 3.72 %;
     - the light-map look-up shifted by half a texel (shaders/raster_surface.glsl, uv + 0.5 /

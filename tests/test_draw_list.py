@@ -15,7 +15,7 @@ from glint.services import bake_scene
 from glint.viewer.camera import ViewCamera, frustum_planes, in_frustum
 from glint.viewer.draw_list import DRAW_STATES, DrawList
 from glint.viewer.gl_bindings import SCENE_OBJECT_BINDING
-from glint.viewer.gpu_scene import SCENE_OBJECT_DTYPE, GpuObject
+from glint.viewer.gpu_objects import SCENE_OBJECT_DTYPE, GpuObject
 from glint.viewer.renderer import Renderer
 
 

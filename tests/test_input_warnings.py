@@ -26,7 +26,7 @@ def _statistics(tmp_path) -> dict:
 
 def test_kd_above_one_warns_once_per_material(tmp_path, capsys):
     """kd [1.5, 0.5, 0.5] on Wall and Floor: one summary line naming both and the value, saying clamped.
-    Catches: kd above 1 clamped silently by the bake and the viewer (bake/irradiance.py, gpu_scene.py)."""
+    Catches: kd above 1 clamped silently by the bake and the viewer (bake/irradiance.py, gpu_materials.py)."""
     from glint.bake.gltf_loader import load_scene
 
     load_scene(write_room(tmp_path / "room.glb", kd=(1.5, 0.5, 0.5)))

@@ -17,7 +17,7 @@ from glint.bench import glsl_eval
 from glint.core import bsdf as B
 from glint.viewer import lobe_patterns as P
 
-KINDS = {"reflect": 0.0, "transmit": 1.0}  # LOBE_REFLECT, LOBE_TRANSMIT in ks.a (viewer/gpu_scene.py)
+KINDS = {"reflect": 0.0, "transmit": 1.0}  # LOBE_REFLECT, LOBE_TRANSMIT in ks.a (viewer/gpu_materials.py)
 
 
 def f32(a):

@@ -18,7 +18,7 @@ from glint.scenes.gltf_writer import GltfWriter
 from glint.services import bake_scene
 from glint.viewer import lod
 from glint.viewer.draw_list import DrawList
-from glint.viewer.gpu_scene import OBJECT_LOD_DTYPE
+from glint.viewer.gpu_meshes import OBJECT_LOD_DTYPE
 from glint.viewer.renderer import Renderer
 
 

@@ -17,7 +17,7 @@ import pytest
 from glint.bake.gltf_loader import load_scene
 from glint.core.image_io import read_image
 from glint.scenes.gltf_writer import GltfWriter, quad, room_faces
-from glint.viewer.gpu_scene import surface_tangents, tangents
+from glint.viewer.tangent_frames import surface_tangents, tangents
 
 TILT = math.radians(22.0)
 SIZE = 48
@@ -114,9 +114,9 @@ def test_normal_mapped_floor_matches_mitsuba(tmp_path):
     darker; the normal map adds no error of its own).
 
     Deliberate bugs this catches (tried): the normal map ignored (MAT_NORMAL_TEXTURE never set in
-    viewer/gpu_scene.py): 0.78; the green channel flipped (tn.y negated in raster_surface.glsl
+    viewer/gpu_materials.py): 0.78; the green channel flipped (tn.y negated in raster_surface.glsl
     `normal_mapped`): 0.37; the tangent frame wrong (b = -w n x t, the handedness of
-    viewer/gpu_scene.py `tangents` reversed): 0.37; t and b swapped in `normal_mapped`: 0.69."""
+    viewer/tangent_frames.py `tangents` reversed): 0.37; t and b swapped in `normal_mapped`: 0.69."""
     reference = mitsuba_image(write_scene(tmp_path / "reference.glb", normal_map=band_normal_map()), spp=32)
     image = capture(write_scene(tmp_path / "floor.glb", normal_map=band_normal_map()))
     floor = slice(SIZE // 2, SIZE)

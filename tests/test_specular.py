@@ -20,8 +20,8 @@ from glint.core.bake_dir import Bake, write_json
 from glint.core.image_io import write_image
 from glint.viewer.camera import ViewCamera
 from glint.viewer.cubemaps import read_cubemap
-from glint.viewer.gpu_scene import axis_tangents
 from glint.viewer.renderer import Renderer
+from glint.viewer.tangent_frames import axis_tangents
 
 
 # -- the OpenGL cube-map convention, from the specification -----------------------------------------

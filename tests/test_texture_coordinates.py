@@ -202,7 +202,7 @@ def test_capture_samples_through_the_glTF_sampler(tmp_path):
     nearest quad reads its texel's colour, with the same thresholds.
 
     Deliberate bugs this catches (tried): the shader's `wrap_kd` ignoring the flags (all REPEAT);
-    the S and T flags swapped in viewer/gpu_scene.py `_sampler_flags`; the NEAREST snap to the
+    the S and T flags swapped in viewer/gpu_materials.py `sampler_flags`; the NEAREST snap to the
     texel's centre left out of `sample_kd`."""
 
     size = 256

@@ -6,7 +6,7 @@ multi-draw per texture batch, culled on the GPU.
     draws.draw(program, mirror_vp, region=1, clip_plane=plane)    # a mirror pass
     draws.record(0)     # what region 0's last draw drew and left out, and why (reads the GPU)
 
-The scene's meshes lie in one vertex and one index buffer (viewer/gpu_scene.py), each object a
+The scene's meshes lie in one vertex and one index buffer (viewer/gpu_meshes.py), each object a
 range of the indices, and its material and light-map layer in a storage buffer indexed by the
 object id every vertex carries (shaders/scene_objects.glsl). So a draw needs no per-object
 uniform: `draw` runs shaders/cull.comp, which writes one glDrawElementsIndirect command per
@@ -25,7 +25,7 @@ Culling: an object is left out when its world box lies wholly outside one frustu
 test of viewer/camera.py `in_frustum`, which this pass replaces: the box corner farthest along
 the plane's normal), wholly behind the clip plane (mirror passes), or its id is hidden.
 
-Levels of detail: in a scene uploaded with them (viewer/gpu_scene.py `lod`, viewer/lod.py) a draw
+Levels of detail: in a scene uploaded with them (viewer/gpu_scene.py `lod`, viewer/gpu_meshes.py, viewer/lod.py) a draw
 given `detail` draws each object at the coarsest level that still has about the triangles its
 pixels can show (the bake's cube-map renders); the others draw every object whole.
 """

@@ -19,7 +19,7 @@ size, viewer/cubemaps.py): `shading_units` lays them out.
 from __future__ import annotations
 
 # -- shader storage buffers (all programs) -----------------------------------------------------------
-MATERIAL_BINDING = 0        # materials.glsl: viewer/gpu_scene.py MATERIAL_DTYPE rows
+MATERIAL_BINDING = 0        # materials.glsl: viewer/gpu_materials.py MATERIAL_DTYPE rows
 LOBE_BINDING = 1            # materials.glsl: LOBE_DTYPE rows
 PATTERN_BINDING = 2         # specular.glsl: the lobes' pattern positions (xi1, xi2)
 LOBE_PATTERN_BINDING = 3    # specular.glsl: PATTERN_DTYPE rows
@@ -37,7 +37,7 @@ DRAW_ORDER_BINDING = 14     # cull.comp: the object of each draw command (viewer
 DRAW_COMMAND_BINDING = 15   # cull.comp: the indirect draw commands it writes
 DRAW_STATE_BINDING = 16     # cull.comp: why each object was drawn or not
 DRAW_HIDDEN_BINDING = 17    # cull.comp: per object, 1 = left out
-OBJECT_LOD_BINDING = 18     # cull.comp: per object its levels of detail (viewer/gpu_scene.py OBJECT_LOD_DTYPE)
+OBJECT_LOD_BINDING = 18     # cull.comp: per object its levels of detail (viewer/gpu_meshes.py OBJECT_LOD_DTYPE)
 
 # -- raster passes over the bake's meshes (raster_surface.glsl: G-buffer and mirror passes) -----------
 LIGHTMAP_UNIT = 0

@@ -85,7 +85,7 @@ class Renderer:
         (viewer/progressive.py); mirror_budget: mirror passes per frame at most (planar
         reflectors, viewer/reflectors.py; 0: none, planar objects show their diffuse part);
         planar_pattern: "auto", "ring" or "multi_ring", the walkthrough pattern of isotropic lobes
-        on planar reflectors (viewer/gpu_scene.py; "auto" is the multi-ring); footprint: a key of
+        on planar reflectors (viewer/gpu_materials.py; "auto" is the multi-ring); footprint: a key of
         FOOTPRINTS, the filter of each pattern look-up in a cube map; timing: False times no pass
         (viewer/timing.py "off": no glFinish between passes on a software renderer; stats then
         has no per-pass times); small_objects: the G-buffer leaves out objects (not emitters) whose

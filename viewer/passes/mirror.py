@@ -74,7 +74,7 @@ from glint.viewer.gl_bindings import (
     SKY_UNIT,
     mirror_units,
 )
-from glint.viewer.gpu_scene import SKY_MODES
+from glint.viewer.gpu_sky import SKY_MODES
 from glint.viewer.mirror_camera import group_coplanar
 from glint.viewer.passes.gbuffer import GBufferPass
 from glint.viewer.reflectors import (
