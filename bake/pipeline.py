@@ -247,7 +247,8 @@ CubeMapRenderer = Callable[..., dict]
 
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
                progress: bool = True, render_cubemaps: CubeMapRenderer | None = None,
-               announce: Callable[[str], None] | None = None, seed: Path | None = None) -> BakeReport:
+               worker_modules: tuple[str, ...] = (), announce: Callable[[str], None] | None = None,
+               seed: Path | None = None) -> BakeReport:
     """Bake `scene` into `bake_dir`, redoing only the stages whose inputs changed.
 
     `seed`: a bake directory to start from when `bake_dir` holds none (an edited scene's bake
@@ -256,6 +257,9 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
 
     `render_cubemaps` renders the cube maps that need rendering (glint.services.bake_scene passes
     glint.cubemap_stage.render_cubemaps); a scene that needs a new cube map without one is an error.
+    `worker_modules`: the modules `render_cubemaps` runs on a `local:N` cluster's workers, which they
+    import before its tasks arrive (named by the caller, which knows them: the bake names no module
+    above it).
     `announce(why)` is called once, before any work, when an existing bake is to be redone in part
     (why: the changed inputs, as glint.core.skipped.stale_reason words them).
     """
@@ -299,7 +303,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         # a remote scheduler is reached now, before anything is written; a local:N cluster starts in
         # the background while the scene is unwrapped (its workers with the cube maps' module imported
         # where there are cube maps to render)
-        executor.start(modules=(render_cubemaps.__module__,) if probes_to_render and render_cubemaps else ())
+        executor.start(modules=tuple(worker_modules) if probes_to_render and render_cubemaps else ())
     with executor, BakeDirWriter(bake_dir) as out:
         _write_textures(scene, out.path)
         if reuse_lightmaps:

@@ -367,7 +367,7 @@ def sweep(ctx, bake, runs: list, camera, size, parsed, progress) -> list[tuple[d
 
 
 def run_sweep(args) -> int:
-    """`glint bench SCENE`: the sweep of the module docstring (bench/command.py chooses it)."""
+    """`glint bench SCENE`: the sweep of the module docstring (glint/bench_command.py chooses it)."""
     parsed = check_arguments(args)
     report = run_bake(args, progress=sys.stderr.isatty(), outputs=[("-o", parsed["output"])])
     bake = Bake(report.bake_dir)

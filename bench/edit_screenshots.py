@@ -24,8 +24,7 @@ from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import resolve_settings
 from glint.core.bake_dir import Bake
 from glint.scenes import resolve
-from glint.services import bake_scene, parse_size, parse_vector
-from glint.view import background_rebake
+from glint.services import background_rebake, bake_scene, parse_size, parse_vector
 from glint.viewer.camera import ViewCamera
 from glint.viewer.controls import WalkControls
 

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -77,7 +79,6 @@ def block_figures(image: np.ndarray, reference: np.ndarray, mask: np.ndarray | N
 def main(argv=None) -> int:
     from glint.bench.mitsuba import choose_variant
     from glint.bench.mitsuba_scene import convert, render, sensor_dict
-    from glint.cli import main as glint_main
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--size", default="160x90")
@@ -107,8 +108,10 @@ def main(argv=None) -> int:
         images = {}
         for mode, extra in (("walkthrough", []), ("converged", ["--converge", str(args.converge)])):
             out = args.out / f"{name}-{mode}.exr"
-            assert glint_main(["capture", name, "-o", str(out), "--size", args.size, "--supersample", "2",
-                               "-q", args.quality, "--bake-dir", str(args.out / f"{name}.bake"), *extra]) == 0
+            # the command in its own process: a tool does not import the commands (docs/ARCHITECTURE.md)
+            subprocess.run([sys.executable, "-m", "glint", "capture", name, "-o", str(out), "--size", args.size,
+                            "--supersample", "2", "-q", args.quality, "--bake-dir", str(args.out / f"{name}.bake"),
+                            *extra], check=True)
             images[mode] = read_image(out)[..., :3].astype(np.float64)
         floor = floor_mask(camera, width, height)
         entry = {"mitsuba_seconds": round(mitsuba_s, 1), "floor_pixels": int(floor.sum())}

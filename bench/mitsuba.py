@@ -79,7 +79,7 @@ _PROBE = ("import sys, mitsuba as mi; mi.set_variant(sys.argv[1]); "
 
 
 def add_mitsuba_options(p) -> None:
-    """The options of --mitsuba (the flag itself is bench/command.py's)."""
+    """The options of --mitsuba (the flag itself is glint/bench_command.py's)."""
     g = p.add_argument_group("--mitsuba: against Mitsuba 3")
     g.add_argument("--mitsuba-reference-spp", default=str(DEFAULT_REFERENCE_SPP), metavar="N",
                    help=f"samples per pixel of Mitsuba's reference (default {DEFAULT_REFERENCE_SPP})")

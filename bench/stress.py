@@ -291,7 +291,7 @@ def accumulation_drift(ctx, bake, camera, frames: int = DRIFT_FRAMES, size=WALKT
 
 # -- the command ------------------------------------------------------------------------------------
 def add_stress_options(p) -> None:
-    """`glint bench --stress` and its options (bench/command.py's parser)."""
+    """`glint bench --stress` and its options (glint/bench_command.py's parser)."""
     g = p.add_argument_group("stress suite (--stress: no SCENE; the scenes of scenes/stress.py)")
     g.add_argument("--stress", action="store_true",
                    help="run the numerical stress suite instead: BSDF extremes, grazing and back-facing views, "

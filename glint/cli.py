@@ -72,7 +72,7 @@ def _capture_options(p: argparse.ArgumentParser) -> None:
 
 
 def _bench_options(p: argparse.ArgumentParser) -> None:
-    from glint.bench.command import add_bench_options
+    from glint.bench_command import add_bench_options
 
     add_bench_options(p)
 

@@ -39,8 +39,10 @@ def render_cubemaps(*args, **kwargs):
     return render(*args, **kwargs)
 
 
-# The bake has a cluster's workers import the stage's module before its tasks arrive (pipeline.py).
-render_cubemaps.__module__ = "glint.cubemap_stage"
+# The module whose tasks render_cubemaps runs: a `local:N` cluster's workers import it before they arrive
+# (bake/pipeline.py bake_scene's `worker_modules`). A name, not the module: importing it here would load
+# the renderer into every bake; tests/test_architecture.py counts the string as this module's edge.
+CUBEMAP_STAGE = "glint.cubemap_stage"
 
 
 def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: bool = False,
@@ -49,7 +51,23 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     Repeated warnings of the stages (e.g. objects short of texels) are summarised when it ends."""
     with summarised():
         return pipeline.bake_scene(scene, settings, bake_dir, force=force, progress=progress,
-                                   render_cubemaps=render_cubemaps, announce=announce, seed=seed)
+                                   render_cubemaps=render_cubemaps, worker_modules=(CUBEMAP_STAGE,),
+                                   announce=announce, seed=seed)
+
+
+def background_rebake(manifest: dict, bake_dir: Path, edits=()):
+    """The re-bake of the light maps and cube maps after material edits (glint.bake.rebake.Rebaker:
+    a worker process, started now so that it has loaded the scene by the first edit); None for a
+    bake whose scene file is gone (nothing to re-bake from: edits then change only what kd shows).
+    `glint view`'s, and bench/edit_screenshots.py's (a tool: it may not import the command)."""
+    from glint.bake.rebake import Rebaker
+    from glint.cubemap_stage import ProbeRefresher  # the renderer: only where a re-bake runs
+
+    source = manifest["scene"].get("source")
+    if not source or not Path(source).is_file():
+        return None
+    # the worker plans the bake's probes (none: nothing to refresh) and renders them after its passes
+    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher)
 
 
 def fidelity_line(manifest: dict) -> str | None:

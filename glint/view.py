@@ -15,13 +15,11 @@ from pathlib import Path
 
 from glint.bake.edits import format_assignment, material_assignments, parse_assignment, save_sidecar
 from glint.bake.material_mapping import GltfPbr, map_pbr
-from glint.bake.rebake import Rebaker
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError, one_line
-from glint.cubemap_stage import ProbeRefresher
 from glint.scenes import BUILTIN, resolve
 from glint.options import SCENE_HELP, add_bake_options, add_edit_option
-from glint.services import number, parse_size, run_bake
+from glint.services import background_rebake, number, parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 from glint.viewer.controls import KEY_HELP, WalkControls
 
@@ -135,13 +133,3 @@ def cmd_view(args) -> int:
             rebaker.close()
     return 0
 
-
-def background_rebake(manifest: dict, bake_dir: Path, edits=()):
-    """The re-bake of the light maps and cube maps after material edits (glint.bake.rebake.Rebaker:
-    a worker process, started now so that it has loaded the scene by the first edit); None for a
-    bake whose scene file is gone (nothing to re-bake from: edits then change only what kd shows)."""
-    source = manifest["scene"].get("source")
-    if not source or not Path(source).is_file():
-        return None
-    # the worker plans the bake's probes (none: nothing to refresh) and renders them after its passes
-    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher)

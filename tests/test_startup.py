@@ -3,8 +3,8 @@
 What is imported is read from the interpreter itself (`-X importtime`, `sys.modules`), never timed:
 start-up times are measured, not asserted (docs/ARCHITECTURE.md "Start-up" has the figures).
 
-Deliberate bugs tried: glint/cli.py importing glint.bench.command at the top (as it did) fails
-`test_bake_help_imports_neither_the_renderer_nor_the_tools` ("glint.bench.command" in the list);
+Deliberate bugs tried: glint/cli.py importing glint.bench_command (then glint.bench.command) at the top (as it did) fails
+`test_bake_help_imports_neither_the_renderer_nor_the_tools` ("glint.bench_command" in the list);
 glint/services.py importing glint.cubemap_stage at the top fails
 `test_a_bake_without_cube_maps_never_imports_the_renderer` (['glint.cubemap_stage', 'glint.viewer.renderer',
 'moderngl', ...]).

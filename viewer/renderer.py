@@ -59,10 +59,14 @@ from glint.viewer.timing import PassTimer
 
 MAX_SUPERSAMPLE = 8
 MODES = ("walkthrough", "converge", "auto")
-# How the walkthrough estimates lobes: the thesis' regular patterns (Eq. 4.10-4.25), or, for
-# comparisons, Colbert and Krivanek's filtered importance sampling with as many samples, or the
-# split-sum prefiltered cube maps of game engines (viewer/split_sum.py; prefiltered when the
-# renderer is made, stats["split_sum"]["prefilter_ms"]).
+# -- the product's walkthrough and the comparison methods --------------------------------------------
+# The product estimates lobes with the thesis' regular patterns (Eq. 4.10-4.25) and Eq. 4.25's weights:
+# the defaults, what `glint view` shows. The others are comparison methods, for `glint bench --methods`
+# and `glint capture --walkthrough-method / --weights` (docs/BENCHMARKS.md): Colbert and Krivanek's
+# filtered importance sampling with as many samples, the split-sum prefiltered cube maps of game
+# engines (viewer/split_sum.py; prefiltered when the renderer is made, stats["split_sum"]["prefilter_ms"])
+# and Eq. 4.24's weights (viewer/passes/shading.py WEIGHTS). They stay here, not in bench/: each is a
+# variant of the specular pass (shaders/specular.glsl) that only the renderer can run.
 WALKTHROUGH_METHODS = {"patterns": "SPECULAR_PATTERNS", "filtered-importance": "SPECULAR_FILTERED_IS",
                        "split-sum": "SPECULAR_SPLIT_SUM"}
 # The MIP footprint of each pattern look-up in a cube map or mirror buffer (shaders/specular.glsl): the lobe's
@@ -81,7 +85,7 @@ class Renderer:
                  display: bool = True, lod: float = 0.0):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "eq4.25" or "eq4.24" (walkthrough); walkthrough: a key of
-        WALKTHROUGH_METHODS; samples_per_frame, max_frames, blend_frames: the still camera's
+        WALKTHROUGH_METHODS (anything but the defaults is a comparison method, above); samples_per_frame, max_frames, blend_frames: the still camera's
         (viewer/progressive.py); mirror_budget: mirror passes per frame at most (planar
         reflectors, viewer/reflectors.py; 0: none, planar objects show their diffuse part);
         planar_pattern: "auto", "ring" or "multi_ring", the walkthrough pattern of isotropic lobes

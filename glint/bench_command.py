@@ -5,7 +5,9 @@
     glint bench --stress           the numerical stress suite on its own scenes (bench/stress.py)
 
 The one place that knows all three: glint/cli.py has it add the options, and the measurements
-themselves import none of each other's commands.
+themselves import none of each other's commands. A command (glint/, as capture.py and view.py): it
+imports the measurements of bench/, never its scripts (the tools), which import no command
+(docs/ARCHITECTURE.md, "Layers").
 """
 from __future__ import annotations
 
