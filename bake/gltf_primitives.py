@@ -200,7 +200,7 @@ class PrimitiveReader:
         is a direction in the surface, so it takes the node's matrix; a mirroring matrix
         (negative determinant) reverses the bitangent against the transformed normal, so w flips.
         Unusable tangents (zero length, non-finite) are set to 0, which the viewer replaces by
-        its own (viewer/gpu_scene.py `tangents`)."""
+        its own (viewer/tangent_frames.py `tangents`)."""
         if "TANGENT" not in attrs:
             return None
         raw = self.accessors.read(attrs["TANGENT"], f"'{node_name}' TANGENT")
