@@ -64,7 +64,7 @@ float wrap_kd(float u, float size, bool clamp_edge, bool mirror) {
 }
 
 // A material texture at v_uv through the material's sampler (the base colour's: the emissive texture
-// shares its uv set and sampler, bake/gltf_loader.py).
+// shares its uv set and sampler, bake/gltf_materials.py).
 vec4 sample_material_texture(sampler2D tex, Material m) {
     const int wrapped = MAT_KD_CLAMP_S | MAT_KD_CLAMP_T | MAT_KD_MIRROR_S | MAT_KD_MIRROR_T | MAT_KD_NEAREST;
     if ((m.info.x & wrapped) == 0)

@@ -11,7 +11,7 @@ each (sizes differ, so no array):
 - metallic-roughness (G roughness multiplier, B metallic M'), normal map and anisotropy direction
   (`metallic_roughness_texture`, `normal_texture`, `anisotropy_texture`), linear, in 0..1.
 
-All are read with the base colour's uv and sampler flags (the loader's choice, bake/gltf_loader.py)
+All are read with the base colour's uv and sampler flags (the loader's choice, bake/gltf_materials.py)
 by shaders/raster_surface.glsl's `kd_texture`, `emission_texture`, `metallic_roughness_texture`,
 `normal_texture` and `anisotropy_texture`, at KD_TEXTURE_UNIT .. ANISOTROPY_TEXTURE_UNIT
 (viewer/gl_bindings.py), which a draw binds in `material_textures` order (viewer/draw_list.py
