@@ -171,13 +171,10 @@ def _heap_for_large_arrays() -> None:
     local executor's, a Dask worker's).
 
     Dask's nanny starts its workers with MALLOC_TRIM_THRESHOLD_=65536, which also pins glibc's mmap
-    threshold at 128 KiB: every array of the tracer's batches (a few MiB) was then mapped and unmapped
-    anew, page faults each time, and a living-room tile took 2.3x as long (2.5-2.6 s against 1.1 s in a
-    process without it). The mmap threshold at 32 MiB brought it to 1.15-1.2 s; the trim threshold
-    at 64 MiB too, to 1.0-1.04 s (memory up to 64 MiB kept for the next batch instead of handed back
-    to the system at every free): faster than glibc's own dynamic thresholds in a plain process too,
-    so the local executor's processes set them as well (docs/BAKE.md "On a cluster (Dask)"). Nothing
-    happens where the C library is not glibc."""
+    threshold at 128 KiB, so every array of the tracer's batches (a few MiB) would be mapped and
+    unmapped anew, a page fault each time; raised thresholds keep them in the heap, faster than glibc's
+    own dynamic thresholds in a plain process too (figures: docs/BAKE.md, "Worker heap settings").
+    Nothing happens where the C library is not glibc."""
     import ctypes
 
     try:

@@ -47,13 +47,12 @@ Random numbers: counter-based, so each texel's stream depends only on (seed, glo
 index, sample index) and a result does not depend on how texels are chunked across jobs.
 The texel's own 2D samples (its hemisphere direction, its light and sky samples) are the R2
 low-discrepancy sequence, Cranley-Patterson rotated per texel, the light and sky sets paired
-with the direction by a per-texel random permutation (unbiased; on the Cornell box the per-texel
-standard deviation drops by 10% at 16 samples and 30% at 256 against independent samples);
-deeper vertices use a hash (splitmix64) of (path, dimension).
+with the direction by a per-texel random permutation (unbiased, and less per-texel noise than
+independent samples: docs/BAKE.md, "Sample pairing"); deeper vertices use a hash (splitmix64) of
+(path, dimension).
 
-Speed (2-core CI machine, one process, mitsuba.cornell_box(), 2048 texels x 512 samples):
-~1.6 M rays/s, ~285 k paths/s, 5.8 rays per path; Embree alone traces these rays at 6-9 M rays/s,
-so numpy is ~75% of the time (np.take gathers, (N, 3) arithmetic, light sampling).
+Speed: most of the time is numpy around Embree, not Embree itself (docs/BAKE.md, "The integrator's
+speed").
 """
 from __future__ import annotations
 
@@ -71,7 +70,7 @@ from glint.core.image_io import sample_texture
 from glint.core.scene import Scene
 from glint.core.volume import fresnel_dielectric, refracted_cos
 
-BATCH_PATHS = 1 << 16  # paths traced together: bounds memory (~1 kB per path); 2^14..2^18 measured equal
+BATCH_PATHS = 1 << 16  # paths traced together: bounds memory (~1 kB per path); speed is flat around it (docs/BAKE.md, "The integrator's speed")
 MAX_FILTERS = 8  # transmissive surfaces a shadow ray may pass before it counts as blocked (two closed thin-walled glass objects: 4 interfaces each)
 RR_DEPTH = 3
 RR_MAX = 0.95
@@ -110,8 +109,9 @@ def _uniform2(key: np.ndarray, dim: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 # -- array helpers -----------------------------------------------------------------------------
-# np.take(a, i, axis=0) gathers (N, 3) rows ~4x faster than a[i], and a flat 1-D scatter beats
-# L[rows] += c; these two and the dot product carry most of the wavefront's numpy time.
+# np.take(a, i, axis=0) gathers (N, 3) rows faster than a[i], and a flat 1-D scatter beats
+# L[rows] += c; these two and the dot product carry most of the wavefront's numpy time
+# (docs/BAKE.md, "The integrator's speed").
 def _take(i, *arrays):
     if len(i) == len(arrays[0]):  # i is sorted and unique (from flatnonzero): all rows, nothing to do
         return arrays

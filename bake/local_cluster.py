@@ -1,9 +1,9 @@
 """`glint bake --scheduler local:N`: a Dask cluster of N worker processes on this machine, quick to start.
 
 Dask's own `LocalCluster` starts each worker through a nanny, whose worker process multiprocessing
-spawns or forks from a fork server that imports Dask and glint first: about 0.8 s on the 2-core
-machine before a task could run, half a small scene's whole bake; and the bake's process, the client,
-imports Dask (0.2 s) and takes longer to exit with it (0.1 s) (docs/BAKE.md, "On a cluster (Dask)").
+spawns or forks from a fork server that imports Dask and glint first, which delays the first task by
+a large share of a small scene's bake; and a bake's process that is the client imports Dask and is
+slower to exit with it (figures: docs/BAKE.md, "Why `local:N` has its own worker server").
 Here one *worker server*, a single-threaded process, starts the whole cluster while the bake
 prepares its work:
 

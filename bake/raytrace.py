@@ -14,9 +14,9 @@ to the side the ray leaves by; Embree's tnear is 0, so the ray's own triangle
 lies at t < 0. eps is per triangle: EPS_REL x the largest |coordinate| of its
 vertices relative to the centre (float32 rounds the vertices, and Embree's
 plane distance, in proportion to that), e.g. 12 um on a wall 3 m from the
-centre, 4 cm on a 10 km ground plane. Measured on rotated quads up to 10 km
-with grazing rays, self-hits vanish from 3e-7 x that scale on; EPS_REL = 4e-6
-is 13x that. Light leaks through concave corners only within eps of the edge.
+centre, 4 cm on a 10 km ground plane. EPS_REL is an order of magnitude above the
+smallest factor that removes self-hits with grazing rays up to 10 km (docs/BAKE.md,
+"Ray offsets (EPS_REL)"). Light leaks through concave corners only within eps of the edge.
 A texel's own eps comes from the triangle under it, found by one short probe
 ray along -n (`point_eps`).
 """
@@ -190,7 +190,7 @@ class RayTracer:
         row = np.take(self._table, prim, axis=0)
         b1 = b1.astype(np.float64)
         b2 = b2.astype(np.float64)
-        # p0 + b1 e1 + b2 e2 (einsum over the row's (p0, e1, e2) block: 2x faster than strided views)
+        # p0 + b1 e1 + b2 e2 (einsum over the row's (p0, e1, e2) block: faster than strided views, docs/BAKE.md "The integrator's speed")
         position = np.einsum("ij,ijk->ik", np.stack([np.ones(len(prim)), b1, b2], axis=1),
                              row[:, :9].reshape(-1, 3, 3))
         ng = np.ascontiguousarray(row[:, 9:12])

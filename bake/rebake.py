@@ -1,4 +1,4 @@
-"""The background re-bake of the light maps after a material edit (`glint view`, issue 14).
+"""The background re-bake of the light maps after a material edit (`glint view`).
 
 The light maps store irradiance E (Eq. 4.1: diffuse radiance = kd / pi x E), so a surface's own
 kd shows at once without them; but every surface's kd, emission and lobes change the light that

@@ -94,8 +94,8 @@ def _is_number(v) -> bool:
 
 
 QUALITIES = ("draft", "preview", "final")
-# max_page_size: xatlas itself packs up to 32768 (17.7 s and 0.9 GB for one chart filling the page,
-# measured), but one page beyond 8192^2 texels is more than 1 GiB of float RGBA in the bake and a
+# max_page_size: xatlas itself packs up to 32768 (slowly: docs/BAKE.md, "Light-map pages (xatlas)"),
+# but one page beyond 8192^2 texels is more than 1 GiB of float RGBA in the bake and a
 # texture larger than many GPUs take; below 64 a page holds hardly a chart and its padding.
 BAKE = {
     "quality": Key("choice", choices=QUALITIES, default="preview"),

@@ -1,7 +1,8 @@
 """A glTF texture's image decoded within limits: its size read from the header before any pixel is.
 
 A 2.5 KB PNG can declare 12000 x 12000 pixels (zlib packs a plain image 1000:1). Decoded and
-converted to the loader's float32 RGBA as it stands, that took 75 s and 10.6 GB per `glint capture`.
+converted to the loader's float32 RGBA as it stands, that is ~2.3 GB of float32 alone, and minutes
+and gigabytes per `glint capture` (docs/SCENES.md, "Textures").
 Here the declared size is read first (PIL's `Image.open` reads only the header) and:
 
 - beyond MAX_DECODE_PIXELS the image is not decoded at all (`ImageRefused`; the loader warns and

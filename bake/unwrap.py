@@ -38,8 +38,8 @@ MAX_PAGES = 16
 # larger, so that it still gets a few texels per chart (a 1 cm knob at 16
 # texels/m would otherwise get a fraction of one texel).
 MIN_OBJECT_TEXELS = 64.0
-# Fraction of a page xatlas fills in practice (measured ~0.75-0.95); used only
-# to refuse hopeless densities before running xatlas.
+# Fraction of a page xatlas fills, below what it fills in practice (docs/BAKE.md, "Light-map pages
+# (xatlas)"); used only to refuse hopeless densities before running xatlas.
 EXPECTED_UTILISATION = 0.7
 # Per object, so summarised in one line (glint.core.errors.WarningKind).
 LOW_DENSITY = WarningKind("{n} objects got fewer texels/m than asked for: one of their charts is larger "
@@ -181,7 +181,7 @@ def _isolated(fn, *args):
     """Run `fn(*args)` in a forked child and return its result.
 
     xatlas 0.0.11's multithreaded charting crashes now and then (a segfault inside
-    Atlas.generate: twice in one full test run here, never again with the same input);
+    Atlas.generate that the same input does not repeat: docs/BAKE.md, "Light-map pages (xatlas)");
     in a child the crash costs a retry, not the whole process.
     The result is deterministic, so a retry gives the same charts.
     """

@@ -31,9 +31,9 @@ llvm_ad_rgb > scalar_rgb, each probed in a child process (a failing LLVM back en
 process). The llvm variants need an LLVM that drjit can use: DRJIT_LIBLLVM_PATH when set, else the
 newest libLLVM of version >= 16 found in the system library directories (on Debian 12:
 `apt-get install libllvm19`; drjit's own search finds libLLVM-15 there, which aborts in code
-generation). scalar_rgb always works but calls the Python BSDF once per path vertex: about 4 k
-paths per second on a 2-core machine against about 1 M for llvm_ad_rgb. The JSON records the
-variant and the library.
+generation). scalar_rgb always works but calls the Python BSDF once per path vertex, hundreds of
+times slower than llvm_ad_rgb (docs/BENCHMARKS.md, "End to end against Mitsuba 3"). The JSON
+records the variant and the library.
 """
 from __future__ import annotations
 

@@ -112,7 +112,7 @@ def cmd_view(args) -> int:
     controls = WalkControls(manifest["cameras"], manifest["camera_paths"], home_camera(manifest, width / height),
                             start=args.camera)
 
-    # here, not at the top: moderngl_window costs 0.2 s of every glint command's start-up
+    # here, not at the top: moderngl_window would slow every glint command's start-up (docs/VIEWER.md, "Start-up times")
     from glint.viewer.window import ViewerWindow, create_window, run
 
     name = manifest["scene"]["name"]

@@ -1,5 +1,5 @@
 // Per object of the scene (viewer/gpu_objects.py SCENE_OBJECT_DTYPE, std430), indexed by the object id
-// every vertex carries: what a raster pass used to set as per-draw uniforms, so that one multi-draw
+// every vertex carries: what would otherwise be per-draw uniforms, so that one multi-draw
 // draws them all (viewer/draw_list.py).
 
 struct SceneObject {

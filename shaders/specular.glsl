@@ -309,8 +309,8 @@ void add_found_plane(inout SpecularPoint sp, MirrorSample ms) {
 // (pattern_sample_area: the second moment; A / n of Eq. 4.14-4.16 with the thesis' footprint) times
 // the projection's texels per steradian, Eq. 4.25 (4.24); step 1 in the running mean of the planes
 // found (the pattern's centre sample first: P_R's plane). With A / n the samples of a wide lobe read
-// levels of 2-6, whose boxes mixed the sky beyond the room into the floor's reflection (the blurry
-// aluminium of planar-classes read 3.7x the ray-cast value on its dim part).
+// levels of 2-6, whose boxes mixed the sky beyond the room into the floor's reflection (measured:
+// docs/BENCHMARKS.md, "Issue 6: all methods, split-sum included", planar reflectors).
 vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern) {
     float sample_sr = pattern_sample_area(sp.wo, lobe, pattern);
     LobeSum sum = LobeSum(vec3(0.0), 0.0);

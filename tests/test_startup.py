@@ -1,7 +1,7 @@
 """Each command imports only what it uses (glint/cli.py COMMANDS; glint.services.render_cubemaps).
 
 What is imported is read from the interpreter itself (`-X importtime`, `sys.modules`), never timed:
-start-up times are measured, not asserted (docs/ARCHITECTURE.md "Start-up" has the figures).
+start-up times are measured, not asserted (docs/VIEWER.md "Start-up times" has the figures).
 
 Deliberate bugs tried: glint/cli.py importing glint.bench_command (then glint.bench.command) at the top (as it did) fails
 `test_bake_help_imports_neither_the_renderer_nor_the_tools` ("glint.bench_command" in the list);

@@ -98,8 +98,9 @@ def read_cubemap(path: str | Path) -> np.ndarray:
 def finite_radiance(texels: np.ndarray) -> np.ndarray:
     """`texels` (float16 or float32) as they are when every value is finite and not negative,
     else a float32 copy with the others 0. Half floats are checked on their bits (exponent all
-    ones: Inf or NaN; sign bit on a non-zero value), ten times faster than numpy's float16
-    arithmetic: the viewer's thread checks a re-bake's probes (CubeMaps.replace)."""
+    ones: Inf or NaN; sign bit on a non-zero value), much faster than numpy's float16 arithmetic
+    (docs/VIEWER.md, "Checking re-baked probes"): the viewer's thread checks a re-bake's probes
+    (CubeMaps.replace)."""
     if texels.dtype == np.float16:
         bits = texels.view(np.uint16)
         fine = not ((bits & 0x7C00) == 0x7C00).any() and not (bits > 0x8000).any()

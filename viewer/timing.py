@@ -12,8 +12,8 @@ name; passes must not nest (GL allows one active time query at a time).
 
 Mesa's llvmpipe runs "GPU" work on the CPU threads and rasterises lazily, when a
 later command needs the result, so its timer queries put the G-buffer's raster
-time into whichever pass comes next (measured: 0.3 ms for a G-buffer that takes
-several). There `method = "finish"` is used instead: glFinish before and after
+time into whichever pass comes next (docs/VIEWER.md, "Pass timing on llvmpipe").
+There `method = "finish"` is used instead: glFinish before and after
 each pass and the wall clock in between -- exact for a software renderer, but it
 stalls a real GPU's pipeline, so hardware uses queries. `method = "off"` times
 nothing (work that nobody reads the times of, e.g. the bake's cube-map renders,

@@ -13,8 +13,8 @@ the modes of specular.glsl (`SPECULAR_MODES`): the walkthrough's regular
 patterns, still-camera quasi-random samples (frame by frame, see
 viewer/progressive.py), or filtered importance sampling for comparisons. Tiles
 without such pixels cost nothing there (a branch inside a work group would still
-cost its masked lanes on a SIMD machine, and on llvmpipe it cost ten times the
-diffuse shading); a scene without lobes on cube-mapped objects skips the dispatch.
+cost its masked lanes on a SIMD machine, and on llvmpipe more than the diffuse
+shading: docs/VIEWER.md, "The specular pass's tile queue"); a scene without lobes on cube-mapped objects skips the dispatch.
 The work buffer also counts pixels and cube-map and mirror-buffer look-ups, which
 `specular_counts` reads back (only when asked: reading waits for the GPU). The still
 camera's planar look-ups keep per-pixel sums of the planes their samples met in two
