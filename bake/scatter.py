@@ -31,11 +31,10 @@ delta light into a caustic that a few paths of a texel find with a huge weight (
 Eq. 3.4 with m = 1e-4 gives D ~ 3e7). The bake therefore widens every lobe to m >= M_REGULARISE
 (in both the sampled direction and the evaluated f and p, so the estimator is exact for the widened
 BSDF). It blurs caustics of a polished surface over ~M_REGULARISE radians and leaves the energy a
-lobe reflects unchanged up to the lobe's shape near grazing angles. Its bias, measured by
-bench/measure_regularisation.py on a room with a metal floor of m = 1e-4 (docs/BAKE.md): with an
-area lamp, mean irradiance +0.02 % and largest point -0.3 % against no regularisation (noise); with a
-point light +6.8 % and +1.0 %, the light of the point light's mirror image in the floor, which the
-unregularised estimator all but misses.
+lobe reflects unchanged up to the lobe's shape near grazing angles. Its bias is within the noise
+with an area lamp and a few percent with a point light: the light of the point light's mirror image
+in the floor, which the unregularised estimator all but misses (bench/measure_regularisation.py;
+figures: docs/BAKE.md, "Scattering by the whole BSDF", "Path regularisation").
 """
 from __future__ import annotations
 
