@@ -15,7 +15,7 @@ and reports, on Rec. 709 luminance:
 
 Writes DIR/external.json, DIR/external.md and DIR/side_by_side.png (reference | glint | the
 per-block ratio in stops, blue darker, red brighter), and the bake's and capture's timings as
-their commands report them. Used for the Wooden Staircase (docs/SCENES.md "External scenes").
+their commands report them. Used for the Wooden Staircase (docs/BAKE.md, "Two sides on an external scene").
 """
 from __future__ import annotations
 

@@ -34,12 +34,15 @@ fails `test_layers` and `test_commands_and_tools_never_import_each_other`, and s
 `from glint.bench.measure_fill_rate import main` in glint/capture.py (command -> tool);
 `from glint.capture import main` in bench/bench.py (a measurement) fails both too;
 `__import__(name)` with a computed name in bake/texels.py fails `test_dynamic_imports_are_listed`;
-`from glint.core.errors import GlintError` in glint/__init__.py fails `test_the_package_itself_is_core`.
+`from glint.core.errors import GlintError` in glint/__init__.py fails `test_the_package_itself_is_core`;
+deleting a module's row from docs/ARCHITECTURE.md's "Modules, layer by layer" (or adding a module
+without one) fails `test_every_module_is_named_once_in_architecture_md`.
 """
 from __future__ import annotations
 
 import ast
 import re
+from collections import Counter
 from functools import cache
 from pathlib import Path
 
@@ -237,3 +240,51 @@ def test_the_layers_are_documented():
     text = (ROOT / "docs" / "ARCHITECTURE.md").read_text()
     for folder in FOLDERS:
         assert f"`{folder}/`" in text, f"docs/ARCHITECTURE.md does not describe {folder}/"
+
+
+MODULE_ROW = re.compile(r"^\|\s*`([^`]+)`\s*\|")
+
+
+def documented_modules() -> list[tuple[str, str]]:
+    """(path, layer) of every row of docs/ARCHITECTURE.md's "Modules, layer by layer": a table row
+    whose first cell is one path in backticks, under the heading "### Layer `NAME`"."""
+    text = (ROOT / "docs" / "ARCHITECTURE.md").read_text()
+    section = text.split("\n## Modules, layer by layer\n", 1)[1].split("\n## ", 1)[0]
+    rows, current = [], None
+    for line in section.splitlines():
+        if heading := re.match(r"^### Layer `(\w+)`", line):
+            current = heading.group(1)
+        elif (row := MODULE_ROW.match(line)) and current:
+            rows.append((row.group(1), current))
+    return rows
+
+
+def test_every_module_is_named_once_in_architecture_md():
+    """Every module of the package (every .py file of glint/, core/, bake/, viewer/ with passes/,
+    bench/, scenes/; shaders/ as one folder) has exactly one row in docs/ARCHITECTURE.md's
+    "Modules, layer by layer", under the layer this test gives it, and no row names a module that
+    does not exist. The bug it catches: the document falling behind the code, as it had (a dozen
+    modules unnamed, e.g. viewer/gl_bindings.py, where every texture unit and binding now lives),
+    a module moved between layers (a bench/ measurement that gains a `__main__` block is a tool)
+    with its row left under the old one, and a renamed or deleted module's row left behind.
+
+    Deliberate bugs tried: deleting the row of `viewer/timing.py` fails ("has no row for:
+    viewer/timing.py"), and so does a new file core/manifest.py without a row; moving the row of
+    `bench/report.py` under "Layer `tools`" fails ("bench/report.py: documented under tools, is
+    measurements"); a second row of `viewer/timing.py` fails ("more than one row"); a row of
+    `viewer/old.py` fails ("rows of no module: viewer/old.py")."""
+    expected = {"shaders/": "shaders"}
+    for module, path in modules().items():
+        if path.parent != ROOT / "shaders":
+            expected[path.relative_to(ROOT).as_posix()] = layer(module)
+    rows = documented_modules()
+    counts = Counter(path for path, _ in rows)
+    missing = sorted(set(expected) - set(counts))
+    assert not missing, "docs/ARCHITECTURE.md has no row for: " + ", ".join(missing)
+    twice = sorted(path for path, n in counts.items() if n > 1)
+    assert not twice, "docs/ARCHITECTURE.md has more than one row for: " + ", ".join(twice)
+    stale = sorted(set(counts) - set(expected))
+    assert not stale, "docs/ARCHITECTURE.md has rows of no module: " + ", ".join(stale)
+    wrong = [f"{path}: documented under {documented}, is {expected[path]}"
+             for path, documented in rows if documented != expected[path]]
+    assert not wrong, "docs/ARCHITECTURE.md puts modules under the wrong layer:\n" + "\n".join(wrong)
