@@ -12,7 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
 from urllib.parse import unquote
@@ -28,10 +28,13 @@ from glint.bake.settings import PROBE_SETTINGS, BakeSettings
 from glint.bake.texels import rasterize_texels
 from glint.bake.unwrap import Atlas, ObjectCharts, unwrap
 from glint.bake.sidecar import parse_toml, read_sidecar_text, sidecar_path
-from glint.core.bake_dir import FORMAT_VERSION, BakeDirWriter, load_meshes, read_manifest, save_meshes, write_json
+from glint.core.bake_dir import FORMAT_VERSION, BakeDirWriter, load_meshes, read_model, save_meshes, write_json
 from glint.core.errors import GlintError
 from glint.core.geometry import plane_of
 from glint.core.image_io import write_image
+from glint.core.manifest import (Atlas as AtlasEntry, Camera, CameraPath, CubeMapEntry, DirectionalLight, Lights,
+                                 Manifest, Material, ObjectEntry, Plane, PointLight, Sampler, SceneInfo, Sky,
+                                 SpotLight, Statistics, Volume, lobe_from_json)
 from glint.core.scene import Scene
 from glint.core.skipped import bake_record, stale_reason
 
@@ -40,23 +43,28 @@ from glint.core.skipped import bake_record, stale_reason
 class BakeReport:
     bake_dir: Path
     status: str  # "up-to-date" | "manifest" | "cubemaps" | "lightmaps" | "full"
-    manifest: dict
+    model: Manifest
     redone: list[str] = field(default_factory=list)
 
     @property
+    def manifest(self) -> dict:
+        """The manifest as written (JSON; for tests and the modules not yet reading `model`)."""
+        return self.model.to_json()
+
+    @property
     def summary(self) -> str:
-        stats = self.manifest["statistics"]
+        stats = self.model.statistics
         if self.status == "up-to-date":
             return f"{self.bake_dir}: up to date, nothing to do"
         if self.status == "manifest":
             return f"{self.bake_dir}: light maps up to date; manifest updated (materials, roles or cameras)"
-        cm = stats.get("cubemaps", {})
+        cm = stats.cubemaps
         cubes = (f"{cm['rendered']} of {cm['count']} cube maps in {cm['seconds']:.1f} s"
                  + (f" ({probe_line(cm)})" if "probes" in cm else "") if cm.get("rendered") else "")
         if self.status == "cubemaps":
             return f"{self.bake_dir}: light maps up to date; rendered {cubes}"
-        lm = stats["lightmaps"]
-        cluster = stats.get("cluster")
+        lm = stats.lightmaps
+        cluster = stats.cluster
         where = f" on the Dask cluster {cluster['scheduler']} ({cluster['workers']} workers)" if cluster else ""
         return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels, "
                 f"{lm['rays'] / 1e6:.1f} M rays in {lm['seconds']:.1f} s "
@@ -132,45 +140,39 @@ def bake_inputs(scene: Scene) -> dict:
 
 
 def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
-    """The part of the manifest the viewer reads besides the light maps (JSON-ready)."""
+    """The part of the manifest the viewer reads besides the light maps: the `Manifest` fields objects,
+    materials, lights, sky, cameras and camera_paths (core/manifest.py)."""
 
     def vec(v):
         return [float(x) for x in np.asarray(v).ravel()]
 
     objects = []
-    cubes = {k: plan.manifest_entry() for plan in cubemaps for k in plan.members}
+    cubes = {k: CubeMapEntry.from_json(plan.manifest_entry()) for plan in cubemaps for k in plan.members}
     two = two_sided_objects(scene)
     for i, obj in enumerate(scene.objects):
-        entry = {"name": obj.name, "material": obj.material, "role": obj.role,
-                 "bounds": [vec(b) for b in obj.bounds], "triangles": int(len(obj.indices)),
-                 "lightmap_back": bool(two[i])}
-        if obj.role == "planar":
-            point, normal = plane_of(obj)
-            entry["plane"] = {"point": vec(point), "normal": vec(normal)}
-        entry["cubemap"] = cubes.get(i)
-        objects.append(entry)
-    materials = [{"name": m.name, "kd": vec(m.kd), "emission": vec(m.emission),
-                  "double_sided": bool(m.double_sided), "lobes": [lobe.to_dict() for lobe in m.lobes],
-                  "kd_texture": f"textures/material_{i}.exr" if m.kd_texture is not None else None,
-                  **_emission_entry(m, i), **_metallic_roughness_entry(m, i), **_sampler_entry(m),
-                  **_coverage_entry(m), **_volume_entry(m), **_surface_detail_entry(m, i)}
+        plane = Plane(*map(vec, plane_of(obj))) if obj.role == "planar" else None
+        objects.append(ObjectEntry(name=obj.name, material=obj.material, role=obj.role,
+                                   bounds=[vec(b) for b in obj.bounds], triangles=int(len(obj.indices)),
+                                   lightmap_back=bool(two[i]), plane=plane, cubemap=cubes.get(i)))
+    materials = [Material(name=m.name, kd=vec(m.kd), emission=vec(m.emission), double_sided=bool(m.double_sided),
+                          lobes=[lobe_from_json(lobe.to_dict()) for lobe in m.lobes],
+                          kd_texture=f"textures/material_{i}.exr" if m.kd_texture is not None else None,
+                          **_emission_entry(m, i), **_metallic_roughness_entry(m, i), **_sampler_entry(m),
+                          **_coverage_entry(m), **_volume_entry(m), **_surface_detail_entry(m, i))
                  for i, m in enumerate(scene.materials)]
-    lights = {
-        "point": [{"name": l.name, "position": vec(l.position), "intensity": vec(l.intensity)}
-                  for l in scene.point_lights],
-        "spot": [{"name": l.name, "position": vec(l.position), "direction": vec(l.direction),
-                  "intensity": vec(l.intensity), "inner_cone": float(l.inner_cone),
-                  "outer_cone": float(l.outer_cone)} for l in scene.spot_lights],
-        "directional": [{"name": l.name, "direction": vec(l.direction), "irradiance": vec(l.irradiance)}
-                        for l in scene.directional_lights],
-    }
+    lights = Lights(
+        point=[PointLight(l.name, vec(l.position), vec(l.intensity)) for l in scene.point_lights],
+        spot=[SpotLight(l.name, vec(l.position), vec(l.direction), vec(l.intensity), float(l.inner_cone),
+                        float(l.outer_cone)) for l in scene.spot_lights],
+        directional=[DirectionalLight(l.name, vec(l.direction), vec(l.irradiance)) for l in scene.directional_lights],
+    )
     sky = None
     if scene.sky is not None:
-        sky = {"radiance": vec(scene.sky.radiance), "map": "sky.exr" if scene.sky.map is not None else None}
-    cameras = [{"name": c.name, "eye": vec(c.eye), "forward": vec(c.forward), "up": vec(c.up),
-                "yfov": float(c.yfov), "aspect": None if c.aspect is None else float(c.aspect),
-                "znear": float(c.znear), "zfar": float(c.zfar)} for c in scene.cameras]
-    paths = [{"name": p.name, "keys": p.keys} for p in scene.camera_paths]
+        sky = Sky(radiance=vec(scene.sky.radiance), map="sky.exr" if scene.sky.map is not None else None)
+    cameras = [Camera(name=c.name, eye=vec(c.eye), forward=vec(c.forward), up=vec(c.up), yfov=float(c.yfov),
+                      aspect=None if c.aspect is None else float(c.aspect), znear=float(c.znear), zfar=float(c.zfar))
+               for c in scene.cameras]
+    paths = [CameraPath.from_json({"name": p.name, "keys": p.keys}) for p in scene.camera_paths]
     return {"objects": objects, "materials": materials, "lights": lights, "sky": sky,
             "cameras": cameras, "camera_paths": paths}
 
@@ -219,8 +221,8 @@ def _sampler_entry(m) -> dict:
                                m.normal_texture, m.anisotropy_texture)) or (
             tuple(m.kd_wrap) == ("REPEAT", "REPEAT") and not m.kd_nearest):
         return {}
-    return {"kd_sampler": {"wrap_s": m.kd_wrap[0], "wrap_t": m.kd_wrap[1],
-                           "mag_filter": "NEAREST" if m.kd_nearest else "LINEAR"}}
+    return {"kd_sampler": Sampler(wrap_s=m.kd_wrap[0], wrap_t=m.kd_wrap[1],
+                                  mag_filter="NEAREST" if m.kd_nearest else "LINEAR")}
 
 
 def _coverage_entry(m) -> dict:
@@ -236,8 +238,8 @@ def _volume_entry(m) -> dict:
     for other materials, whose manifest entries stay as they were (readers take them as thin)."""
     if not m.has_volume:
         return {}
-    return {"volume": {"ior": float(m.ior), "thickness": float(m.thickness),
-                       "absorption": [float(x) for x in m.absorption]}}
+    return {"volume": Volume(ior=float(m.ior), thickness=float(m.thickness),
+                             absorption=[float(x) for x in m.absorption])}
 
 
 # Renders cube-map plans into a bake directory written so far; returns statistics
@@ -263,40 +265,36 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     `announce(why)` is called once, before any work, when an existing bake is to be redone in part
     (why: the changed inputs, as glint.core.skipped.stale_reason words them).
     """
-    old = None if force else read_manifest(bake_dir)
+    old = None if force else read_model(bake_dir)
     old_dir = bake_dir
     if old is None and not force and seed is not None:
-        old, old_dir = read_manifest(seed), seed
+        old, old_dir = read_model(seed), seed
     geometry = hashing.geometry_hash(scene, settings)
     transport = hashing.transport_hash(scene, settings, geometry)
     rules = ProbeRules.of(settings)
     cubemaps = plan_cubemaps(scene, transport, rules)
-    description = describe(scene, cubemaps)
-    manifest = {
-        "format": "glint-bake", "version": FORMAT_VERSION,
-        "scene": {"name": scene.name, "source": str(scene.source) if scene.source else None,
-                  "hash": source_hash(scene)},
-        "settings": {**settings.transport_dict(), "quality": settings.quality, **_probe_settings(settings)},
-        "stages": {"geometry": geometry, "lightmaps": transport,
-                   "cubemaps": {str(plan.index): plan.hash for plan in cubemaps}},
-        "inputs": bake_inputs(scene),
-        **description,
-    }
+    manifest = Manifest(
+        format="glint-bake", version=FORMAT_VERSION,
+        scene=SceneInfo(name=scene.name, source=str(scene.source) if scene.source else None, hash=source_hash(scene)),
+        settings={**settings.transport_dict(), "quality": settings.quality, **_probe_settings(settings)},
+        stages={"geometry": geometry, "lightmaps": transport,
+                "cubemaps": {str(plan.index): plan.hash for plan in cubemaps}},
+        inputs=bake_inputs(scene),
+        **describe(scene, cubemaps),
+    )
     # Up to date: the same scene content, settings and stage versions, whatever the paths and the
     # machine (derived floats may differ there in the last bit: they decide nothing here).
     if old is not None and old_dir == bake_dir and same_inputs(old, manifest):
         return BakeReport(bake_dir, "up-to-date", old)
 
-    reuse_geometry = old is not None and old["stages"].get("geometry") == geometry
-    reuse_lightmaps = reuse_geometry and old["stages"].get("lightmaps") == transport
+    reuse_geometry = old is not None and old.stages.get("geometry") == geometry
+    reuse_lightmaps = reuse_geometry and old.stages.get("lightmaps") == transport
     if reuse_lightmaps:
-        manifest["atlas"] = old["atlas"]
-        manifest["lightmaps"] = old["lightmaps"]
-        manifest["lightmaps_back"] = old.get("lightmaps_back", [])
-        manifest["statistics"] = dict(old["statistics"])
+        manifest = replace(manifest, atlas=old.atlas, lightmaps=old.lightmaps, lightmaps_back=old.lightmaps_back,
+                           statistics=Statistics(dict(old.statistics.data)))
 
     if old is not None and announce is not None:
-        announce(stale_reason(old, manifest))
+        announce(stale_reason(old.to_json(), manifest.to_json()))
     executor = executor_for(settings)
     probes_to_render = _to_render(cubemaps, old, old_dir)
     if not reuse_lightmaps or probes_to_render:
@@ -308,53 +306,56 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         _write_textures(scene, out.path)
         if reuse_lightmaps:
             out.reuse(old_dir, "meshes.npz")
-            for name in old["lightmaps"] + old.get("lightmaps_back", []):
+            for name in old.lightmaps + old.lightmaps_back:
                 out.reuse(old_dir, name)
             status, redone = "manifest", []
         else:
-            manifest.update(_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
-                                                          old_dir if reuse_geometry else None, executor))
+            manifest = replace(manifest, **_bake_geometry_and_lightmaps(scene, settings, out.path, progress,
+                                                                       old_dir if reuse_geometry else None, executor))
             status, redone = ("lightmaps", ["light maps"]) if reuse_geometry else ("full", ["unwrap", "light maps"])
-        manifest["statistics"]["cubemaps"] = {**_cubemaps(cubemaps, old, old_dir, out, manifest, progress,
-                                                         settings.workers, render_cubemaps, executor),
-                                              **budget_statistics(cubemaps, rules)}
-        if manifest["statistics"]["cubemaps"]["rendered"]:
+        stats = manifest.statistics.data  # filled in below, in this order (the manifest's key order)
+        stats["cubemaps"] = {**_cubemaps(cubemaps, old, old_dir, out, manifest, progress,
+                                         settings.workers, render_cubemaps, executor),
+                             **budget_statistics(cubemaps, rules)}
+        if stats["cubemaps"]["rendered"]:
             status = "cubemaps" if status == "manifest" else status
             redone.append("cube maps")
         # Where the bake ran, when on a cluster: its workers and what starting and feeding them cost.
-        manifest["statistics"].pop("cluster", None)
+        stats.pop("cluster", None)
         if executor.distributed and executor.statistics["workers"]:  # connected: work was done there
-            manifest["statistics"]["cluster"] = dict(executor.statistics)
+            stats["cluster"] = dict(executor.statistics)
         # What the viewer will show wrong because the loader ignored it (glint.services.fidelity_line).
-        manifest["statistics"]["ignored_features"] = dict(scene.ignored_features)
+        stats["ignored_features"] = dict(scene.ignored_features)
         # What this bake redid and reused, for later commands that find it up to date (core/skipped.py).
-        manifest["statistics"]["last_bake"] = bake_record(status, old, manifest, manifest["statistics"]["cubemaps"],
-                                                          forced=force)
-        write_json(out.path / "manifest.json", manifest)
+        stats["last_bake"] = bake_record(status, None if old is None else old.to_json(), manifest.to_json(),
+                                         stats["cubemaps"], forced=force)
+        write_json(out.path / "manifest.json", manifest.to_json())
         out.commit()
     return BakeReport(bake_dir, status, manifest, redone)
 
 
-def same_inputs(old: dict, new: dict) -> bool:
+def same_inputs(old: Manifest, new: Manifest) -> bool:
     """Whether the bake of manifest `old` is up to date for `new`: the same scene content (`scene.hash`,
     source_hash), settings and stage versions (`inputs.versions`). A manifest written before it
     recorded them (no `inputs`) is up to date when its stages and description equal `new`'s, as before."""
-    if "inputs" not in old:  # the stages (which decide atlas and light maps) and the description
-        return all(old.get(k) == v for k, v in json.loads(json.dumps(new)).items() if k not in ("scene", "inputs")) \
-            and (old.get("scene") or {}).get("name") == new["scene"]["name"]
-    return ((old.get("scene") or {}).get("hash") == new["scene"]["hash"]
-            and old.get("settings") == json.loads(json.dumps(new["settings"]))
-            and (old.get("inputs") or {}).get("versions") == new["inputs"]["versions"])
+    if old.inputs is None:  # the stages (which decide atlas and light maps) and the description
+        was, now = old.to_json(), json.loads(json.dumps(new.to_json()))
+        return all(was.get(k) == v for k, v in now.items() if k not in ("scene", "inputs", "atlas", "lightmaps",
+                                                                        "lightmaps_back", "statistics")) \
+            and old.scene.name == new.scene.name
+    return (old.scene.hash == new.scene.hash
+            and old.settings == json.loads(json.dumps(new.settings))
+            and (old.inputs or {}).get("versions") == new.inputs["versions"])
 
 
-def _to_render(plans: list[CubeMapPlan], old: dict | None, old_dir: Path) -> list[CubeMapPlan]:
+def _to_render(plans: list[CubeMapPlan], old: Manifest | None, old_dir: Path) -> list[CubeMapPlan]:
     """The plans whose cube map the previous bake (`old`, its manifest, in `old_dir`) does not have."""
-    old_hashes = old["stages"].get("cubemaps", {}) if old is not None else {}
+    old_hashes = old.stages.get("cubemaps", {}) if old is not None else {}
     return [plan for plan in plans
             if old_hashes.get(str(plan.index)) != plan.hash or not (Path(old_dir) / plan.file).is_file()]
 
 
-def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: BakeDirWriter, manifest: dict,
+def _cubemaps(plans: list[CubeMapPlan], old: Manifest | None, old_dir: Path, out: BakeDirWriter, manifest: Manifest,
               progress: bool, workers: int, render_cubemaps: CubeMapRenderer | None, executor) -> dict:
     """Carry over the cube maps whose inputs did not change, render the others (bake/cubemap.py) with
     `render_cubemaps`, on `workers` local processes or, when the bake's `executor` is a Dask cluster's,
@@ -370,7 +371,7 @@ def _cubemaps(plans: list[CubeMapPlan], old: dict | None, old_dir: Path, out: Ba
         if render_cubemaps is None:
             raise GlintError(f"{len(todo)} cube map(s) to render but no cube-map renderer was given "
                              "(bake through glint.services.bake_scene)")
-        write_json(out.path / "manifest.json", manifest)  # the renderer reads the bake written so far
+        write_json(out.path / "manifest.json", manifest.to_json())  # the renderer reads the bake written so far
         with tqdm(total=len(todo), desc="cube maps", unit="map", disable=not progress, leave=False) as bar:
             stats.update(render_cubemaps(out.path, todo, progress=bar.update, workers=workers,
                                          cluster=executor if executor.distributed else None))
@@ -425,11 +426,11 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
         order = [k for k in np.argsort(-counts, kind="stable")[:5] if counts[k]]
         return [[names_of[k], int(counts[k])] for k in order]
     return {
-        "atlas": {"width": atlas.width, "height": atlas.height, "pages": atlas.pages,
-                  "texels_per_metre": atlas.texels_per_metre, "padding": atlas.padding},
+        "atlas": AtlasEntry(width=atlas.width, height=atlas.height, pages=atlas.pages,
+                            texels_per_metre=atlas.texels_per_metre, padding=atlas.padding),
         "lightmaps": names,
         "lightmaps_back": back_names,
-        "statistics": {
+        "statistics": Statistics({
             "unwrap": {"seconds": round(t1 - t0, 3), "reused": old_dir is not None,
                        "triangles": int(sum(len(o.indices) for o in scene.objects))},
             "lightmaps": {"seconds": round(t2 - t1, 3), "texels": result.texels, "back_texels": result.back_texels,
@@ -440,19 +441,19 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
                           "samples": settings.samples, "rays": int(result.rays),
                           "rays_per_second": float(result.rays / max(t2 - t1, 1e-9)),
                           "trace_seconds": round(result.trace_seconds, 3), "tiles": result.tiles},
-        },
+        }),
     }
 
 
 def read_atlas(bake_dir: Path, count: int) -> Atlas:
     """The charts of an existing bake of `count` objects (its manifest's atlas and meshes.npz): what a
     bake whose geometry did not change reuses, and the background re-bake (bake/rebake.py) bakes into."""
-    old = read_manifest(bake_dir)["atlas"]
+    old = read_model(bake_dir).atlas
     meshes = load_meshes(Path(bake_dir) / "meshes.npz", count)
     charts = [ObjectCharts(vmapping=m["vmapping"].astype(np.int64), indices=m["indices"].astype(np.int64),
                            uv=m["lm_uv"], page=m["lm_page"]) for m in meshes]
-    return Atlas(objects=charts, width=old["width"], height=old["height"], pages=old["pages"],
-                 texels_per_metre=old["texels_per_metre"], padding=old["padding"])
+    return Atlas(objects=charts, width=old.width, height=old.height, pages=old.pages,
+                 texels_per_metre=old.texels_per_metre, padding=old.padding)
 
 
 def _atlas(scene: Scene, settings: BakeSettings, path: Path, old_dir: Path | None):

@@ -56,7 +56,7 @@ def main() -> None:
         camera = manifest["cameras"][0]
         home = ViewCamera.from_manifest(camera)
         wnd = Window(size=size, gl_version=GL_VERSION, backend="egl", aspect_ratio=None)
-        with background_rebake(manifest, bake_dir) as rebaker:
+        with background_rebake(bake.model, bake_dir) as rebaker:
             viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=bake, controls=WalkControls([camera], [], home),
                                   lightmap_source=rebaker, on_edit=rebaker.edit)
             viewer.overlay.visible = False

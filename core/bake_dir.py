@@ -1,5 +1,8 @@
 """The bake directory: the one contract between the bake and the viewer.
 
+The manifest's schema and its defaults are core/manifest.py's `Manifest` (the bake writes its
+`to_json()`, readers take `Bake.model`); what follows describes the files and the fields' meaning.
+
     manifest.json          versioned description (see `FORMAT_VERSION`): scene hash, per-stage
                            input hashes, settings, statistics, materials, lights, cameras, objects;
                            `scene.hash` is of the scene's content (bake/pipeline.py source_hash: no
@@ -70,6 +73,7 @@ import numpy as np
 from glint.core.atomic import atomic_write_text, dead_leftovers
 from glint.core.errors import GlintError
 from glint.core.image_io import read_image, sample_bilinear
+from glint.core.manifest import Manifest
 from glint.core.signals import deferred_signals
 
 FORMAT_VERSION = 1
@@ -92,12 +96,19 @@ def read_manifest(bake_dir: Path) -> dict | None:
     """The manifest of an existing bake, or None when there is none or it is unreadable/old."""
     path = Path(bake_dir) / MANIFEST
     try:
-        manifest = json.loads(path.read_text())
+        data = json.loads(path.read_text())
     except (OSError, ValueError):
         return None
-    if manifest.get("format") != "glint-bake" or manifest.get("version") != FORMAT_VERSION:
+    # the version gate, on the JSON: another version's fields need not fit the model
+    if data.get("format") != "glint-bake" or data.get("version") != FORMAT_VERSION:
         return None
-    return manifest
+    return data
+
+
+def read_model(bake_dir: Path) -> Manifest | None:
+    """`read_manifest` as the typed model (core/manifest.py)."""
+    manifest = read_manifest(bake_dir)
+    return None if manifest is None else Manifest.from_json(manifest)
 
 
 def write_json(path: Path, data: dict) -> None:
@@ -264,31 +275,42 @@ class BakeDirWriter:
 
 
 class Bake:
-    """A bake directory read back: manifest, meshes and light-map pages (for the viewer and tests)."""
+    """A bake directory read back: manifest (`model`, core/manifest.py), meshes and light-map pages
+    (for the viewer and tests)."""
 
     def __init__(self, bake_dir: Path):
         self.path = Path(bake_dir)
-        manifest = read_manifest(self.path)
-        if manifest is None:
+        model = read_model(self.path)
+        if model is None:
             raise GlintError(f"{self.path}: not a glint bake directory (or made by another version); run `glint bake`")
-        self.manifest = manifest
-        self.meshes = load_meshes(self.path / "meshes.npz", len(manifest["objects"]))
+        self.model = model
+        self.meshes = load_meshes(self.path / "meshes.npz", len(model.objects))
         self._pages: dict[tuple[int, bool], np.ndarray] = {}
+
+    @property
+    def manifest(self) -> dict:
+        """The manifest as JSON (a fresh dict, `model.to_json()`): for tests and the modules not yet
+        reading `model`; setting it replaces the model."""
+        return self.model.to_json()
+
+    @manifest.setter
+    def manifest(self, value: dict) -> None:
+        self.model = Manifest.from_json(value)
 
     @property
     def back_pages(self) -> list[str]:
         """The back-side pages' files (empty: no object has a back side)."""
-        return list(self.manifest.get("lightmaps_back") or [])
+        return list(self.model.lightmaps_back)
 
     def has_back(self, obj: int) -> bool:
         """Whether object `obj` has its own back-side light map (else its back face reads the front's)."""
-        return bool(self.back_pages) and bool(self.manifest["objects"][obj].get("lightmap_back"))
+        return self.model.has_back(obj)
 
     def lightmap(self, page: int, back: bool = False) -> np.ndarray:
         """(H, W, 4) float32: irradiance RGB and A = 1 where path traced; `back`: the back sides' page."""
         key = (page, bool(back))
         if key not in self._pages:
-            files = self.back_pages if back else self.manifest["lightmaps"]
+            files = self.back_pages if back else self.model.lightmaps
             self._pages[key] = read_image(self.path / files[page])
         return self._pages[key]
 

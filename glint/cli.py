@@ -145,7 +145,7 @@ def cmd_bake(args) -> int:
     if skipped:
         print(skipped)
     # Last, so it is what a person reads first: what the bake could not do right.
-    line = fidelity_line(report.manifest)
+    line = fidelity_line(report.model)
     if line:
         sys.stdout.flush()
         print(f"glint: {line}", file=sys.stderr)

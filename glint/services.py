@@ -20,7 +20,8 @@ from glint.bake.gltf_loader import load_scene
 from glint.bake.lightmap import INVALID_WARN_SHARE, UNLIT_WARN_SHARE
 from glint.bake.pipeline import BakeReport
 from glint.bake.settings import BakeSettings, resolve_settings
-from glint.core.bake_dir import check_bake_target, default_bake_dir, read_manifest, remove_dead_temporaries
+from glint.core.bake_dir import check_bake_target, default_bake_dir, read_model, remove_dead_temporaries
+from glint.core.manifest import Manifest
 from glint.core.errors import GlintError, summarised
 from glint.core.scene import Scene
 from glint.scenes import BUILTIN, resolve
@@ -55,7 +56,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
                                    announce=announce, seed=seed)
 
 
-def background_rebake(manifest: dict, bake_dir: Path, edits=()):
+def background_rebake(manifest: Manifest, bake_dir: Path, edits=()):
     """The re-bake of the light maps and cube maps after material edits (glint.bake.rebake.Rebaker:
     a worker process, started now so that it has loaded the scene by the first edit); None for a
     bake whose scene file is gone (nothing to re-bake from: edits then change only what kd shows).
@@ -63,23 +64,23 @@ def background_rebake(manifest: dict, bake_dir: Path, edits=()):
     from glint.bake.rebake import Rebaker
     from glint.cubemap_stage import ProbeRefresher  # the renderer: only where a re-bake runs
 
-    source = manifest["scene"].get("source")
+    source = manifest.scene.source
     if not source or not Path(source).is_file():
         return None
     # the worker plans the bake's probes (none: nothing to refresh) and renders them after its passes
     return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher)
 
 
-def fidelity_line(manifest: dict) -> str | None:
+def fidelity_line(manifest: Manifest) -> str | None:
     """One line of what the scene will look like wrong, from a bake's statistics: the share of
     light-map texels inside geometry (invalid: lit by dilation from their neighbours, not path
     traced) and the glTF features the loader ignored, e.g. "the scene will look wrong where:
     31.2 % of light-map texels lie inside geometry (filled from their neighbours); 12.0 % of
     the surface gets no light (black where seen); ignored: clearcoatTexture (12),
     EXT_texture_webp (3)". None when there is nothing to say (or nothing recorded)."""
-    stats = manifest.get("statistics", {})
+    stats = manifest.statistics
     parts = []
-    lightmaps = stats.get("lightmaps", {})
+    lightmaps = stats.lightmaps
     texels = lightmaps.get("texels") or 0
     surface = texels - (lightmaps.get("back_texels") or 0)
     # Only past the bake's warning shares: well-made scenes have some of both (contacts, chart
@@ -90,7 +91,7 @@ def fidelity_line(manifest: dict) -> str | None:
         count = lightmaps.get(key) or 0
         if of > 0 and count > limit * of:
             parts.append(f"{100.0 * count / of:.1f} % of {what}")
-    ignored = stats.get("ignored_features") or {}
+    ignored = stats.ignored_features
     if ignored:
         parts.append("ignored: " + ", ".join(f"{name} ({count})" for name, count in ignored.items()))
     return "the scene will look wrong where: " + "; ".join(parts) if parts else None
@@ -101,7 +102,7 @@ def _command_line_settings(args) -> dict:
             "jobs": args.jobs, "scheduler": args.scheduler, "denoise": False if args.no_denoise else None}
 
 
-def settings_for(scene: Scene, args, existing: dict | None) -> BakeSettings:
+def settings_for(scene: Scene, args, existing: Manifest | None) -> BakeSettings:
     """The settings to bake `scene` with for a command's arguments (add_bake_options).
 
     Without an existing bake (or for `glint bake` itself): the quality preset, the sidecar's
@@ -115,11 +116,11 @@ def settings_for(scene: Scene, args, existing: dict | None) -> BakeSettings:
     cli = _command_line_settings(args)
     if existing is None or args.quality is not None:
         return resolve_settings(scene.bake_settings, **cli)
-    made_with = {k: v for k, v in existing["settings"].items() if k in BakeSettings.__dataclass_fields__}
+    made_with = {k: v for k, v in existing.settings.items() if k in BakeSettings.__dataclass_fields__}
     sidecar = {k: v for k, v in (scene.bake_settings or {}).items() if k != "quality"}
     # The files unchanged (an edited scene's bake starts from the unedited one's manifest): only
     # the [bake] keys that `--set` gives apply; jobs never changes a result.
-    if existing["scene"].get("hash") in (pipeline.source_hash(scene), pipeline.source_hash(scene, edits=False)):
+    if existing.scene.hash in (pipeline.source_hash(scene), pipeline.source_hash(scene, edits=False)):
         sidecar = {k: v for k, v in sidecar.items() if k == "jobs" or k in edited_bake_keys(scene.edits)}
     return resolve_settings({**made_with, **sidecar}, **cli)
 
@@ -159,9 +160,9 @@ def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool =
     if scene.edits:  # never the unedited scene's directory: it stays valid (bake/edits.py)
         bake_dir = edited_bake_dir(seed, scene.edits)
         check_bake_dir(bake_dir, option, outputs)
-    existing = (read_manifest(bake_dir) or (read_manifest(seed) if scene.edits else None)
+    existing = (read_model(bake_dir) or (read_model(seed) if scene.edits else None)
                 if reuse and not args.force else None)
-    seeded = scene.edits and read_manifest(bake_dir) is None and read_manifest(seed) is not None
+    seeded = scene.edits and read_model(bake_dir) is None and read_model(seed) is not None
     settings = settings_for(scene, args, existing)
 
     def announce(why: str) -> None:
@@ -172,7 +173,7 @@ def run_bake(args, *, progress: bool = True, reuse: bool = True, explain: bool =
 
     report = bake_scene(scene, settings, bake_dir, force=args.force, progress=progress, announce=announce,
                         seed=seed if scene.edits else None)
-    line = fidelity_line(report.manifest) if explain and report.status != "up-to-date" else None
+    line = fidelity_line(report.model) if explain and report.status != "up-to-date" else None
     if line:
         print(f"glint: {line}", file=sys.stderr)
     return report

@@ -122,7 +122,7 @@ def cmd_view(args) -> int:
     except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
         raise no_window(args.scene, f"{type(e).__name__}: {one_line(e)}") from e
     save = sidecar_saver(args.scene, resolve(args.scene), [dict(m) for m in manifest["materials"]], args.edits)
-    rebaker = background_rebake(manifest, report.bake_dir, args.edits)  # the worker loads the scene as edited
+    rebaker = background_rebake(bake.model, report.bake_dir, args.edits)  # the worker loads the scene as edited
     try:
         viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
                               pbr_mapping=pbr_mapping, on_save=save, lightmap_source=rebaker, exposure=exposure,

@@ -159,14 +159,14 @@ def test_material_assignments_round_trip_through_the_loader(tmp_path):
     edited lobe came back with mx 0.05, not 0.3."""
     lobes = [{"kind": "reflect", "ks": [0.5, 0.4, 0.3], "mx": 0.05, "my": 0.2, "r0": 0.04, "alpha": 0.5}]
     scene = write_room(tmp_path / "room.glb", floor_lobes=lobes)
-    entries = describe(load_scene(scene))["materials"]
+    entries = [m.to_json() for m in describe(load_scene(scene))["materials"]]
     for entry in entries:
-        again = describe(load_scene(scene, material_assignments(entry["name"], entry)))["materials"]
+        again = [m.to_json() for m in describe(load_scene(scene, material_assignments(entry["name"], entry)))["materials"]]
         assert again == entries
     floor = next(e for e in entries if e["name"] == "Floor")
     assert material_assignments("Floor", floor)[0] == (("materials", "Floor", "kd"), [0.7, 0.7, 0.7])
     edited = {**floor, "kd": [0.2, 0.3, 0.4], "lobes": [{**lobes[0], "mx": 0.3}]}
-    again = describe(load_scene(scene, material_assignments("Floor", edited)))["materials"]
+    again = [m.to_json() for m in describe(load_scene(scene, material_assignments("Floor", edited)))["materials"]]
     got = next(e for e in again if e["name"] == "Floor")
     f32 = [float(np.float32(v)) for v in (0.2, 0.3, 0.4)]  # colours are float32 in the bake
     assert got["lobes"] == [{**lobes[0], "ks": [float(np.float32(v)) for v in (0.5, 0.4, 0.3)], "mx": 0.3}]

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from conftest import FAST
 
+from glint.core.manifest import Manifest
 from glint.bake.cubemap import (
     PROBE_RADIUS_MAX,
     ProbeRules,
@@ -176,7 +177,7 @@ def test_more_probes_than_one_array_holds_render_none_black(tmp_path, ctx):
 
     def only(keep):
         b = Bake(bake.path)
-        b.manifest["objects"] = [{**o, "cubemap": o["cubemap"] if i in keep else None} for i, o in enumerate(objects)]
+        b.manifest = {**b.manifest, "objects": [{**o, "cubemap": o["cubemap"] if i in keep else None} for i, o in enumerate(objects)]}
         return _render(ctx, b)
 
     a, b, d = only(set(cubed[:200])), only(set(cubed[200:])), only(set())
@@ -244,7 +245,7 @@ def test_classes_over_the_texture_units_are_resampled_with_one_warning(tmp_path,
         objects.append({"name": f"o{i}", "bounds": [[0, 0, 0], [1, 1, 1]],
                         "cubemap": {"file": f"cubemaps/{probe}.exr", "size": 4, "centre": [0, 0, 0]}})
     capsys.readouterr()
-    cubes = CubeMaps(ctx, SimpleNamespace(path=tmp_path, manifest={"objects": objects}))
+    cubes = CubeMaps(ctx, SimpleNamespace(path=tmp_path, model=Manifest.from_json({"objects": objects})))
     try:
         assert [(c.size, len(c.probes)) for c in cubes.classes] == [(4, 3)] and cubes.count == 3
         assert capsys.readouterr().err.count("glint: warning: cube maps: 2 of 3 probes resampled") == 1

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from test_renderer import KD, constant_page, make_bake, material, quad
 
+from glint.core.manifest import Manifest
 from glint.core import bsdf
 from glint.core.bake_dir import Bake, write_json
 from glint.core.image_io import write_image
@@ -291,7 +292,7 @@ def test_cube_map_lookups_filter_across_face_edges(tmp_path):
     write_image(tmp_path / "cubemaps/0.exr", cube_file(face_colours, 4), channels=("R", "G", "B", "A"))
     manifest = {"objects": [{"name": "o", "bounds": [[0, 0, 0], [1, 1, 1]],
                              "cubemap": {"file": "cubemaps/0.exr", "size": 4, "centre": [0, 0, 0]}}]}
-    cubes = CubeMaps(glsl_eval.context(), SimpleNamespace(path=tmp_path, manifest=manifest))
+    cubes = CubeMaps(glsl_eval.context(), SimpleNamespace(path=tmp_path, model=Manifest.from_json(manifest)))
     try:
         cubes.bind_buffers()
         assert cubes.bind(None, 8) == 1
@@ -324,7 +325,7 @@ def test_more_cube_maps_than_an_array_has_layers_get_more_classes(tmp_path, monk
                     channels=("R", "G", "B", "A"))
         objects.append({"name": f"o{i}", "bounds": [[0, 0, 0], [1, 1, 1]],
                         "cubemap": {"file": f"cubemaps/{i}.exr", "size": 4, "centre": [0, 0, 0]}})
-    cubes = CubeMaps(ctx, SimpleNamespace(path=tmp_path, manifest={"objects": objects}))
+    cubes = CubeMaps(ctx, SimpleNamespace(path=tmp_path, model=Manifest.from_json({"objects": objects})))
     try:
         assert [len(c.probes) for c in cubes.classes] == [2, 2, 1]
         cubes.bind_buffers()

@@ -60,6 +60,7 @@ from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError, warn
 from glint.core.geometry import oriented_box
 from glint.core.image_io import read_image
+from glint.core.manifest import Manifest, ObjectEntry, Volume
 from glint.viewer.gl import GL, GL_TEXTURE_CUBE_MAP_SEAMLESS, describe
 from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, shading_units
 
@@ -172,7 +173,7 @@ class CubeClass:
 class CubeMaps:
     def __init__(self, ctx: moderngl.Context, bake):
         self.ctx = ctx
-        objects = bake.manifest["objects"]
+        objects = bake.model.objects
         table = np.zeros(max(len(objects), 1), CUBE_OBJECT_DTYPE)
         table["info"][:, 0] = -1
         planes: list[np.ndarray] = []
@@ -180,25 +181,25 @@ class CubeMaps:
         faces: list[np.ndarray] = []
         probe_of: dict[int, int] = {}
         for i, entry in enumerate(objects):
-            cube = entry.get("cubemap")
+            cube = entry.cubemap
             if not cube:
                 continue
-            if cube["file"] not in probes:
-                probes[cube["file"]] = len(faces)
-                faces.append(read_cubemap(Path(bake.path) / cube["file"]))
-            probe_of[i] = probes[cube["file"]]
-            table[i]["centre"][:3] = _finite(cube.get("centre", np.mean(entry["bounds"], axis=0)))
-            volume = _material_volume(bake.manifest, entry)
+            if cube.file not in probes:
+                probes[cube.file] = len(faces)
+                faces.append(read_cubemap(Path(bake.path) / cube.file))
+            probe_of[i] = probes[cube.file]
+            table[i]["centre"][:3] = _finite(cube.centre)
+            volume = _material_volume(bake.model, entry)
             if volume:  # a glass solid: bake/pipeline.py's `volume` entry of its material
                 centre, axes, half = oriented_box(
                     np.nan_to_num(np.asarray(bake.meshes[i]["positions"], np.float64), posinf=0.0, neginf=0.0))
                 table[i]["extent"][:3] = half
                 table[i]["box"][:, :3] = axes
                 table[i]["box"][:, 3] = centre
-                table[i]["extent"][3] = max(_finite_scalar(volume.get("thickness", 0.0)), 0.0)
-                table[i]["volume"][:3] = np.clip(_finite(volume.get("absorption", (0, 0, 0))), 0.0, HALF_MAX)
-                table[i]["volume"][3] = max(_finite_scalar(volume.get("ior", 1.5)), 1.0)
-            rows = _planes(cube.get("bounding_planes") or [])
+                table[i]["extent"][3] = max(_finite_scalar(volume.thickness), 0.0)
+                table[i]["volume"][:3] = np.clip(_finite(volume.absorption), 0.0, HALF_MAX)
+                table[i]["volume"][3] = max(_finite_scalar(volume.ior), 1.0)
+            rows = _planes(cube.bounding_planes)
             table[i]["info"][2:] = (len(planes), len(rows))
             planes.extend(rows)
         limits = gl_limits(ctx)
@@ -355,10 +356,10 @@ def gpu_free_mib(ctx: moderngl.Context) -> float | None:
     return None
 
 
-def _material_volume(manifest: dict, entry: dict) -> dict | None:
-    materials = manifest.get("materials") or []
-    k = int(entry.get("material", -1))
-    return materials[k].get("volume") if 0 <= k < len(materials) else None
+def _material_volume(manifest: Manifest, entry: ObjectEntry) -> Volume | None:
+    materials = manifest.materials
+    k = int(entry.material)
+    return materials[k].volume if 0 <= k < len(materials) else None
 
 
 def _finite(v) -> np.ndarray:
@@ -373,7 +374,7 @@ def _planes(entries: list) -> list:
     """Bounding planes as PLANE_DTYPE rows; ones with a zero or non-finite normal are dropped."""
     rows = []
     for plane in entries[:MAX_PLANES]:
-        point, normal = _finite(plane["point"]), _finite(plane["normal"])
+        point, normal = _finite(plane.point), _finite(plane.normal)
         length = float(np.linalg.norm(normal))
         if not length > 1e-12:
             continue

@@ -22,7 +22,7 @@ from glint.viewer.gpu_textures import clean
 class GpuLightmaps:
     def __init__(self, ctx: moderngl.Context, gl: GL, bake):
         self.ctx, self._gl = ctx, gl
-        names = bake.manifest.get("lightmaps") or []
+        names = bake.model.lightmaps
         pages = [bake.lightmap(k) for k in range(len(names))]
         if names:  # the back sides' pages, layers len(names) on (GpuObject.back_layer)
             pages += [bake.lightmap(k, back=True) for k in range(len(bake.back_pages))]

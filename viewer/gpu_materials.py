@@ -19,6 +19,7 @@ import moderngl
 import numpy as np
 
 from glint.core.errors import GlintError
+from glint.core.manifest import Material, Sampler
 from glint.viewer.gl import GL
 from glint.viewer.gl_bindings import (
     LOBE_BINDING,
@@ -74,16 +75,15 @@ PATTERN_KINDS = {"ring": 0, "line_x": 1, "line_y": 2, "multi_ring": 3}
 PLANAR_PATTERNS = ("auto", "ring", "multi_ring")  # GpuScene(planar_pattern=...)
 
 
-def sampler_flags(sampler: dict) -> int:
-    """MAT_KD_* flags of a manifest material's `kd_sampler` (bake/pipeline.py); {} is REPEAT, LINEAR."""
+def sampler_flags(sampler: Sampler) -> int:
+    """MAT_KD_* flags of a manifest material's `kd_sampler` (core/manifest.py Sampler)."""
     flags = 0
-    for key, axis in (("wrap_s", "S"), ("wrap_t", "T")):
-        mode = sampler.get(key, "REPEAT")
+    for mode, axis in ((sampler.wrap_s, "S"), (sampler.wrap_t, "T")):
         if mode == "CLAMP_TO_EDGE":
             flags |= MATERIAL_FLAGS[f"MAT_KD_CLAMP_{axis}"]
         elif mode == "MIRRORED_REPEAT":
             flags |= MATERIAL_FLAGS[f"MAT_KD_MIRROR_{axis}"]
-    if sampler.get("mag_filter") == "NEAREST":
+    if sampler.mag_filter == "NEAREST":
         flags |= MATERIAL_FLAGS["MAT_KD_NEAREST"]
     return flags
 
@@ -91,61 +91,63 @@ def sampler_flags(sampler: dict) -> int:
 class GpuMaterials:
     def __init__(self, ctx: moderngl.Context, gl: GL, entries: list[dict], textures: GpuTextures,
                  planar_pattern: str = "auto"):
-        """entries: the manifest's materials; textures: theirs (which set the MAT_*_TEXTURE flags and
+        """entries: the manifest's materials as JSON (the dicts material editing passes; read here through
+        core/manifest.py Material, the material schema piece will make edits typed); textures: theirs (which set the MAT_*_TEXTURE flags and
         the base colour's sampler flags); planar_pattern: as GpuScene's (PLANAR_PATTERNS)."""
         self.ctx, self._gl, self.textures, self.planar_pattern = ctx, gl, textures, planar_pattern
         self.materials = [dict(m) for m in entries]  # as shown; set_material replaces one
         # What stays the bake's through edits: the texture flags and the normal map's scale
-        self._texture_flags = [self._textured(i, m) for i, m in enumerate(entries)]
-        self._normal_scale = [np.float32(clean(m.get("normal_scale", 1.0), None)) for m in entries]
+        baked = [Material.from_json(m) for m in entries]
+        self._texture_flags = [self._textured(i, m) for i, m in enumerate(baked)]
+        self._normal_scale = [np.float32(clean(m.normal_scale, None)) for m in baked]
         self.material_buffer = self.lobe_buffer = self.lobe_mr_buffer = None
         self.pattern_buffer = self.lobe_pattern_buffer = None
         self.lobe_samples: int | None = None
         self._upload()
 
-    def _textured(self, i: int, m: dict) -> int:
+    def _textured(self, i: int, m: Material) -> int:
         """The MAT_* flags of material i's textures, with its sampler's wherever it has one."""
         flags = 0
         for kind, flag in TEXTURE_FLAGS.items():
             if self.textures.has(kind, i):
-                flags |= MATERIAL_FLAGS[flag] | sampler_flags(m.get("kd_sampler") or {})
+                flags |= MATERIAL_FLAGS[flag] | sampler_flags(m.kd_sampler)
         return flags
 
     def _material_rows(self, i: int, m: dict) -> tuple[np.ndarray, list, list]:
         """Material i's row of MATERIAL_DTYPE (its lobes' first row left 0), its LOBE_DTYPE rows and
         their LOBE_MR values, from its manifest entry and the textures loaded for it."""
+        m = Material.from_json(m)  # an edited entry too: the manifest's defaults
         mat = np.zeros((), MATERIAL_DTYPE)
         flags = self._texture_flags[i]
-        lobes = m.get("lobes") or []
-        kinds = {lobe.get("kind", "reflect") for lobe in lobes}
-        if m.get("double_sided") or "transmit" in kinds:
+        lobes = m.lobes
+        kinds = {lobe.kind for lobe in lobes}
+        if m.double_sided or "transmit" in kinds:
             flags |= MATERIAL_FLAGS["MAT_TWO_SIDED"]
         if "transmit" in kinds:
             flags |= MATERIAL_FLAGS["MAT_TRANSMISSIVE"]
         if lobes:
             flags |= MATERIAL_FLAGS["MAT_SPECULAR"]
-        emission = clean(m.get("emission", (0, 0, 0)))
+        emission = clean(m.emission)
         if np.any(emission > 0):
             flags |= MATERIAL_FLAGS["MAT_EMISSIVE"]
-        mode = m.get("alpha_mode", "OPAQUE")
-        if mode in ("MASK", "BLEND"):
-            flags |= MATERIAL_FLAGS[f"MAT_ALPHA_{mode}"]
-            mat["kd"][3] = float(np.clip(clean(m.get("alpha", 1.0)), 0.0, 1.0))
-            mat["emission"][3] = float(clean(m.get("alpha_cutoff", 0.5)))
-        mat["kd"][:3] = np.clip(clean(m.get("kd", (0.8, 0.8, 0.8))), 0.0, 1.0)
+        if m.has_coverage:
+            flags |= MATERIAL_FLAGS[f"MAT_ALPHA_{m.alpha_mode}"]
+            mat["kd"][3] = float(np.clip(clean(m.alpha), 0.0, 1.0))
+            mat["emission"][3] = float(clean(m.alpha_cutoff))
+        mat["kd"][:3] = np.clip(clean(m.kd), 0.0, 1.0)
         mat["emission"][:3] = emission
-        rotation = float(clean(m.get("anisotropy_rotation", 0.0), None))  # editable: the panel's direction
+        rotation = float(clean(m.anisotropy_rotation, None))  # editable: the panel's direction
         mat["surface"] = (self._normal_scale[i], np.cos(rotation), np.sin(rotation), 0.0)
         mat["info"] = (flags, i if self.textures.has("kd", i) else -1, 0, len(lobes))
         rows, lobe_mr = [], []
         textured = self.textures.has("metallic_roughness", i)
         for lobe in lobes:
             row = np.zeros((), LOBE_DTYPE)
-            row["ks"][:3] = np.clip(clean(lobe.get("ks", (1, 1, 1))), 0.0, 1.0)
-            row["ks"][3] = LOBE_KINDS["LOBE_TRANSMIT" if lobe.get("kind") == "transmit" else "LOBE_REFLECT"]
-            row["shape"] = (lobe.get("mx", 0.1), lobe.get("my", 0.1), lobe.get("r0", 0.04), lobe.get("alpha", 0.0))
+            row["ks"][:3] = np.clip(clean(lobe.ks), 0.0, 1.0)
+            row["ks"][3] = LOBE_KINDS["LOBE_TRANSMIT" if lobe.kind == "transmit" else "LOBE_REFLECT"]
+            row["shape"] = (lobe.mx, lobe.my, lobe.r0, lobe.alpha)
             rows.append(row)
-            lobe_mr.append(LOBE_MR[f"LOBE_MR_{lobe.get('mr') or 'none'}".upper()] if textured else 0)
+            lobe_mr.append(LOBE_MR[f"LOBE_MR_{lobe.mr or 'none'}".upper()] if textured else 0)
         return mat, rows, lobe_mr
 
     def _upload(self) -> None:

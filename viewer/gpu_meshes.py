@@ -40,14 +40,14 @@ class GpuMeshes:
         """Every object's mesh of the bake (`objects`: GpuObject, with its index range); with_lod: also its
         levels of detail (`lod_table`, `lod_buffer`; None without)."""
         self.ctx, self._gl = ctx, gl
-        manifest = bake.manifest
-        front_pages = len(manifest.get("lightmaps") or [])
+        manifest = bake.model
+        front_pages = len(manifest.lightmaps)
         # The tangent frame serves the lobes only (their anisotropy and the normal map's shading
         # normal; the diffuse part is the light map's): a scene without lobes (the bake's diffuse
         # cube-map renders) skips MikkTSpace.
-        frames = any(m.get("lobes") for m in manifest["materials"])
+        frames = any(m.lobes for m in manifest.materials)
         parts = [object_vertices(i, entry, mesh, front_pages if bake.has_back(i) else 0, frames)
-                 for i, (entry, mesh) in enumerate(zip(manifest["objects"], bake.meshes))]
+                 for i, (entry, mesh) in enumerate(zip(manifest.objects, bake.meshes))]
         self.objects = [obj for obj, _, _ in parts]
         self.triangles = sum(o.triangles for o in self.objects)
         drawn = [o.bounds for o in self.objects if o.triangles]
@@ -140,6 +140,6 @@ def object_vertices(index: int, entry: dict, mesh: dict, back_layer: int, frames
     v["lm_page"] = np.asarray(mesh["lm_page"], np.int32).reshape(-1)[source]
     bounds = (np.stack([positions[indices.ravel()].min(axis=0), positions[indices.ravel()].max(axis=0)])
               if len(indices) else np.zeros((2, 3)))
-    obj = GpuObject(entry["name"], int(entry["material"]), entry.get("role", "diffuse"), len(indices), bounds,
+    obj = GpuObject(entry.name, int(entry.material), entry.role, len(indices), bounds,
                     back_layer)
     return obj, (v if len(indices) else v[:0]), indices

@@ -47,18 +47,20 @@ class GpuScene:
         self.ctx = ctx
         self.software = software_renderer(ctx)
         gl = GL(ctx)
-        manifest = bake.manifest
-        count = len(manifest["materials"])
-        for entry in manifest["objects"]:
-            if not 0 <= int(entry["material"]) < count:  # the shaders index the material buffer with it
-                raise GlintError(f"{bake.path}: object '{entry['name']}' has material {entry['material']} "
+        manifest = bake.model
+        count = len(manifest.materials)
+        for entry in manifest.objects:
+            if not 0 <= int(entry.material) < count:  # the shaders index the material buffer with it
+                raise GlintError(f"{bake.path}: object '{entry.name}' has material {entry.material} "
                                  f"of {count}; run `glint bake --force`")
         self.lod = bool(lod)
         self.meshes = GpuMeshes(ctx, gl, bake, with_lod=self.lod)
         self.objects, self.triangles, self.bounds = self.meshes.objects, self.meshes.triangles, self.meshes.bounds
         self.lod_buffer = self.meshes.lod_buffer
         self.textures = GpuTextures(ctx, gl, self.software, bake)
-        self.material_buffers = GpuMaterials(ctx, gl, manifest["materials"], self.textures, planar_pattern)
+        # material editing's boundary: dicts (the material schema piece will make edits typed)
+        self.material_buffers = GpuMaterials(ctx, gl, [m.to_json() for m in manifest.materials], self.textures,
+                                             planar_pattern)
         self.materials = self.material_buffers.materials  # the manifest entries as shown (set_material)
         self.scene_objects = GpuObjectTable(ctx, gl, self.objects, self.material_buffers.emissive())
         self.object_binding = self.scene_objects.binding

@@ -19,15 +19,15 @@ SKY_MODES = {"SKY_NONE": 0, "SKY_CONSTANT": 1, "SKY_MAP": 2}
 class GpuSky:
     def __init__(self, ctx: moderngl.Context, gl: GL, bake, white: moderngl.Texture):
         """white: the 1x1 texture bound as the map of a sky without one (not released here)."""
-        sky = bake.manifest.get("sky")
+        sky = bake.model.sky
         self.mode = SKY_MODES["SKY_NONE"]
         self.scale = np.zeros(3, np.float32)
         self.map = self._white = white
         if not sky:
             return
-        self.scale = clean(sky.get("radiance", (1, 1, 1))).astype(np.float32)
-        if sky.get("map"):
-            image = clean(read_image(bake.path / sky["map"])[..., :3])
+        self.scale = clean(sky.radiance).astype(np.float32)
+        if sky.map:
+            image = clean(read_image(bake.path / sky.map)[..., :3])
             h, w = image.shape[:2]
             rgba = np.concatenate([image, np.ones((h, w, 1))], axis=-1).astype(np.float32)
             check_texture_size(ctx, w, h, "the sky map", fix="scale it down")

@@ -25,6 +25,7 @@ import numpy as np
 
 from glint.core.constants import HALF_MAX
 from glint.core.image_io import read_image
+from glint.core.manifest import Material
 from glint.viewer.gl import GL, check_texture_size
 
 # The kinds of material texture, in the order a draw binds them (viewer/draw_list.py TEXTURE_UNITS)
@@ -50,32 +51,33 @@ class GpuTextures:
         self.metallic_roughness_textures: list[moderngl.Texture | None] = []
         self.normal_textures: list[moderngl.Texture | None] = []
         self.anisotropy_textures: list[moderngl.Texture | None] = []
-        for m in bake.manifest["materials"]:
+        for m in bake.model.materials:
             self._load(m, bake.path)
 
-    def _load(self, m: dict, path) -> None:
+    def _load(self, m: Material, path) -> None:
         """One material's textures, None for each kind it lacks."""
         texture = None
-        if m.get("kd_texture"):
-            image = read_image(path / m["kd_texture"])
+        if m.kd_texture:
+            image = read_image(path / m.kd_texture)
             # the base colour alpha only where the coverage reads it (shaders/materials.glsl)
-            coverage = m.get("alpha_mode", "OPAQUE") in ("MASK", "BLEND") and image.shape[-1] >= 4
+            coverage = m.has_coverage and image.shape[-1] >= 4
             alpha = np.clip(clean(image[..., 3:4]), 0.0, 1.0) if coverage else None
             texture = self._texture(np.clip(clean(image[..., :3]), 0.0, 1.0),
-                                    f"the base-colour texture of material '{m['name']}'", alpha=alpha)
+                                    f"the base-colour texture of material '{m.name}'", alpha=alpha)
         self.kd_textures.append(texture)
         texture = None
-        if m.get("emission_texture") and np.any(clean(m.get("emission", (0, 0, 0))) > 0):
-            image = read_image(path / m["emission_texture"])
+        if m.emission_texture and np.any(clean(m.emission) > 0):
+            image = read_image(path / m.emission_texture)
             texture = self._texture(np.clip(clean(image[..., :3]), 0.0, HALF_MAX),
-                                    f"the emissive texture of material '{m['name']}'")
+                                    f"the emissive texture of material '{m.name}'")
         self.emission_textures.append(texture)
         for kind in ("metallic_roughness", "normal", "anisotropy"):
             texture = None
-            if m.get(f"{kind}_texture"):
-                image = np.clip(clean(read_image(path / m[f"{kind}_texture"])[..., :3]), 0.0, 1.0)
+            file = getattr(m, f"{kind}_texture")
+            if file:
+                image = np.clip(clean(read_image(path / file)[..., :3]), 0.0, 1.0)
                 what = kind.replace("_", "-")
-                texture = self._texture(image, f"the {what} texture of material '{m['name']}'")
+                texture = self._texture(image, f"the {what} texture of material '{m.name}'")
             getattr(self, f"{kind}_textures").append(texture)
 
     def has(self, kind: str, material: int) -> bool:

@@ -403,16 +403,16 @@ class Renderer:
 
     def _mirror_stats(self) -> dict:
         """The planar reflectors' mirror passes of the last frame (viewer/passes/mirror.py)."""
-        manifest, scene = self.bake.manifest, self.scene
-        lobed = {i: o["name"] for i, o in enumerate(manifest["objects"])
-                 if scene.materials[o["material"]].get("lobes")}
+        manifest, scene = self.bake.model, self.scene
+        lobed = {i: o.name for i, o in enumerate(manifest.objects)
+                 if scene.materials[o.material].get("lobes")}  # as edited: dicts (material editing)
         cube_mapped = {i for i in lobed if scene.cubemaps.has_cubemap(i)}
         return self.mirror.stats(lobed, cube_mapped)
 
     def _specular_stats(self) -> dict:
         """The specular work of the last frame (reads the shading pass's counters: waits for the GPU)."""
-        manifest, scene = self.bake.manifest, self.scene
-        materials = scene.materials  # as edited (set_material)
+        manifest, scene = self.bake.model, self.scene
+        materials = scene.materials  # as edited (set_material): dicts (material editing)
         lobed = [i for i, m in enumerate(materials) if m.get("lobes")]
         counts = (self.shading.specular_counts() if self.size else
                   {"pixels": 0, "tiles": 0, "tiles_skipped": 0, "lookups": 0, "mirror_lookups": 0})
@@ -430,8 +430,8 @@ class Renderer:
             "walkthrough": self.walkthrough,
             "weights": self.weights,
             "materials_with_lobes": len(lobed),
-            "objects_without_cube_map": [o["name"] for i, o in enumerate(manifest["objects"])
-                                         if o["material"] in lobed and not scene.cubemaps.has_cubemap(i)
+            "objects_without_cube_map": [o.name for i, o in enumerate(manifest.objects)
+                                         if o.material in lobed and not scene.cubemaps.has_cubemap(i)
                                          and i not in planar],
             "pixels_with_lobes": counts["pixels"],
             "tiles_with_lobes": counts["tiles"],

@@ -48,6 +48,7 @@ import moderngl
 import numpy as np
 
 from glint.core.geometry import fit_plane
+from glint.core.manifest import Material
 from glint.viewer.camera import ViewCamera, gl_bytes
 from glint.viewer.gl import (
     GL,
@@ -100,11 +101,11 @@ def mirror_defines(first_unit: int) -> dict:
     return mirror_units(first_unit)
 
 
-def mirror_reach(material: dict) -> float | None:
+def mirror_reach(material: Material) -> float | None:
     """How far the widest reflection lobe of a manifest material turns from the mirror direction
     (viewer/reflectors.py `lobe_reach`: the guard band); None without reflection lobes."""
-    lobes = [lobe for lobe in material.get("lobes") or [] if lobe.get("kind", "reflect") == "reflect"]
-    return max(lobe_reach(lobe.get("mx", 0.0), lobe.get("my", 0.0)) for lobe in lobes) if lobes else None
+    lobes = [lobe for lobe in material.lobes if lobe.kind == "reflect"]
+    return max(lobe_reach(lobe.mx, lobe.my) for lobe in lobes) if lobes else None
 
 
 def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
@@ -113,25 +114,25 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
     its `plane` entry (bake/pipeline.py), or the best-fit plane of its mesh for a manifest
     without one. Names are made unique (the occlusion results are kept by name)."""
     out, seen = [], set()
-    materials = bake.manifest["materials"]
-    for i, entry in enumerate(bake.manifest["objects"]):
-        if entry.get("role") != "planar" or not entry.get("triangles", 1):
+    materials = bake.model.materials
+    for i, entry in enumerate(bake.model.objects):
+        if entry.role != "planar" or not entry.triangles:
             continue
-        reach = mirror_reach(materials[int(entry["material"])])  # the guard band
+        reach = mirror_reach(materials[int(entry.material)])  # the guard band
         if reach is None:
             continue
-        plane = entry.get("plane")
+        plane = entry.plane
         if plane:
-            point, normal = np.asarray(plane["point"], np.float64), np.asarray(plane["normal"], np.float64)
+            point, normal = np.asarray(plane.point, np.float64), np.asarray(plane.normal, np.float64)
         else:
             mesh = bake.meshes[i]
             point, normal = fit_plane(np.asarray(mesh["positions"], np.float64).reshape(-1, 3),
                                       np.asarray(mesh["indices"], np.int64).reshape(-1, 3))
         if not (np.all(np.isfinite(point)) and np.all(np.isfinite(normal)) and np.linalg.norm(normal) > 1e-12):
             continue
-        name = entry["name"] if entry["name"] not in seen else f"{entry['name']} #{i}"
+        name = entry.name if entry.name not in seen else f"{entry.name} #{i}"
         seen.add(name)
-        out.append((i, Reflector(name, point, normal, np.asarray(entry["bounds"], np.float64), reach=reach)))
+        out.append((i, Reflector(name, point, normal, np.asarray(entry.bounds, np.float64), reach=reach)))
     return out
 
 
@@ -196,7 +197,7 @@ class MirrorPasses:
     def set_material(self, material: int, entry: dict) -> None:
         """A material edit (Renderer.set_material): the reflectors made of `material` widen or narrow
         their guard band to its lobes' reach (one that lost every reflection lobe keeps its last)."""
-        reach = mirror_reach(entry)
+        reach = mirror_reach(Material.from_json(entry))  # an edit's dict (the material schema piece types it)
         if reach is None:
             return
         self.objects = [(i, replace(r, reach=reach) if self.scene.objects[i].material == material else r)
