@@ -75,7 +75,8 @@ Overrides
 ---------
 A material's `extras.glint` and the sidecar's `[materials."NAME"]` may give any
 of `kd` (RGB or grey number), `emission`, `lobes` (list of {kind, ks, mx, my, r0,
-alpha}, or `m` for mx = my; missing keys take `glint.core.scene.Lobe`'s defaults).
+alpha}, or `m` for mx = my; missing keys take `glint.core.scene.Lobe`'s defaults). Each value is
+checked by its field's one rule (core/material_schema.py, which the viewer's panel applies too).
 The sidecar wins over extras, extras win over the rule above; `lobes` replaces
 the whole list. `kd` still multiplies a base colour texture.
 """
@@ -85,12 +86,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glint.bake.validate import add_warning, check_number, check_rgb, warn_unknown_keys
+from glint.bake.validate import add_warning, check_number, warn_unknown_keys
+from glint.core.bsdf import M_MIN
 from glint.core.errors import GlintError, WarningKind
+from glint.core.material_schema import LOBE_SCHEMA, checked_lobe, lobe_value, material_value
 from glint.core.scene import Lobe, Material
 
 DIFFUSE_ROUGHNESS = 0.5
-MIN_M = 1e-4
 CLEARCOAT_R0 = 0.04  # KHR_materials_clearcoat: fixed ior 1.5
 # Material extensions this rule reads; others are reported by the loader.
 MATERIAL_EXTENSIONS = (
@@ -102,7 +104,7 @@ OVERRIDE_KEYS = ("kd", "emission", "lobes")
 # Warnings that repeat per material: one summary line each (glint.core.errors.WarningKind).
 IGNORED_TEXTURES = WarningKind("{n} materials have textures glint does not read; "
                                "the constant factors are used")
-LOBE_KEYS = ("kind", "ks", "mx", "my", "m", "r0", "alpha")
+LOBE_KEYS = tuple(LOBE_SCHEMA)  # kind, ks, mx, my, m, r0, alpha
 
 
 @dataclass
@@ -130,7 +132,7 @@ class GltfPbr:
 def beckmann_m(roughness: float) -> float:
     """glTF perceptual roughness -> Beckmann m of Eq. 3.3."""
     r = float(np.clip(roughness, 0.0, 1.0))
-    return max(r * r, MIN_M)
+    return max(r * r, M_MIN)
 
 
 INTERFACE_ALPHA = 0.5  # Kurt's alpha of a glass solid's lobes: sqrt(cos_i cos_o) cancels cos_i (module docstring)
@@ -286,6 +288,7 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
         mr = np.clip(np.nan_to_num(np.asarray(metallic_roughness_texture, np.float32)[..., :3]), 0.0, 1.0)
         mr[..., 2] *= float(np.clip(pbr.metallic, 0.0, 1.0))  # B x metallicFactor = the texel's M'
     kd, lobes, emission = map_pbr(pbr, diffuse_roughness, mr)
+    lobes = [checked_lobe(lobe, f"{where} lobes[{k}]") for k, lobe in enumerate(lobes)]  # glTF's ranges keep them valid
     mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
                    emission_texture=emission_texture, metallic_roughness_texture=mr,
                    **volume_fields(pbr),
@@ -348,10 +351,9 @@ def parse_material_override(table, where: str, warnings: list[str]) -> dict:
         raise GlintError(f"{where} must be a table with any of {', '.join(OVERRIDE_KEYS)}")
     warn_unknown_keys(table, OVERRIDE_KEYS, where, "", warnings)
     out = {}
-    if "kd" in table:
-        out["kd"] = check_rgb(table["kd"], f"{where} kd", minimum=0.0)
-    if "emission" in table:
-        out["emission"] = check_rgb(table["emission"], f"{where} emission", minimum=0.0)
+    for key in ("kd", "emission"):
+        if key in table:
+            out[key] = np.array(material_value(key, table[key], where), np.float32)
     if "lobes" in table:
         if not isinstance(table["lobes"], list):
             raise GlintError(f"{where} lobes must be a list of tables "
@@ -362,32 +364,18 @@ def parse_material_override(table, where: str, warnings: list[str]) -> dict:
 
 
 def _lobe(item, where: str, warnings: list[str]) -> Lobe:
+    """One lobe table; each value checked by its field's rule (core/material_schema.py)."""
     if not isinstance(item, dict):
         raise GlintError(f"{where} must be a table {{ kind, ks, mx, my, r0, alpha }}")
     warn_unknown_keys(item, LOBE_KEYS, where, "", warnings)
-    lobe = Lobe()
-    kind = item.get("kind", "reflect")
-    if kind not in ("reflect", "transmit"):
-        raise GlintError(f"{where} kind must be \"reflect\" or \"transmit\", not {kind!r}")
-    lobe.kind = kind
-    if "ks" in item:
-        lobe.ks = tuple(float(v) for v in check_rgb(item["ks"], f"{where} ks", minimum=0.0))
-    if "m" in item:
-        if "mx" in item or "my" in item:
-            raise GlintError(f"{where}: give either m or mx/my, not both")
-        lobe.mx = lobe.my = check_number(item["m"], f"{where} m", positive=True)
-    for key in ("mx", "my"):
-        if key in item:
-            setattr(lobe, key, check_number(item[key], f"{where} {key}", positive=True))
-    # Below 1e-4 the lobe is a mirror anyway; clamping keeps Eq. 3.3 finite.
-    lobe.mx, lobe.my = max(lobe.mx, MIN_M), max(lobe.my, MIN_M)
-    for key in ("r0", "alpha"):
-        if key in item:
-            value = check_number(item[key], f"{where} {key}", minimum=0.0)
-            if value > 1:
-                raise GlintError(f"{where} {key} must be between 0 and 1, not {value}")
-            setattr(lobe, key, value)
-    return lobe
+    if "m" in item and ("mx" in item or "my" in item):
+        raise GlintError(f"{where}: give either m or mx/my, not both")
+    fields = {key: lobe_value(key, item[key], where) for key in LOBE_KEYS if key in item}
+    if "m" in fields:
+        fields["mx"] = fields["my"] = fields.pop("m")
+    if "ks" in fields:  # the scene's colours are float32
+        fields["ks"] = tuple(float(c) for c in np.float32(fields["ks"]))
+    return Lobe(**fields)
 
 
 def _rgb3(value) -> tuple[float, float, float]:

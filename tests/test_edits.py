@@ -51,10 +51,10 @@ def test_parse_assignment_reads_toml_keys_and_values():
 
 
 @pytest.mark.parametrize("text, says", [
-    ('materials."Floor".kd=nan', "kd must be a number, not nan"),
-    ('materials."Floor".kd=[0.3, -0.2, 0.1]', "kd must be at least 0.0, not -0.2"),
-    ('materials."Floor".lobes=[{ m = 0 }]', "lobes[0] m must be positive, not 0"),
-    ('materials."Floor".lobes=[{ r0 = 1.5 }]', "r0 must be between 0 and 1"),
+    ('materials."Floor".kd=nan', "kd must be a number or a list of 3 numbers (RGB) of at least 0, not nan"),
+    ('materials."Floor".kd=[0.3, -0.2, 0.1]', "kd must be a number or a list of 3 numbers (RGB) of at least 0, not [0.3, -0.2, 0.1]"),
+    ('materials."Floor".lobes=[{ m = -1 }]', "lobes[0] m must be a number of at least 0, not -1"),
+    ('materials."Floor".lobes=[{ r0 = 1.5 }]', "r0 must be a number from 0 to 1, not 1.5"),
     ('objects."Box".role="shiny"', "role must be one of diffuse, curved, planar, transmissive, not 'shiny'"),
     ('bake.quality=draft', "strings need quotes"),
     ('bake.quality="fast"', "quality must be one of draft, preview, final"),
@@ -92,7 +92,7 @@ def test_set_on_the_command_line_one_line_errors(tmp_path, capsys):
     scene = write_room(tmp_path / "room.glb")
     for text, says in [('materials."Flor".kd=0.3', "no material is called 'Flor' (the scene has 'Floor', 'Lamp', 'Wall')"),
                        ('objects."Bx".role="curved"', "no object, node or mesh is called 'Bx'"),
-                       ('materials."Floor".emission=[1, inf, 1]', "emission must be a number, not inf")]:
+                       ('materials."Floor".emission=[1, inf, 1]', "emission must be a number or a list of 3 numbers (RGB) of at least 0, not [1, inf, 1]")]:
         code = main(["capture", str(scene), "-o", str(tmp_path / "x.png"), "--set", text, *BAKE_ARGS])
         line = error_of(capsys, code)
         assert line.startswith(f"glint: --set '{text}': ") and says in line, line
@@ -143,7 +143,7 @@ def test_save_sidecar_creates_validates_and_never_half_writes(tmp_path):
     """Without a sidecar, save_sidecar creates one; a bad assignment writes nothing."""
     scene = write_room(tmp_path / "room.glb")
     assert save_sidecar(scene, ['materials."Floor".kd=0.25']).read_text() == '[materials.Floor]\nkd = 0.25\n'
-    with pytest.raises(GlintError, match="kd must be at least 0.0"):
+    with pytest.raises(GlintError, match=r"kd must be a number or a list of 3 numbers \(RGB\) of at least 0, not -1"):
         save_sidecar(scene, ['materials."Wall".kd=0.5', 'materials."Floor".kd=-1'])
     assert sidecar_path(scene).read_text() == '[materials.Floor]\nkd = 0.25\n'
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
