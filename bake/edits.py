@@ -14,7 +14,8 @@ Both halves are read by tomllib itself (`parse_assignment`), so the syntax is ex
 bake-manifest material entry).
 
 The edited sidecar is checked by bake/sidecar.py `parse_sidecar`, exactly as a file with those keys
-would be (a lobe `m` below 1e-4 is clamped to it, a NaN or a negative colour is refused), and the
+would be (the material schema, core/material_schema.py: a lobe `m` below 1e-4 is raised to it, a NaN
+or a negative colour, an r0 above 1 is refused), and the
 assignment at fault is named: the first one whose addition makes the check fail or warn (an unknown
 key, which in the file would only warn, is refused: a `--set` that does nothing is a mistake). A
 material or object name that matches nothing in the scene is refused by the loader
@@ -41,10 +42,11 @@ from pathlib import Path
 import numpy as np
 import tomlkit
 
-from glint.bake.material_mapping import OVERRIDE_KEYS, override_table
+from glint.bake.material_mapping import OVERRIDE_KEYS
 from glint.bake.sidecar import Sidecar, parse_sidecar, parse_toml, read_sidecar_text, sidecar_path
 from glint.core.atomic import atomic_write_text
 from glint.core.errors import GlintError, quiet
+from glint.core.manifest import Material
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -132,15 +134,15 @@ def edited_sidecar(scene_path: Path, assignments: list) -> tuple[Sidecar, tuple[
 
 
 def material_assignments(name: str, entry: dict) -> list[tuple[tuple[str, ...], object]]:
-    """A bake-manifest material entry (bake/pipeline.py describe: kd, emission, lobes, ...) -> the
-    assignments of [materials."name"] kd, emission and lobes that make the loader give that
-    material again (bake/material_mapping.py `override_table`, which parse_material_override
-    reads). Colours are float32 in the bake: they are written in float32's shortest form (0.7,
-    not 0.699999988079071), which reads back to the same float32."""
-    table = override_table(entry)
-    lobes = [{key: str(v) if key == "kind" else _colour(v) if key == "ks" else float(v) for key, v in lobe.items()}
-             for lobe in table.get("lobes", [])]
-    values = {"kd": _colour(table["kd"]), "emission": _colour(table["emission"]), "lobes": lobes}
+    """A bake-manifest material entry (bake/pipeline.py describe, the panel's Save), read by the model
+    (core/manifest.py `Material.from_json`) -> the assignments of [materials."name"] kd, emission and
+    lobes (their sidecar keys: not `mr`, which the texture decides) that make the loader give that
+    material again. Colours are float32 in the bake: they are written in float32's shortest form
+    (0.7, not 0.699999988079071), which reads back to the same float32."""
+    material = Material.from_json(entry)
+    lobes = [{"kind": str(lobe.kind), "ks": _colour(lobe.ks), "mx": float(lobe.mx), "my": float(lobe.my),
+              "r0": float(lobe.r0), "alpha": float(lobe.alpha)} for lobe in material.lobes]
+    values = {"kd": _colour(material.kd), "emission": _colour(material.emission), "lobes": lobes}
     return [(("materials", name, key), values[key]) for key in OVERRIDE_KEYS]
 
 

@@ -8,9 +8,9 @@ entries where they have their defaults, `inputs` where a bake predates it), so t
 `to_json(from_json(x)) == x`, key order included, for every manifest the bake writes.
 
 Free-form parts stay dicts: `settings` (BakeSettings' fields), `stages`, `inputs` (core/skipped.py reads
-them) and the statistics behind `Statistics`' accessors. A material still travels as its JSON dict
-where it is edited (viewer/material_edits.py, viewer/panel.py, bake/edits.py): `Material.from_json`
-reads such a dict with the same defaults (the material schema piece will make edits typed).
+them) and the statistics behind `Statistics`' accessors. The viewer's panel edits typed materials
+(`dataclasses.replace`, checked by core/material_schema.py); they become JSON dicts again only where
+they leave it: the GPU upload, Save and the background re-bake (`to_json`).
 """
 from __future__ import annotations
 

@@ -11,6 +11,7 @@ direction (a pinhole model written out in test_specular.py).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import imgui_bundle  # noqa: F401  (a dependency of glint: the panel must work wherever glint installs)
 import numpy as np
@@ -21,7 +22,10 @@ from test_view import HOME, Modifiers
 from glint.core import bsdf
 from glint.core.errors import GlintError
 from glint.viewer.controls import WalkControls
-from glint.viewer.material_edits import MaterialEdits, checked_material
+from glint.core.manifest import Material
+from glint.core.scene import Lobe
+from glint.core.material_schema import checked_material
+from glint.viewer.material_edits import MaterialEdits
 
 SIZE = (80, 60)  # window pixels (the panel's Undo button lies inside)
 E = (2.0, 1.0, 0.5)  # the light map's irradiance, W/m^2
@@ -111,7 +115,7 @@ def test_pick_edit_kd_and_roughness_undo_redo_save(ctx, tmp_path):
         # A click on the floor picks it (a press and release without dragging); the panel opens.
         click(wnd, SIZE[0] // 2, SIZE[1] * 3 // 4)
         assert viewer.panel.picked == 0 and viewer.panel.material == 0 and viewer.panel.visible
-        assert viewer.panel.entry["name"] == "Floor"
+        assert viewer.panel.entry.name == "Floor"
 
         # The diffuse part follows kd on the next frame: the walkthrough frame's diffuse ratio.
         viewer.panel.set_kd(KD1)
@@ -153,8 +157,8 @@ def test_pick_edit_kd_and_roughness_undo_redo_save(ctx, tmp_path):
 
 def test_bad_values_are_refused_and_roughness_clamped(ctx, tmp_path):
     """A NaN or negative colour is refused with a message (the material and frame unchanged, no
-    NaN), m = 0 is raised to the BSDF's floor M_MIN. Deliberate bug tried: `_number` without the
-    finiteness check -> the NaN kd reached the frame (set_kd returned True, frame NaN)."""
+    NaN), m = 0 (a mirror) is raised to the BSDF's floor M_MIN. Deliberate bug tried: the rgb check without the
+    finiteness check (core/schema.py Key._in_range) -> the NaN kd reached the frame (set_kd returned True, frame NaN)."""
     wnd, viewer = panel_window(floor_bake(tmp_path / "b"))
     try:
         frames(wnd, 2)
@@ -168,10 +172,11 @@ def test_bad_values_are_refused_and_roughness_clamped(ctx, tmp_path):
         assert np.isfinite(viewer.renderer.read_linear()).all()
         # nothing changed: the still camera went on refining (walkthrough frame, then 3 frames summed)
         assert viewer.renderer.progressive.frames == 3
-        assert viewer.renderer.scene.materials[0] == viewer.edits.baked[0] == viewer.edits.materials[0]
+        assert viewer.renderer.scene.materials[0] == viewer.edits.baked[0].to_json()
+        assert viewer.edits.baked[0] == viewer.edits.materials[0]
         assert not viewer.edits.undo_stack
         assert viewer.panel.set_lobe(0, m=0.0)
-        assert viewer.panel.message == "" and viewer.edits.materials[0]["lobes"][0]["mx"] == bsdf.M_MIN
+        assert viewer.panel.message == "" and viewer.edits.materials[0].lobes[0].mx == bsdf.M_MIN
         frames(wnd, 2)
         assert np.isfinite(viewer.renderer.read_linear()).all()
     finally:
@@ -221,12 +226,12 @@ def test_gltf_controls_use_the_handed_in_mapping(ctx, tmp_path):
         assert viewer.panel.gltf()["roughness"] == pytest.approx(math.sqrt(M0))
         assert viewer.panel.set_gltf(base_color=[0.9, 0.6, 0.2], metallic=1.0, roughness=0.3)
         entry = viewer.edits.materials[0]
-        assert entry["kd"] == [0.0, 0.0, 0.0]
-        assert len(entry["lobes"]) == 1
-        metal = entry["lobes"][0]
-        assert metal["r0"] == 1.0 and metal["mx"] == pytest.approx(0.09) and metal["ks"] == pytest.approx([0.9, 0.6, 0.2])
+        assert entry.kd == [0.0, 0.0, 0.0]
+        assert len(entry.lobes) == 1
+        metal = entry.lobes[0]
+        assert metal.r0 == 1.0 and metal.mx == pytest.approx(0.09) and metal.ks == pytest.approx([0.9, 0.6, 0.2])
         assert viewer.panel.set_gltf(metallic=0.0)  # the other values as last set: roughness 0.3 stays
-        assert viewer.edits.materials[0]["lobes"][0]["mx"] == pytest.approx(0.09)
+        assert viewer.edits.materials[0].lobes[0].mx == pytest.approx(0.09)
         frames(wnd)
         assert np.isfinite(viewer.renderer.read_linear()).all()
     finally:
@@ -253,9 +258,9 @@ def test_keys_pick_and_undo(ctx, tmp_path):
         ctrl = Modifiers()
         ctrl.ctrl = True
         wnd.key_event_func("Z", "press", ctrl)
-        assert viewer.edits.materials[0]["kd"] == list(KD0)
+        assert viewer.edits.materials[0].kd == list(KD0)
         wnd.key_event_func("Y", "press", ctrl)
-        assert viewer.edits.materials[0]["kd"] == list(KD1)
+        assert viewer.edits.materials[0].kd == list(KD1)
         wnd.key_event_func("F2", "press", Modifiers())
         assert not viewer.panel.visible
     finally:
@@ -264,24 +269,25 @@ def test_keys_pick_and_undo(ctx, tmp_path):
 
 
 def test_history_groups_and_revert():
-    """Plain dicts: a dragged slider (one group) is one undo step; Revert returns to the bake's."""
+    """Typed materials without a window: a dragged slider (one group) is one undo step; Revert returns
+    to the bake's."""
     shown = {}
     edits = MaterialEdits([material("A"), material("B")], lambda i, e: shown.__setitem__(i, e))
     for v in (0.1, 0.2, 0.3):
-        edits.edit(0, {**edits.materials[0], "kd": [v, v, v]}, group="kd")
+        edits.edit(0, replace(edits.materials[0], kd=[v, v, v]), group="kd")
     edits.end_group()
-    edits.edit(0, {**edits.materials[0], "kd": [0.4] * 3}, group="kd")
+    edits.edit(0, replace(edits.materials[0], kd=[0.4] * 3), group="kd")
     assert len(edits.undo_stack) == 2
     edits.undo()
-    assert shown[0]["kd"] == [0.3] * 3
+    assert shown[0].kd == [0.3] * 3
     edits.undo()
-    assert shown[0]["kd"] == list(material("A")["kd"])
+    assert shown[0].kd == list(material("A")["kd"])
     edits.redo()
-    edits.edit(1, {**edits.materials[1], "emission": [1, 1, 1]})
+    edits.edit(1, replace(edits.materials[1], emission=[1, 1, 1]))
     assert edits.edited == [0, 1]
     assert edits.revert() and edits.edited == []
-    with pytest.raises(GlintError, match="lobes\\[0\\].kind"):
-        checked_material({"name": "x", "lobes": [{"kind": "glow"}]})
+    with pytest.raises(GlintError, match=r"lobes\[0\] kind must be one of reflect, transmit, not 'glow'"):
+        checked_material(Material(name="x", lobes=[Lobe(kind="glow")]))
 
 
 def test_saved_panel_edits_capture_as_the_window_shows(tmp_path):

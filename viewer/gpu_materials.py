@@ -20,6 +20,7 @@ import numpy as np
 
 from glint.core.errors import GlintError
 from glint.core.manifest import Material, Sampler
+from glint.core.material_schema import checked_material
 from glint.viewer.gl import GL
 from glint.viewer.gl_bindings import (
     LOBE_BINDING,
@@ -30,7 +31,6 @@ from glint.viewer.gl_bindings import (
 )
 from glint.viewer.gpu_textures import GpuTextures, clean
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
-from glint.viewer.material_edits import checked_material
 
 MATERIAL_FLAGS = {
     "MAT_TWO_SIDED": 1,    # glTF doubleSided, or thin transmissive (the bake treats both as two-sided)
@@ -174,12 +174,13 @@ class GpuMaterials:
             self.lobe_mr_buffer = self.ctx.buffer(np.array(lobe_mr or [0], np.int32).tobytes())
         self.set_lobe_samples(self.lobe_samples)
 
-    def set_material(self, index: int, entry: dict) -> None:
-        """Material `index` as the manifest entry `entry` (GpuScene.set_material): checked first
-        (viewer/material_edits.py `checked_material`), then every table uploaded again."""
+    def set_material(self, index: int, material: Material) -> None:
+        """Material `index` as the typed `material` (GpuScene.set_material): checked first (the material
+        schema, core/material_schema.py `checked_material`), kept as its manifest entry (the upload's
+        one conversion), then every table uploaded again."""
         if not 0 <= index < len(self.materials):
             raise GlintError(f"no material {index} (the scene has {len(self.materials)})")
-        self.materials[index] = checked_material({**entry, "name": entry.get("name", self.materials[index]["name"])})
+        self.materials[index] = checked_material(material).to_json()
         self._upload()
 
     def emissive(self) -> np.ndarray:

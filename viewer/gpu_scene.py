@@ -104,14 +104,14 @@ class GpuScene:
     def material_textures(self, material: int) -> tuple:
         return self.textures.material_textures(material)
 
-    def set_material(self, index: int, entry: dict) -> None:
-        """Show material `index` as the manifest entry `entry` from the next frame on: kd, emission,
-        lobes (their count may change), double_sided; its textures stay those of the bake.
-        The entry is checked first (viewer/material_edits.py `checked_material`: GlintError for a
-        NaN, infinite or negative value, roughness raised to M_MIN), so no NaN reaches a frame.
+    def set_material(self, index: int, material) -> None:
+        """Show material `index` as the typed `material` (core/manifest.py Material) from the next frame
+        on: kd, emission, lobes (their count may change), double_sided; its textures stay those of the
+        bake. It is checked first (core/material_schema.py `checked_material`: GlintError for a NaN,
+        infinite or out-of-range value, roughness raised to M_MIN), so no NaN reaches a frame.
         The object table's emitter column follows the new emission. The caller restarts what
         depends on the materials (Renderer.set_material: the G-buffer, the still-camera sum)."""
-        self.material_buffers.set_material(index, entry)
+        self.material_buffers.set_material(index, material)
         self.scene_objects.upload(self.material_buffers.emissive())
 
     def set_lobe_samples(self, samples: int | None) -> None:

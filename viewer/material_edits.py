@@ -1,114 +1,54 @@
-"""Live material edits in the viewer: checking an edited material, and the history of edits.
+"""Live material edits in the viewer: the history of edits of typed materials.
 
-An edit is a bake-manifest material entry (core/bake_dir.py `materials`: name, kd, emission,
-lobes = [{kind, ks, mx, my, r0, alpha}], double_sided, textures ...) that replaces the entry
-of one material index. No OpenGL here: `MaterialEdits` calls `apply(index, entry)` (the
-window passes `Renderer.set_material`) and the optional `on_edit(materials)`, so the history
-(undo, redo, revert to the bake's materials) is testable with plain dicts.
+An edit is a `core.manifest.Material` (a `dataclasses.replace` of the one it changes; its lobes
+`core.scene.Lobe`s) that replaces the material of one index. No OpenGL here: `MaterialEdits` calls
+`apply(index, material)` (the window passes `Renderer.set_material`) and the optional
+`on_edit(materials)` (manifest entries: the background re-bake's boundary), so the history (undo,
+redo, revert to the bake's materials) is testable without a window.
 
-    edits = MaterialEdits(bake.manifest["materials"], renderer.set_material, on_edit=print)
-    edits.edit(3, {**edits.materials[3], "kd": [0.8, 0.1, 0.1]})
+    edits = MaterialEdits(bake.model.materials, renderer.set_material, on_edit=print)
+    edits.edit(3, replace(edits.materials[3], kd=[0.8, 0.1, 0.1]))
     edits.undo(); edits.redo(); edits.revert()
 
-`checked_material` is the one check of an edited entry (GpuScene.set_material calls it too):
-NaN, infinite or negative colours and non-numbers are refused with a GlintError naming the
-field (the panel shows it and keeps the previous material); roughness below the BSDF's floor
-`M_MIN` (core/bsdf.py, the bake's minimum too: bake/material_mapping.py) is raised to it, r0 and
-alpha are clamped to [0, 1] (Eq. 3.4), kd and ks to [0, 1] as the GPU upload clamps them.
+Every edit is checked by the material schema (core/material_schema.py `checked_material`, which
+GpuScene.set_material applies too), the rules the sidecar's [materials] follow: a NaN, infinite or
+negative colour, a roughness below 0, an r0 or alpha outside 0..1 or an unknown lobe kind is refused
+with a GlintError naming the material and field (the panel shows it and keeps the previous
+material); a roughness below the BSDF's floor `M_MIN` (core/bsdf.py) is raised to it.
 """
 from __future__ import annotations
 
-import copy
-import math
 from typing import Callable
 
-from glint.core.bsdf import M_MIN
 from glint.core.errors import GlintError
-
-LOBE_KINDS = ("reflect", "transmit")
-LOBE_FIELDS = ("kind", "ks", "mx", "my", "r0", "alpha")
-
-
-def _number(value, where: str, *, lo: float | None = None) -> float:
-    """A finite number (not below `lo`), else GlintError naming `where`."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise GlintError(f"{where} must be a number (got {value!r})") from None
-    if not math.isfinite(x):
-        raise GlintError(f"{where} must be finite (got {value!r})")
-    if lo is not None and x < lo:
-        raise GlintError(f"{where} must be at least {lo:g} (got {x:g})")
-    return x
-
-
-def _rgb(value, where: str, hi: float | None = None) -> list[float]:
-    """Three finite non-negative numbers (a grey number is repeated), clamped to `hi` when given."""
-    if isinstance(value, (int, float)):
-        value = [value] * 3
-    if not isinstance(value, (list, tuple)) or len(value) < 3:
-        raise GlintError(f"{where} must be an RGB triple (got {value!r})")
-    rgb = [_number(v, f"{where}[{k}]", lo=0.0) for k, v in enumerate(value[:3])]
-    return [min(v, hi) for v in rgb] if hi is not None else rgb
-
-
-def checked_lobe(lobe: dict, where: str) -> dict:
-    """One lobe {kind, ks, mx, my, r0, alpha} (`m` sets mx = my), checked and clamped (module docstring)."""
-    if not isinstance(lobe, dict):
-        raise GlintError(f"{where} must be a table of {', '.join(LOBE_FIELDS)} (got {lobe!r})")
-    kind = lobe.get("kind", "reflect")
-    if kind not in LOBE_KINDS:
-        raise GlintError(f"{where}.kind must be one of {', '.join(LOBE_KINDS)} (got {kind!r})")
-    m = lobe.get("m")
-    mx = _number(lobe.get("mx", 0.1) if m is None else m, f"{where}.mx", lo=0.0)
-    my = _number(lobe.get("my", 0.1) if m is None else m, f"{where}.my", lo=0.0)
-    out = {k: v for k, v in lobe.items() if k != "m"}
-    out.update(kind=kind, ks=_rgb(lobe.get("ks", (1.0, 1.0, 1.0)), f"{where}.ks", hi=1.0),
-               mx=max(mx, M_MIN), my=max(my, M_MIN),
-               r0=min(_number(lobe.get("r0", 0.04), f"{where}.r0", lo=0.0), 1.0),
-               alpha=min(_number(lobe.get("alpha", 0.0), f"{where}.alpha", lo=0.0), 1.0))
-    return out
-
-
-def checked_material(entry: dict) -> dict:
-    """A copy of the manifest material entry with kd, emission and lobes checked and clamped;
-    GlintError naming the material and field for a value that cannot be shown."""
-    if not isinstance(entry, dict):
-        raise GlintError(f"a material must be a table (got {entry!r})")
-    where = f"material '{entry.get('name', '?')}'"
-    out = copy.deepcopy(entry)
-    out["kd"] = _rgb(entry.get("kd", (0.8, 0.8, 0.8)), f"{where} kd", hi=1.0)
-    out["emission"] = _rgb(entry.get("emission", (0.0, 0.0, 0.0)), f"{where} emission")
-    lobes = entry.get("lobes") or []
-    if not isinstance(lobes, list):
-        raise GlintError(f"{where} lobes must be a list (got {lobes!r})")
-    out["lobes"] = [checked_lobe(lobe, f"{where} lobes[{k}]") for k, lobe in enumerate(lobes)]
-    return out
+from glint.core.manifest import Material
+from glint.core.material_schema import checked_material
 
 
 class MaterialEdits:
     """The materials as edited, and the undo / redo history of edits (module docstring).
 
-    `baked`: the bake manifest's materials (what Revert returns to); `apply(index, entry)`
-    shows an edit (raises GlintError to refuse it); `on_edit(materials)`, optional, hears of
-    every change the viewer shows (edit, undo, redo, revert) with the whole list."""
+    `baked`: the bake's materials (what Revert returns to; typed, or manifest entries read by
+    `Material.from_json`); `apply(index, material)` shows an edit (raises GlintError to refuse it);
+    `on_edit(materials)`, optional, hears of every change the viewer shows (edit, undo, redo,
+    revert) with the whole list as manifest entries (`Material.to_json`)."""
 
-    def __init__(self, baked: list[dict], apply: Callable[[int, dict], None],
+    def __init__(self, baked: list, apply: Callable[[int, Material], None],
                  on_edit: Callable[[list[dict]], None] | None = None):
-        self.baked = copy.deepcopy(list(baked))
-        self.materials = copy.deepcopy(self.baked)
+        self.baked = [m if isinstance(m, Material) else Material.from_json(m) for m in baked]
+        self.materials = list(self.baked)
         self.apply = apply
         self.on_edit = on_edit
-        self.undo_stack: list[tuple[int, dict, dict, object]] = []  # (index, before, after, group)
-        self.redo_stack: list[tuple[int, dict, dict, object]] = []
+        self.undo_stack: list[tuple[int, Material, Material, object]] = []  # (index, before, after, group)
+        self.redo_stack: list[tuple[int, Material, Material, object]] = []
 
-    def edit(self, index: int, entry: dict, group=None) -> dict:
-        """Show `entry` as material `index` and record it (checked_material; GlintError refuses it and
+    def edit(self, index: int, material: Material, group=None) -> Material:
+        """Show `material` as material `index` and record it (checked_material; GlintError refuses it and
         changes nothing). Consecutive edits with the same `group` (not None; a slider being dragged)
-        form one undo step. -> the entry as applied."""
+        form one undo step. -> the material as applied."""
         if not 0 <= index < len(self.materials):
             raise GlintError(f"no material {index} (the scene has {len(self.materials)})")
-        entry = checked_material(entry)
+        entry = checked_material(material)
         before = self.materials[index]
         self._show(index, entry)
         last = self.undo_stack[-1] if self.undo_stack else None
@@ -146,8 +86,8 @@ class MaterialEdits:
         """Every material back to the bake's, as one undo step per changed material."""
         changed = [i for i, (m, b) in enumerate(zip(self.materials, self.baked)) if m != b]
         for i in changed:
-            self.undo_stack.append((i, self.materials[i], copy.deepcopy(self.baked[i]), None))
-            self._show(i, copy.deepcopy(self.baked[i]))
+            self.undo_stack.append((i, self.materials[i], self.baked[i], None))
+            self._show(i, self.baked[i])
         if changed:
             self.redo_stack.clear()
             self._notify()
@@ -158,10 +98,10 @@ class MaterialEdits:
         """Indices of the materials that differ from the bake's."""
         return [i for i, (m, b) in enumerate(zip(self.materials, self.baked)) if m != b]
 
-    def _show(self, index: int, entry: dict) -> None:
+    def _show(self, index: int, entry: Material) -> None:
         self.apply(index, entry)
         self.materials[index] = entry
 
     def _notify(self) -> None:
         if self.on_edit is not None:
-            self.on_edit(copy.deepcopy(self.materials))
+            self.on_edit([m.to_json() for m in self.materials])

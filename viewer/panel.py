@@ -9,9 +9,11 @@ transmission) mapped to kd and lobes by the bake's own rule, which the command l
 Revert (to the bake's materials), Save (the window's `on_save(materials)`).
 
 Every widget calls one of the panel's methods (`set_kd`, `set_lobe`, `set_gltf`, ...), which
-the tests call directly too; the methods build the new manifest entry and hand it to
-viewer/material_edits.py `MaterialEdits.edit` (checked there: a refused value leaves the
-material as it was and its message shows in red in the panel). A slider dragged over many
+the tests call directly too; the methods build the new material (a `dataclasses.replace` of the
+typed core/manifest.py Material and its core.scene.Lobe's) and hand it to viewer/material_edits.py
+`MaterialEdits.edit` (checked there by the material schema, core/material_schema.py, the sidecar's
+rules and messages: a refused value leaves the material as it was and its message shows in red in
+the panel). A slider dragged over many
 frames is one undo step (`group`).
 
     panel = MaterialPanel(edits, objects, pbr_mapping=mapping, on_save=save)
@@ -22,36 +24,39 @@ frames is one undo step (`group`).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import Callable
 
 from glint.core.bsdf import M_MIN
 from glint.core.errors import GlintError
-from glint.viewer.material_edits import LOBE_KINDS, MaterialEdits
+from glint.core.manifest import Material, lobe_from_json
+from glint.core.material_schema import LOBE_KINDS, lobe_value
+from glint.core.scene import Lobe
+from glint.viewer.material_edits import MaterialEdits
 
 GLTF_KEYS = ("base_color", "metallic", "roughness", "transmission")
-NEW_LOBE = {"kind": "reflect", "ks": [0.5, 0.5, 0.5], "mx": 0.1, "my": 0.1, "r0": 0.04, "alpha": 0.0}
+NEW_LOBE = Lobe(ks=(0.5, 0.5, 0.5))  # the other fields Lobe's defaults
 ERROR_COLOUR = (1.0, 0.35, 0.3, 1.0)
 PANEL_WIDTH = 340  # pixels
 
 
-def gltf_guess(entry: dict) -> dict:
+def gltf_guess(entry: Material) -> dict:
     """glTF-style values that map (bake/material_mapping.py's rule) to this entry as closely as a
     metallic-roughness material can: the rule gives kd = b (1 - M)(1 - t), a metal lobe (r0 = 1)
     ks = b M and a transmit lobe ks = b (1 - M) t, so b = kd + metal ks + transmit ks, M and t
     follow, and the roughness is sqrt(m) of the first lobe (1 without lobes)."""
-    kd = [float(c) for c in entry.get("kd", (0.8, 0.8, 0.8))[:3]]
-    lobes = entry.get("lobes") or []
-    metal = next((lobe for lobe in lobes if lobe.get("kind", "reflect") == "reflect" and lobe.get("r0", 0) >= 1.0),
-                 None)
-    transmit = next((lobe for lobe in lobes if lobe.get("kind") == "transmit"), None)
-    mks = [float(c) for c in metal["ks"][:3]] if metal else [0.0] * 3
-    tks = [float(c) for c in transmit["ks"][:3]] if transmit else [0.0] * 3
+    kd = [float(c) for c in entry.kd[:3]]
+    lobes = entry.lobes
+    metal = next((lobe for lobe in lobes if lobe.kind == "reflect" and lobe.r0 >= 1.0), None)
+    transmit = next((lobe for lobe in lobes if lobe.kind == "transmit"), None)
+    mks = [float(c) for c in metal.ks[:3]] if metal else [0.0] * 3
+    tks = [float(c) for c in transmit.ks[:3]] if transmit else [0.0] * 3
     base = [min(k + m + t, 1.0) for k, m, t in zip(kd, mks, tks)]
     mean = lambda v: sum(v) / 3.0  # noqa: E731
     metallic = mean(mks) / mean(base) if mean(base) > 0 else 0.0
     dielectric = mean(base) * (1.0 - metallic)
     transmission = mean(tks) / dielectric if dielectric > 0 else 0.0
-    roughness = math.sqrt(max(float(lobes[0].get("my", 1.0)), 0.0)) if lobes else 1.0
+    roughness = math.sqrt(max(float(lobes[0].my), 0.0)) if lobes else 1.0
     return {"base_color": base, "metallic": min(max(metallic, 0.0), 1.0), "roughness": min(roughness, 1.0),
             "transmission": min(max(transmission, 0.0), 1.0)}
 
@@ -101,15 +106,16 @@ class MaterialPanel:
         return [name for name, m in self.objects if m == material]
 
     @property
-    def entry(self) -> dict | None:
+    def entry(self) -> Material | None:
         return None if self.material is None else self.edits.materials[self.material]
 
     # -- edits (what the widgets call) -------------------------------------------------------------
     def _edit(self, changes: dict, group=None) -> bool:
+        """The material being edited with `changes` (Material fields) replaced, as an edit."""
         if self.material is None:
             return False
         try:
-            self.edits.edit(self.material, {**self.entry, **changes}, group=group)
+            self.edits.edit(self.material, replace(self.entry, **changes), group=group)
         except GlintError as e:
             self.message = str(e)
             return False
@@ -123,33 +129,30 @@ class MaterialPanel:
         return self._edit({"emission": list(rgb)}, group)
 
     def set_lobe(self, k: int, group=None, **fields) -> bool:
-        """Change lobe k's fields (kind, ks, mx, my, r0, alpha; `m` sets mx = my)."""
-        lobes = [dict(lobe) for lobe in self.entry.get("lobes") or []]
+        """Change lobe k's fields (kind, ks, mx, my, r0, alpha; `m` sets mx = my, checked as the
+        sidecar's `m` is)."""
+        lobes = list(self.entry.lobes)
         if not 0 <= k < len(lobes):
             self.message = f"no lobe {k}"
             return False
         if "m" in fields:
-            m = fields.pop("m")
-            fields["mx"] = fields["my"] = m
-        lobes[k].update(fields)
+            try:
+                fields["mx"] = fields["my"] = lobe_value("m", fields.pop("m"), f"material '{self.entry.name}' lobes[{k}]")
+            except GlintError as e:
+                self.message = str(e)
+                return False
+        lobes[k] = replace(lobes[k], **fields)
         return self._edit({"lobes": lobes}, group)
 
     def add_lobe(self) -> bool:
-        return self._edit({"lobes": [*(self.entry.get("lobes") or []), dict(NEW_LOBE)]})
+        return self._edit({"lobes": [*self.entry.lobes, replace(NEW_LOBE)]})
 
     def remove_lobe(self, k: int) -> bool:
-        lobes = list(self.entry.get("lobes") or [])
+        lobes = list(self.entry.lobes)
         return 0 <= k < len(lobes) and self._edit({"lobes": lobes[:k] + lobes[k + 1:]})
 
     def set_anisotropy_rotation(self, radians: float, group=None) -> bool:
-        try:
-            value = float(radians)
-        except (TypeError, ValueError):
-            value = math.nan
-        if not math.isfinite(value):
-            self.message = f"the anisotropy direction must be a finite angle (got {radians!r})"
-            return False
-        return self._edit({"anisotropy_rotation": value}, group)
+        return self._edit({"anisotropy_rotation": radians}, group)
 
     def gltf(self) -> dict:
         """The glTF-style values shown for the material (last set, else `gltf_guess`)."""
@@ -158,7 +161,8 @@ class MaterialPanel:
         return self._gltf[self.material]
 
     def set_gltf(self, group=None, **values) -> bool:
-        """Change glTF-style values (GLTF_KEYS) and replace kd and the lobes by the bake's mapping of them."""
+        """Change glTF-style values (GLTF_KEYS) and replace kd and the lobes by the bake's mapping of them
+        (its lobes handed over as manifest dicts, read by the model's `lobe_from_json`)."""
         if self.pbr_mapping is None:
             self.message = "no glTF mapping in this viewer"
             return False
@@ -171,7 +175,7 @@ class MaterialPanel:
         except GlintError as e:
             self.message = str(e)
             return False
-        if self._edit({"kd": list(kd), "lobes": list(lobes)}, group):
+        if self._edit({"kd": list(kd), "lobes": [lobe_from_json(lobe) for lobe in lobes]}, group):
             self._gltf[self.material] = state
             return True
         return False
@@ -193,7 +197,7 @@ class MaterialPanel:
             self.status = "nothing to save to"
             return False
         try:
-            self.on_save([dict(m) for m in self.edits.materials])
+            self.on_save([m.to_json() for m in self.edits.materials])  # the save's one conversion
         except GlintError as e:
             self.status = f"not saved: {e}"
             return False
@@ -242,7 +246,7 @@ class MaterialPanel:
     def _draw_selection(self, imgui) -> None:
         picked = self.objects[self.picked][0] if self.picked is not None else "none (click an object, or M over it)"
         imgui.text(f"object: {picked}")
-        names = [m.get("name", f"material {i}") for i, m in enumerate(self.edits.materials)]
+        names = [m.name or f"material {i}" for i, m in enumerate(self.edits.materials)]
         current = self.material if self.material is not None else 0
         changed, index = imgui.combo("material", current, names)
         if changed:
@@ -262,23 +266,23 @@ class MaterialPanel:
 
     def _draw_material(self, imgui) -> None:
         m = self.entry
-        changed, kd = imgui.color_edit3("kd", list(m.get("kd", (0.8, 0.8, 0.8)))[:3], imgui.ColorEditFlags_.float)
+        changed, kd = imgui.color_edit3("kd", list(m.kd)[:3], imgui.ColorEditFlags_.float)
         self._widget(imgui, changed, lambda group: self.set_kd(kd, group), "kd")
-        if m.get("kd_texture"):
+        if m.kd_texture:
             imgui.text_disabled("(times the base-colour texture)")
-        changed, emission = imgui.drag_float3("emission", list(m.get("emission", (0, 0, 0)))[:3], 0.05, 0.0, 1e4)
+        changed, emission = imgui.drag_float3("emission", list(m.emission)[:3], 0.05, 0.0, 1e4)
         self._widget(imgui, changed, lambda group: self.set_emission(emission, group), "emission")
-        lobes = m.get("lobes") or []
+        lobes = m.lobes
         for k, lobe in enumerate(lobes):
             imgui.push_id(f"lobe{k}")
-            if imgui.tree_node_ex(f"lobe {k}: {lobe.get('kind', 'reflect')}", imgui.TreeNodeFlags_.default_open):
+            if imgui.tree_node_ex(f"lobe {k}: {lobe.kind}", imgui.TreeNodeFlags_.default_open):
                 self._draw_lobe(imgui, k, lobe)
                 imgui.tree_pop()
             imgui.pop_id()
         if imgui.button("add lobe"):
             self.add_lobe()
-        if "anisotropy_rotation" in m or any(lb.get("mx") != lb.get("my") for lb in lobes):
-            changed, angle = imgui.slider_angle("anisotropy direction", float(m.get("anisotropy_rotation", 0.0)),
+        if m.anisotropy_rotation or any(lb.mx != lb.my for lb in lobes):
+            changed, angle = imgui.slider_angle("anisotropy direction", float(m.anisotropy_rotation),
                                                 -180.0, 180.0)
             self._widget(imgui, changed, lambda group: self.set_anisotropy_rotation(angle, group), "rotation")
         if self.pbr_mapping is not None and imgui.collapsing_header("glTF-style"):
@@ -290,14 +294,14 @@ class MaterialPanel:
                 self._widget(imgui, changed, lambda group, key=key, value=value: self.set_gltf(group, **{key: value}),
                              key)
 
-    def _draw_lobe(self, imgui, k: int, lobe: dict) -> None:
-        kind = lobe.get("kind", "reflect")
+    def _draw_lobe(self, imgui, k: int, lobe: Lobe) -> None:
+        kind = lobe.kind
         changed, choice = imgui.combo("kind", LOBE_KINDS.index(kind) if kind in LOBE_KINDS else 0, list(LOBE_KINDS))
         if changed:
             self.set_lobe(k, kind=LOBE_KINDS[choice])
-        changed, ks = imgui.color_edit3("ks", list(lobe.get("ks", (1, 1, 1)))[:3], imgui.ColorEditFlags_.float)
+        changed, ks = imgui.color_edit3("ks", list(lobe.ks)[:3], imgui.ColorEditFlags_.float)
         self._widget(imgui, changed, lambda group: self.set_lobe(k, group, ks=ks), ("ks", k))
-        mx, my = float(lobe.get("mx", 0.1)), float(lobe.get("my", 0.1))
+        mx, my = float(lobe.mx), float(lobe.my)
         flags = imgui.SliderFlags_.logarithmic
         if mx == my:
             changed, m = imgui.slider_float("m", mx, M_MIN, 1.0, "%.4f", flags)
@@ -310,9 +314,9 @@ class MaterialPanel:
         changed, anisotropic = imgui.checkbox("anisotropic", mx != my)
         if changed:
             self.set_lobe(k, mx=mx, my=min(2.0 * mx, 1.0) if anisotropic else mx)
-        changed, r0 = imgui.slider_float("r0", float(lobe.get("r0", 0.04)), 0.0, 1.0)
+        changed, r0 = imgui.slider_float("r0", float(lobe.r0), 0.0, 1.0)
         self._widget(imgui, changed, lambda group: self.set_lobe(k, group, r0=r0), ("r0", k))
-        changed, alpha = imgui.slider_float("alpha", float(lobe.get("alpha", 0.0)), 0.0, 1.0)
+        changed, alpha = imgui.slider_float("alpha", float(lobe.alpha), 0.0, 1.0)
         self._widget(imgui, changed, lambda group: self.set_lobe(k, group, alpha=alpha), ("alpha", k))
         if imgui.small_button("remove lobe"):
             self.remove_lobe(k)

@@ -254,13 +254,13 @@ class Renderer:
             previous.use()
 
     # -- live material edits ---------------------------------------------------------------------
-    def set_material(self, index: int, entry: dict) -> None:
-        """Show material `index` as the manifest entry `entry` from the next frame on
+    def set_material(self, index: int, material) -> None:
+        """Show material `index` as the typed `material` (core/manifest.py Material) from the next frame on
         (GpuScene.set_material checks it: GlintError for values it cannot show). The G-buffer
         holds kd/pi E and the mirror buffers kd and emission, so both are drawn again; the next
         `mode="auto"` frame is a walkthrough frame of the new material and the still-camera
         refinement starts over from it."""
-        self.scene.set_material(index, entry)
+        self.scene.set_material(index, material)
         self.mirror.set_material(index, self.scene.materials[index])  # the guard band follows the lobes
         self.shading.update_specular(self.scene)
         self.invalidate()
