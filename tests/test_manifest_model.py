@@ -33,11 +33,9 @@ SCENES = ROOT / "scenes"
 
 # Modules that still read the manifest as JSON, with the reason (issue 23: to migrate next).
 PENDING = {
-    "bake/rebake.py": "the background re-bake reads and rewrites the manifest JSON",
     "bake/edits.py": "material editing: the material schema piece makes it typed",
     "viewer/material_edits.py": "material editing: the material schema piece makes it typed",
     "viewer/panel.py": "material editing: the material schema piece makes it typed",
-    "glint/cubemap_stage.py": "diffuse_view rewrites the manifest JSON",
     "bench/edit_screenshots.py": "bench tools: cameras as dicts",
     "bench/measure_editing.py": "bench tools: cameras as dicts",
     "bench/measure_rebake.py": "bench tools: cameras as dicts",
