@@ -294,7 +294,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
                            statistics=Statistics(dict(old.statistics.data)))
 
     if old is not None and announce is not None:
-        announce(stale_reason(old.to_json(), manifest.to_json()))
+        announce(stale_reason(old, manifest))
     executor = executor_for(settings)
     probes_to_render = _to_render(cubemaps, old, old_dir)
     if not reuse_lightmaps or probes_to_render:
@@ -327,8 +327,7 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         # What the viewer will show wrong because the loader ignored it (glint.services.fidelity_line).
         stats["ignored_features"] = dict(scene.ignored_features)
         # What this bake redid and reused, for later commands that find it up to date (core/skipped.py).
-        stats["last_bake"] = bake_record(status, None if old is None else old.to_json(), manifest.to_json(),
-                                         stats["cubemaps"], forced=force)
+        stats["last_bake"] = bake_record(status, old, manifest, stats["cubemaps"], forced=force)
         write_json(out.path / "manifest.json", manifest.to_json())
         out.commit()
     return BakeReport(bake_dir, status, manifest, redone)

@@ -9,7 +9,7 @@ so the viewer keeps its frame rate while the bake's own integrator runs:
 
 - The worker loads the scene once (or is handed one), reads the bake's atlas and meshes
   (`pipeline.read_atlas`: no re-unwrap) and rasterises the texels once, then waits for edits.
-- An edit is the list of the manifest's material entries (`bake.manifest["materials"]`: name,
+- An edit is the list of the manifest's material entries (`Bake.model.materials` as JSON: name,
   kd, emission, lobes, ...) as the viewer's panel holds them. The entries that differ from the
   bake's are checked exactly as the sidecar's [materials] tables (bake/material_mapping.py
   `parse_material_override`, one-line GlintError naming the key) and applied as the loader applies
@@ -62,8 +62,9 @@ from glint.bake.material_mapping import OVERRIDE_KEYS, apply_override, override_
 from glint.bake.pipeline import read_atlas
 from glint.bake.settings import BakeSettings
 from glint.bake.texels import rasterize_texels
-from glint.core.bake_dir import read_manifest
+from glint.core.bake_dir import read_model
 from glint.core.errors import GlintError
+from glint.core.manifest import Manifest
 from glint.core.scene import Scene
 
 FIRST_SAMPLES = 8  # paths per texel of the first pass: seconds on the living room (docs/VIEWER.md)
@@ -81,10 +82,10 @@ def pass_samples(samples: int) -> list[int]:
     return out
 
 
-def bake_settings(manifest: dict) -> BakeSettings:
+def bake_settings(manifest: Manifest) -> BakeSettings:
     """The settings the bake directory was made with (its manifest's `settings`), in one process."""
     names = {f.name for f in fields(BakeSettings)}
-    return replace(BakeSettings(), **{k: v for k, v in manifest["settings"].items() if k in names}, jobs=1)
+    return replace(BakeSettings(), **{k: v for k, v in manifest.settings.items() if k in names}, jobs=1)
 
 
 def material_overrides(materials: list[dict], baked: list[dict]) -> dict[int, dict]:
@@ -146,12 +147,12 @@ class _Cancelled(Exception):
     pass
 
 
-def bake_probes(scene: Scene, manifest: dict, settings: BakeSettings) -> list[CubeMapPlan]:
+def bake_probes(scene: Scene, manifest: Manifest, settings: BakeSettings) -> list[CubeMapPlan]:
     """The probes of the bake directory whose `manifest` was baked from `scene` with `settings`:
     bake/cubemap.py plans them again (the scene as baked, not as edited), and only the plans whose
     hash is the manifest's (its stages.cubemaps) are kept."""
-    hashes = manifest["stages"].get("cubemaps", {})
-    plans = plan_cubemaps(scene, manifest["stages"]["lightmaps"], ProbeRules.of(settings)) if hashes else []
+    hashes = manifest.stages.get("cubemaps", {})
+    plans = plan_cubemaps(scene, manifest.stages["lightmaps"], ProbeRules.of(settings)) if hashes else []
     return [plan for plan in plans if hashes.get(str(plan.index)) == plan.hash]
 
 
@@ -165,11 +166,11 @@ def _prepare(source, bake_dir: Path, edits=()):
             from glint.bake.gltf_loader import load_scene  # the worker's only use of the loader
 
             scene = load_scene(Path(source), list(edits))
-    manifest = read_manifest(bake_dir)
+    manifest = read_model(bake_dir)
     if manifest is None:
         raise GlintError(f"{bake_dir}: not a glint bake directory (or made by another version); run `glint bake`")
     settings = bake_settings(manifest)
-    if geometry_hash(scene, settings) != manifest["stages"].get("geometry"):
+    if geometry_hash(scene, settings) != manifest.stages.get("geometry"):
         raise GlintError(f"{bake_dir}: made from other geometry than {scene.name}; run `glint bake`")
     pages = rasterize_texels(scene.objects, read_atlas(bake_dir, len(scene.objects)))
     return scene, settings, manifest, pages
@@ -280,11 +281,11 @@ class Rebaker:
     def __init__(self, scene: Scene | str | Path, bake_dir: Path, *, schedule: list[int] | None = None,
                  nice: int = NICE, edits=(), probes=None):
         self.bake_dir = Path(bake_dir)
-        manifest = read_manifest(self.bake_dir)
+        manifest = read_model(self.bake_dir)
         if manifest is None:
             raise GlintError(f"{self.bake_dir}: not a glint bake directory (or made by another version); "
                              "run `glint bake`")
-        self.baked = manifest["materials"]
+        self.baked = [m.to_json() for m in manifest.materials]  # as the edits come: material entries (JSON)
         self.schedule = list(schedule or pass_samples(bake_settings(manifest).samples))
         ctx = mp.get_context("spawn")
         self._commands, self._results = ctx.Queue(), ctx.Queue()

@@ -55,6 +55,7 @@ from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
 from glint.core.constants import MIRROR_PLANE_COS
 from glint.core.errors import GlintError
+from glint.core.manifest import Manifest
 from glint.services import number, parse_size, run_bake
 from glint.viewer.camera import ViewCamera, find_named, scene_bounds
 from glint.viewer.context import headless_context
@@ -194,8 +195,8 @@ def check_arguments(args) -> dict:
     return parsed
 
 
-def choose_cameras(manifest: dict, names: list[str] | None, aspect: float) -> list:
-    cameras = manifest.get("cameras") or []
+def choose_cameras(manifest: Manifest, names: list[str] | None, aspect: float) -> list:
+    cameras = manifest.cameras
     if names:
         chosen = []
         for name in dict.fromkeys(names):
@@ -222,18 +223,18 @@ def region_masks(renderer, bake) -> dict[str, np.ndarray]:
     g = read_gbuffer(renderer.gbuffer.targets)
     h, w = g["material"].shape
     dark, material, obj, normal, drawn = g["dark"], g["material"], g["object"], g["normal"], g["drawn"]
-    manifest = bake.manifest
-    objects = manifest["objects"]
-    lobed = np.array([bool(m.get("lobes")) for m in manifest["materials"]] + [False])
+    manifest = bake.model
+    objects = manifest.objects
+    lobed = np.array([bool(m.lobes) for m in manifest.materials] + [False])
     cubed = np.array([renderer.scene.cubemaps.has_cubemap(i) for i in range(len(objects))] + [False])
     # Planar reflectors in this frame's mirror passes, and their planes' normals.
     mirrored = {name for p in renderer.stats.get("mirror", {}).get("passes", []) for name in p.get("reflectors", ())}
     plane_normal = np.zeros((len(objects) + 1, 3), np.float32)
     in_pass = np.zeros(len(objects) + 1, bool)
     for i, o in enumerate(objects):
-        if o["name"] in mirrored and o.get("plane"):
+        if o.name in mirrored and o.plane is not None:
             in_pass[i] = True
-            plane_normal[i] = o["plane"]["normal"]
+            plane_normal[i] = o.plane.normal
     material = np.where(drawn, np.minimum(material, len(lobed) - 1), len(lobed) - 1)
     obj = np.where(drawn, np.minimum(obj, len(cubed) - 1), len(cubed) - 1)
     facing = np.einsum("hwc,hwc->hw", normal, plane_normal[obj]) >= MIRROR_PLANE_COS
@@ -246,11 +247,11 @@ def region_masks(renderer, bake) -> dict[str, np.ndarray]:
         return np.ascontiguousarray(m[::-1])
 
     regions = {"image": np.ones((out_h, out_w), bool), "view-dependent": pool(specular)}
-    for index, m in enumerate(manifest["materials"]):
-        if m.get("lobes"):
+    for index, m in enumerate(manifest.materials):
+        if m.lobes:
             mask = pool(specular & (material == index))
             if mask.sum() >= MIN_REGION_PIXELS:
-                regions[f"material:{m['name']}"] = mask
+                regions[f"material:{m.name}"] = mask
     return regions
 
 
@@ -372,7 +373,7 @@ def run_sweep(args) -> int:
     report = run_bake(args, progress=sys.stderr.isatty(), outputs=[("-o", parsed["output"])])
     bake = Bake(report.bake_dir)
     size = parsed["size"]
-    cameras = choose_cameras(bake.manifest, args.camera, size[0] / size[1])
+    cameras = choose_cameras(bake.model, args.camera, size[0] / size[1])
     out = parsed["output"]
     flip = None if args.no_flip else flip_module()
     methods = [METHODS[k] for k in parsed["methods"]]
@@ -397,7 +398,7 @@ def run_sweep(args) -> int:
                 runs = [(method, n) for method in methods for n in method.samples(parsed["samples"])]
                 for (method, n), (image, timing) in zip(runs, sweep(ctx, bake, runs, camera, size, parsed, progress)):
                     # the work skipped in the camera's frame (the same tiles and passes for every method)
-                    skipping.setdefault(camera.name, {**timing["skipping"], **bake_section(bake.manifest, report.status)})
+                    skipping.setdefault(camera.name, {**timing["skipping"], **bake_section(bake.model, report.status)})
                     results.append({"camera": camera.name, "method": method.key, "n": n,
                                     "gpu_ms": {k: v for k, v in timing.items() if k not in EXTRA_KEYS},
                                     "lookups_per_pixel": timing["lookups_per_pixel"],

@@ -55,7 +55,7 @@ def main() -> None:
                 t0 = time.perf_counter()
                 report = bake_scene(scene, settings, Path(tmp) / "x.bake", progress=False)
                 wall = time.perf_counter() - t0
-                stats = report.manifest["statistics"]
+                stats = report.model.statistics.data
                 row = {"scene": name, "preset": preset, "samples": settings.samples,
                        "texels_per_metre": settings.texels_per_metre, "jobs": args.jobs,
                        "wall_seconds": round(wall, 1), "unwrap_seconds": stats["unwrap"]["seconds"],

@@ -31,6 +31,7 @@ import numpy as np
 
 from glint.bench.report import write_json, write_png
 from glint.core.atomic import atomic_write_text
+from glint.core.bake_dir import read_model
 from glint.core.image_io import read_image
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
@@ -121,10 +122,9 @@ def main(argv: list[str] | None = None) -> int:
     reference = downsample(read_image(args.reference)[..., :3], (w, h))
     m = metrics(ours, reference)
     write_png(args.out / "side_by_side.png", side_by_side(ours, reference, m.pop("stops_per_block")))
-    manifest = json.loads((bake_dir / "manifest.json").read_text())
     result = {"scene": str(args.scene), "camera": args.camera, "size": [w, h], "quality": args.quality,
               "converge": args.converge, **m, "bake_command_seconds": round(bake_s, 1),
-              "capture_command_seconds": round(capture_s, 1), "bake_statistics": manifest.get("statistics")}
+              "capture_command_seconds": round(capture_s, 1), "bake_statistics": read_model(bake_dir).statistics.data}
     write_json(args.out / "external.json", result)
     atomic_write_text(args.out / "external.md", (
         f"| scene | blocks within half a stop | black where lit | mean luminance ratio |\n|---|---|---|---|\n"

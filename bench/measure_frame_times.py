@@ -77,7 +77,7 @@ def main() -> None:
     print(header)
     for scene in args.scenes.split(","):
         bake = load_bake(scene, args.bake_root)
-        for cam in bake.manifest["cameras"]:
+        for cam in bake.model.cameras:
             camera = ViewCamera.from_manifest(cam)
             for ss in factors:
                 renderer = Renderer(ctx, bake, supersample=ss, samples_per_frame=4)

@@ -105,9 +105,9 @@ def measure(root: Path, n: int, kind: str, size, frames: int, warmup: int, ctx) 
     t0 = time.perf_counter()
     bake_scene(loaded, resolve_settings(loaded.bake_settings), bake_dir, progress=False)
     bake = Bake(bake_dir)
-    statistics = bake.manifest.get("statistics", {})
+    statistics = bake.model.statistics.data
     with Renderer(ctx, bake) as renderer:
-        camera = ViewCamera.from_manifest(find_named(bake.manifest.get("cameras") or [], "view"))
+        camera = ViewCamera.from_manifest(find_named(bake.model.cameras, "view"))
         timed = time_view(renderer, camera, size, frames, warmup, "walkthrough")
         stats = renderer.stats
         profiled = python_time(renderer, camera, size, frames)

@@ -108,7 +108,7 @@ def bake(scene_file: Path, out: Path):
 
 def measure(bake_obj, budgets, size, frames):
     ctx = headless_context()
-    camera = ViewCamera.from_manifest(bake_obj.manifest["cameras"][0])
+    camera = ViewCamera.from_manifest(bake_obj.model.cameras[0])
     rows = []
     for budget in budgets:
         r = Renderer(ctx, bake_obj, mirror_budget=budget)

@@ -46,7 +46,7 @@ def main() -> None:
     visibility = raster_program(ctx, "gbuffer.vert", "visibility.frag", shader_defines())
     for scene in args.scenes.split(","):
         bake = load_bake(scene, None if args.bake_root is None else Path(args.bake_root))
-        camera = ViewCamera.from_manifest(bake.manifest["cameras"][0])
+        camera = ViewCamera.from_manifest(bake.model.cameras[0])
         with Renderer(ctx, bake) as r:
             for size in args.sizes.split(","):
                 w, h = (int(x) for x in size.lower().split("x"))

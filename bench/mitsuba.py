@@ -273,7 +273,7 @@ def cmd_bench_mitsuba(args) -> int:
     scene, _ = open_scene(args.scene)  # the bake's own loading path: the same materials
     size = parsed["size"]
     w, h = size
-    cameras = choose_cameras(bake.manifest, args.camera, w / h)
+    cameras = choose_cameras(bake.model, args.camera, w / h)
     out = parsed["output"]
     flip = None if args.no_flip else flip_module()
     spps = curve_spps(parsed["max_spp"])

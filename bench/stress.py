@@ -55,6 +55,7 @@ from glint.bench.report import write_json
 from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
+from glint.core.manifest import Manifest
 from glint.scenes import stress as stress_scenes
 from glint.services import bake_scene
 from glint.viewer.camera import ViewCamera, camera_path_at, clip_range, find_named, path_span
@@ -89,11 +90,12 @@ def nonfinite(a: np.ndarray) -> tuple[int, int]:
     return int(np.isnan(a).sum()), int(np.isinf(a).sum())
 
 
-def bake_nonfinite(bake_dir: Path, manifest: dict) -> dict:
+def bake_nonfinite(bake_dir: Path, manifest: Manifest) -> dict:
     """NaN and Inf in the bake's light maps and cube maps, read back from their files, and their
     stored precision (half float only where every value fits, bake/lightmap.py)."""
     out = {"nan": 0, "inf": 0, "files": 0, "float32_files": [], "max_value": 0.0}
-    files = list(manifest.get("lightmaps", [])) + list(manifest.get("lightmaps_back") or []) + [o["cubemap"]["file"] for o in manifest["objects"] if o.get("cubemap")]
+    files = list(manifest.lightmaps) + list(manifest.lightmaps_back) + [o.cubemap.file for o in manifest.objects
+                                                                        if o.cubemap is not None]
     for name in files:
         image = oiio.ImageInput.open(str(Path(bake_dir) / name))
         if image is None:
@@ -186,7 +188,7 @@ def render_case(ctx, bake, size=STRESS_SIZE) -> dict:
     renderer's statistics."""
     images = {}
     with Renderer(ctx, bake, samples_per_frame=8, max_frames=STILL_FRAMES) as r:
-        for entry in bake.manifest.get("cameras") or []:
+        for entry in bake.model.cameras:
             camera = ViewCamera.from_manifest(entry)
             r.render(camera, *size)
             walk = r.read_linear()
@@ -239,9 +241,9 @@ def check_case(case, rendered: dict, bake_counts: dict, reference: dict | None) 
 def walkthrough(ctx, bake, path_name: str, frames: int, size=WALKTHROUGH_SIZE, progress=None) -> dict:
     """`frames` walkthrough frames cycling along the camera path `path_name`; memory at frame
     WARMUP_FRAMES and at the end, and frame 0's view rendered again at the end."""
-    path = find_named(bake.manifest.get("camera_paths") or [], path_name, "camera path")
+    path = find_named(bake.model.camera_paths, path_name, "camera path")
     t0, t1 = path_span(path)
-    near, far = clip_range(bake.manifest)
+    near, far = clip_range(bake.model)
     period = max(min(frames, 600), 2)  # frames per trip along the path
 
     def view(k):
@@ -345,7 +347,7 @@ def run_stress(args) -> int:
                 bar.set_postfix_str(case.name)
                 report, seconds, warnings = bake_case(case, out, args.jobs, denoise)
                 bake = Bake(report.bake_dir)
-                counts = bake_nonfinite(report.bake_dir, bake.manifest)
+                counts = bake_nonfinite(report.bake_dir, bake.model)
                 rendered[case.name] = render_case(ctx, bake)
                 result = check_case(case, rendered[case.name], counts, rendered.get(case.compare_with))
                 stats = rendered[case.name]["stats"]
@@ -361,7 +363,7 @@ def run_stress(args) -> int:
                     inner = tqdm(total=frames - 1, desc="walkthrough", unit="frame", disable=None, leave=False)
                     with inner:
                         walk = walkthrough(ctx, bake, case.path_name, frames, progress=inner.update)
-                    camera = ViewCamera.from_manifest(bake.manifest["cameras"][0])
+                    camera = ViewCamera.from_manifest(bake.model.cameras[0])
                     walk["case"] = case.name
                     walk["accumulation_drift"] = accumulation_drift(ctx, bake, camera)
                     failures += [f"walkthrough: {f}" for f in walkthrough_failures(walk)]

@@ -6,7 +6,7 @@ say what it skipped:
 - `cube_map_skips(manifest)`: per object whether it has a cube map, and if not why not --
   its material has no view-dependent lobe, it is a planar reflector (a mirror pass at run
   time instead, section 4.5), or the sidecar made it `diffuse`;
-- `bake_record(...)`, kept as `manifest["statistics"]["last_bake"]`: what the bake that
+- `bake_record(...)`, kept as the manifest's `statistics.last_bake`: what the bake that
   wrote the directory redid and reused (unwrap, light maps, cube maps) and which changed
   inputs made it (`changed_inputs`, a comparison of the previous manifest with the new one).
   It is kept in the manifest because a later command (`glint capture`, `glint bench`) finds
@@ -14,11 +14,14 @@ say what it skipped:
   comparison, and a bake dir written before the record existed reads as "not recorded".
 
 `summary_line` is the line `glint bake` prints; viewer/skipping.py puts the same numbers into
-`--stats` and the bench.
+`--stats` and the bench. Manifests are core/manifest.py's typed `Manifest`; the parts compared
+as values (lobes, lights, cameras, ...) are compared as their JSON, as the bake writes them.
 """
 from __future__ import annotations
 
 from pathlib import Path
+
+from glint.core.manifest import Manifest, Material
 
 NO_LOBE = "no view-dependent lobe"
 PLANAR = "planar: mirror pass instead"
@@ -27,33 +30,36 @@ NOT_BAKED = "no cube map in the bake"
 CUBE_MAP_REASONS = (NO_LOBE, PLANAR, DIFFUSE_ROLE, NOT_BAKED)
 
 
-def cube_map_skips(manifest: dict) -> dict:
+def cube_map_skips(manifest: Manifest) -> dict:
     """{"objects": n, "baked": k, "without": {reason: [object names]}} (every reason of
     CUBE_MAP_REASONS present, in that order)."""
-    materials = manifest["materials"]
     without: dict[str, list[str]] = {reason: [] for reason in CUBE_MAP_REASONS}
     baked = 0
-    for obj in manifest["objects"]:
-        if obj.get("cubemap"):
+    for obj in manifest.objects:
+        if obj.cubemap is not None:
             baked += 1
-        elif not materials[int(obj["material"])].get("lobes"):
-            without[NO_LOBE].append(obj["name"])
-        elif obj.get("role") == "planar":
-            without[PLANAR].append(obj["name"])
-        elif obj.get("role") == "diffuse":
-            without[DIFFUSE_ROLE].append(obj["name"])
+        elif not manifest.material_of(obj).lobes:
+            without[NO_LOBE].append(obj.name)
+        elif obj.role == "planar":
+            without[PLANAR].append(obj.name)
+        elif obj.role == "diffuse":
+            without[DIFFUSE_ROLE].append(obj.name)
         else:
-            without[NOT_BAKED].append(obj["name"])
-    return {"objects": len(manifest["objects"]), "baked": baked, "without": without}
+            without[NOT_BAKED].append(obj.name)
+    return {"objects": len(manifest.objects), "baked": baked, "without": without}
 
 
 # -- what changed since the last bake ------------------------------------------------------------
 def _by_name(entries) -> dict:
-    return {e["name"]: e for e in entries or []}
+    return {e.name: e for e in entries}
 
 
-def _lobes(material: dict, transmit: bool) -> list:
-    return [lobe for lobe in material.get("lobes") or [] if (lobe.get("kind") == "transmit") == transmit]
+def _lobes(material: Material, transmit: bool) -> list:
+    return [lobe.to_dict() for lobe in material.lobes if (lobe.kind == "transmit") == transmit]
+
+
+def _cubemap(obj) -> dict | None:
+    return obj.cubemap.to_json() if obj.cubemap is not None else None
 
 
 def _close(a, b, rel: float = 1e-9) -> bool:
@@ -109,24 +115,24 @@ VERSION_NAMES = {"format": "bake format", "geometry": "unwrap version", "transpo
                  "cubemap": "cube-map renderer version"}
 
 
-def version_changes(old: dict, new: dict) -> list[str]:
+def version_changes(old: Manifest, new: Manifest) -> list[str]:
     """glint's stage versions that differ between two manifests' `inputs.versions`, e.g.
     ["light-map integrator version 2 -> 3"]; [] when the same or when `old` records none."""
-    a, b = (old.get("inputs") or {}).get("versions"), (new.get("inputs") or {}).get("versions") or {}
+    a, b = (old.inputs or {}).get("versions"), (new.inputs or {}).get("versions") or {}
     if a is None:
         return []
     return [f"{VERSION_NAMES.get(k, k)} {a.get(k)} -> {v}" for k, v in b.items() if a.get(k) != v]
 
 
-def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
+def changed_inputs(old: Manifest, new: Manifest) -> dict[str, list[str]]:
     """The inputs that differ between two manifests, by the stage they invalidate (bake/hashing.py):
     {"files": [...], "geometry": [...], "light maps": [...], "manifest": [...]}, each a list of short
     phrases such as "sidecar room.glint.toml changed ([bake] samples)", "positions of Box",
     "kd of Floor" or "cameras". "files" names what changed in the scene's files (the sidecar's
     tables and keys, each object's content) besides what the stages name."""
     out: dict[str, list[str]] = {"files": [], "geometry": [], "light maps": [], "manifest": []}
-    old_inputs, new_inputs = old.get("inputs") or {}, new.get("inputs") or {}
-    if "inputs" in old:
+    old_inputs, new_inputs = old.inputs or {}, new.inputs or {}
+    if old.inputs is not None:
         out["files"] += sidecar_changes(old_inputs.get("sidecar"), new_inputs.get("sidecar"))
     old_objects_c, new_objects_c = old_inputs.get("objects"), new_inputs.get("objects") or {}
     if old_objects_c is not None:
@@ -141,14 +147,14 @@ def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
             what = [k for k, v in hashes.items() if o is not None and o.get(k) != v]
             if what:
                 out["geometry" if set(what) - {"uvs"} else "light maps"].append(f"{', '.join(what)} of {name}")
-    if old.get("stages", {}).get("geometry") != new["stages"]["geometry"] and not out["geometry"]:
+    if old.stages.get("geometry") != new.stages["geometry"] and not out["geometry"]:
         out["geometry"].append("geometry or light-map resolution")
-    old_settings = old.get("settings") or {}
-    changed = [f"{k} {old_settings.get(k)} -> {v}" for k, v in new["settings"].items()
+    old_settings = old.settings
+    changed = [f"{k} {old_settings.get(k)} -> {v}" for k, v in new.settings.items()
                if k != "quality" and not _close(old_settings.get(k), v)]
     if changed:
         out["light maps"].append("bake settings (" + ", ".join(changed) + ")")
-    old_materials, new_materials = _by_name(old.get("materials")), _by_name(new["materials"])
+    old_materials, new_materials = _by_name(old.materials), _by_name(new.materials)
     if set(old_materials) != set(new_materials):
         out["light maps"].append("materials added or removed")
     for name, m in new_materials.items():
@@ -157,29 +163,30 @@ def changed_inputs(old: dict, new: dict) -> dict[str, list[str]]:
             continue
         for key, what in (("kd", "kd"), ("emission", "emission"), ("double_sided", "sides"),
                           ("kd_texture", "kd texture")):
-            if not _close(o.get(key), m.get(key)):
+            if not _close(getattr(o, key), getattr(m, key)):
                 out["light maps"].append(f"{what} of {name}")
         if not _close(_lobes(o, True), _lobes(m, True)):
             out["light maps"].append(f"glass lobes of {name}")
         if not _close(_lobes(o, False), _lobes(m, False)):  # the bake's paths scatter by them (bake/scatter.py)
             out["light maps"].append(f"lobes of {name}")
-    old_objects, old_names = _by_name(old.get("objects")), [m["name"] for m in old.get("materials") or []]
-    for name, obj in _by_name(new["objects"]).items():
+    old_objects, old_names = _by_name(old.objects), [m.name for m in old.materials]
+    for name, obj in _by_name(new.objects).items():
         o = old_objects.get(name)
         if o is None:
             continue
-        k = int(o["material"])
-        if (old_names[k] if k < len(old_names) else None) != new["materials"][int(obj["material"])]["name"]:
+        k = int(o.material)
+        if (old_names[k] if k < len(old_names) else None) != new.material_of(obj).name:
             out["light maps"].append(f"material of {name}")
-        if o.get("role") != obj.get("role"):
+        if o.role != obj.role:
             out["manifest"].append(f"role of {name}")
-        elif not _close(o.get("cubemap"), obj.get("cubemap")):
+        elif not _close(_cubemap(o), _cubemap(obj)):
             out["manifest"].append(f"cube map of {name}")  # size, centre or bounding planes
+    old_json, new_json = old.description_json(), new.description_json()
     for key, what in (("lights", "lights"), ("sky", "sky")):
-        if not _close(old.get(key), new.get(key)):
+        if not _close(old_json[key], new_json[key]):
             out["light maps"].append(what)
     for key, what in (("cameras", "cameras"), ("camera_paths", "camera paths")):
-        if not _close(old.get(key), new.get(key)):
+        if not _close(old_json[key], new_json[key]):
             out["manifest"].append(what)
     return out
 
@@ -188,7 +195,7 @@ def _phrase(items: list[str], limit: int = 3) -> str:
     return ", ".join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")
 
 
-def stale_reason(old: dict, new: dict) -> str:
+def stale_reason(old: Manifest, new: Manifest) -> str:
     """One phrase of why a bake with manifest `old` is redone for `new`, e.g.
     "changed: kd of Floor, bake settings (samples 32 -> 128)", "changed: sidecar room.glint.toml
     appeared ([objects.Box])" or "made by an older glint (light-map integrator version 2 -> 3)".
@@ -198,17 +205,16 @@ def stale_reason(old: dict, new: dict) -> str:
     items = changes["files"] + changes["geometry"] + changes["light maps"] + changes["manifest"]
     versions = version_changes(old, new)
     if not items and not versions:
-        if "inputs" not in old:
+        if old.inputs is None:
             versions = ["its manifest records no stage versions"]
-        elif (old.get("scene") or {}).get("hash") != new["scene"]["hash"]:
-            items = [f"scene file {Path(new['scene'].get('source') or new['scene']['name']).name}"
-                     " (nothing the bake reads)"]
+        elif old.scene.hash != new.scene.hash:
+            items = [f"scene file {Path(new.scene.source or new.scene.name).name} (nothing the bake reads)"]
     parts = ([f"made by an older glint ({', '.join(versions)})"] if versions else []) + (
         ["changed: " + _phrase(items)] if items else [])
     return "; ".join(parts) or "changed: nothing found (bake with --force to redo it)"
 
 
-def bake_record(status: str, old: dict | None, new: dict, cube_maps: dict, *, forced: bool = False) -> dict:
+def bake_record(status: str, old: Manifest | None, new: Manifest, cube_maps: dict, *, forced: bool = False) -> dict:
     """What the bake that writes `new` did and why (after `old`, the previous manifest or None);
     `status` as bake/pipeline.py's BakeReport, `cube_maps` its cube-map statistics."""
     changes = changed_inputs(old, new) if old is not None else {"files": [], "geometry": [], "light maps": [], "manifest": []}
@@ -235,12 +241,7 @@ def bake_record(status: str, old: dict | None, new: dict, cube_maps: dict, *, fo
     }
 
 
-def last_bake(manifest: dict) -> dict | None:
-    """The record of the bake that wrote this manifest; None for bake dirs written before it was kept."""
-    return (manifest.get("statistics") or {}).get("last_bake")
-
-
-def summary_line(manifest: dict, status: str) -> str | None:
+def summary_line(manifest: Manifest, status: str) -> str | None:
     """One line of what a bake skipped, e.g. "skipped: 34 of 39 objects need no cube map
     (30 no view-dependent lobe, 4 planar: mirror pass instead); light maps and unwrap reused
     (only cameras changed); cube maps: 0 rendered, 5 reused". None for an up-to-date
@@ -251,7 +252,7 @@ def summary_line(manifest: dict, status: str) -> str | None:
     missing = sum(len(names) for names in cubes["without"].values())
     reasons = ", ".join(f"{len(names)} {reason}" for reason, names in cubes["without"].items() if names)
     parts = [f"{missing} of {cubes['objects']} objects need no cube map" + (f" ({reasons})" if reasons else "")]
-    record = last_bake(manifest)
+    record = manifest.statistics.last_bake
     if record is not None:
         if record["light_maps"] == "reused":
             parts.append(f"light maps and unwrap reused ({record['why']})")

@@ -33,6 +33,7 @@ from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
+from glint.core.manifest import Manifest
 from glint.options import SCENE_HELP, add_bake_options, add_edit_option
 from glint.services import (
     check_outputs,
@@ -178,9 +179,9 @@ def check_arguments(args) -> dict:
 
 
 # -- views ----------------------------------------------------------------------------------------
-def choose_views(manifest: dict, args, parsed: dict) -> list:
+def choose_views(manifest: Manifest, args, parsed: dict) -> list:
     """The camera of every frame to render, from the bake manifest and the options."""
-    cameras, paths = manifest.get("cameras") or [], manifest.get("camera_paths") or []
+    cameras, paths = manifest.cameras, manifest.camera_paths
     fov = parsed["fov"]
     w, h = parsed["size"]
     if args.path is not None:
@@ -222,7 +223,7 @@ def cmd_capture(args) -> int:
     report = run_bake(args, progress=sys.stderr.isatty(), outputs=parsed["outputs"])
 
     bake = Bake(report.bake_dir)
-    views = choose_views(bake.manifest, args, parsed)
+    views = choose_views(bake.model, args, parsed)
     files = frame_paths(out, len(views)) if args.path is not None else [out]
     width, height = parsed["size"]
     exr = out.suffix.lower() == ".exr"
@@ -289,18 +290,18 @@ def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
         "objects": s["objects"],
         "triangles_in_scene": s["triangles_in_scene"],
         "lightmap_format": s["lightmap_format"],
-        "lightmap_texels": lightmap_texels(renderer.bake.manifest),
+        "lightmap_texels": lightmap_texels(renderer.bake.model),
         # of the last frame (per_frame has each frame's specular and mirror parts) and of the bake
-        "skipping": skipping_section(s, renderer.bake.manifest, report.status),
+        "skipping": skipping_section(s, renderer.bake.model, report.status),
         "per_frame": frames,
     }
     atomic_write_text(path, json.dumps(data, indent=1) + "\n")
 
 
-def lightmap_texels(manifest: dict) -> dict:
+def lightmap_texels(manifest: Manifest) -> dict:
     """The bake's light-map texel counts (manifest statistics.lightmaps; bake/lightmap.py): path traced
     (both sides), back sides, invalid (inside geometry) and unlit, with the objects that have most.
     Counts a bake dir made before they were recorded lacks are null."""
-    lm = manifest.get("statistics", {}).get("lightmaps", {})
+    lm = manifest.statistics.lightmaps
     return {key: lm.get(key) for key in ("texels", "back_texels", "invalid_texels", "unlit_texels",
                                          "invalid_objects", "unlit_objects")}

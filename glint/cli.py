@@ -141,7 +141,7 @@ def cmd_bake(args) -> int:
 
     report = run_bake(args, progress=sys.stderr.isatty(), reuse=False, explain=False)
     print(report.summary)
-    skipped = summary_line(report.manifest, report.status)
+    skipped = summary_line(report.model, report.status)
     if skipped:
         print(skipped)
     # Last, so it is what a person reads first: what the bake could not do right.

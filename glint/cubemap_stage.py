@@ -31,6 +31,7 @@ A probe is rendered alone, whichever task and worker it falls to, so the files a
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import multiprocessing as mp
 import os
@@ -60,6 +61,7 @@ from glint.bake.executor import TASKS_PER_WORKER
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
+from glint.core.manifest import Manifest
 from glint.core.signals import quiet_child
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
@@ -71,11 +73,11 @@ BATCH_MIB = 64  # GPU pack buffer per batch: all six faces of at least one probe
 PROBES_PER_TASK = 8  # probes a worker process renders per task (software renderers, several processes)
 
 
-def diffuse_view(manifest: dict) -> dict:
+def diffuse_view(manifest: Manifest) -> Manifest:
     """The manifest as the cube-map renders see it: no lobes, no cube maps (bake/cubemap.py: the
     light-mapped scene, rendered diffuse)."""
-    return {**manifest, "materials": [{**m, "lobes": []} for m in manifest["materials"]],
-            "objects": [{**o, "cubemap": None} for o in manifest["objects"]]}
+    return dataclasses.replace(manifest, materials=[dataclasses.replace(m, lobes=[]) for m in manifest.materials],
+                               objects=[dataclasses.replace(o, cubemap=None) for o in manifest.objects])
 
 
 def face_bytes(size: int) -> tuple[int, int]:
@@ -142,7 +144,7 @@ def _diffuse_renderer(ctx, bake_dir) -> Renderer:
     """The renderer the probes are rendered with: the bake's diffuse view, untimed, small objects left
     out, the others at their level of detail."""
     bake = Bake(bake_dir)
-    bake.manifest = diffuse_view(bake.manifest)
+    bake.model = diffuse_view(bake.model)
     return Renderer(ctx, bake, supersample=SUPERSAMPLE, timing=False, small_objects=SMALL_OBJECT_TEXELS, display=False,
                     lod=LOD_TRIANGLES_PER_PIXEL)
 
@@ -204,7 +206,8 @@ class ProbeRefresher:
         self.bake_dir = Path(bake_dir)
         self.ctx = headless_context()
         self.renderer = _diffuse_renderer(self.ctx, self.bake_dir)
-        self.shown = diffuse_view(Bake(self.bake_dir).manifest)["materials"]  # what the renderer draws
+        # what the renderer draws, as the material entries `render` is given (JSON: material editing's form)
+        self.shown = [m.to_json() for m in diffuse_view(Bake(self.bake_dir).model).materials]
 
     def render(self, plans: list[CubeMapPlan], materials: list[dict], front: list, back: list,
                deliver: Callable[[CubeMapPlan, list[np.ndarray]], None], check: Callable[[], None]) -> None:

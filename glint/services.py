@@ -128,12 +128,11 @@ def settings_for(scene: Scene, args, existing: Manifest | None) -> BakeSettings:
 def check_view_names(scene: Scene, args) -> None:
     """A one-line GlintError for a --camera or --path the scene does not have (capture, view and
     bench take them; bench's --camera repeats)."""
-    cameras = [{"name": c.name} for c in scene.cameras]
     wanted = getattr(args, "camera", None)
     for name in wanted if isinstance(wanted, list) else [wanted] if wanted else []:
-        find_named(cameras, name)
+        find_named(scene.cameras, name)
     if getattr(args, "path", None):
-        find_named([{"name": p.name} for p in scene.camera_paths], args.path, "camera path",
+        find_named(scene.camera_paths, args.path, "camera path",
                    "the scene has none (sidecar [camera_paths])")
 
 

@@ -17,6 +17,7 @@ from glint.bake.edits import format_assignment, material_assignments, parse_assi
 from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError, one_line
+from glint.core.manifest import Manifest
 from glint.scenes import BUILTIN, resolve
 from glint.options import SCENE_HELP, add_bake_options, add_edit_option
 from glint.services import background_rebake, number, parse_size, run_bake
@@ -62,7 +63,7 @@ def no_window(scene: str, reason: str) -> GlintError:
                       f"`glint capture {scene} -o frame.png`")
 
 
-def home_camera(manifest: dict, aspect: float):
+def home_camera(manifest: Manifest, aspect: float):
     """A view of the whole scene, for scenes without cameras (as `glint capture` frames them)."""
     return ViewCamera.framing(*scene_bounds(manifest), aspect)
 
@@ -106,22 +107,22 @@ def cmd_view(args) -> int:
         print(report.summary, flush=True)
 
     bake = Bake(report.bake_dir)
-    manifest = bake.manifest
+    manifest = bake.model
     if args.camera is not None:
-        find_named(manifest["cameras"], args.camera)  # a one-line error before the window opens
-    controls = WalkControls(manifest["cameras"], manifest["camera_paths"], home_camera(manifest, width / height),
+        find_named(manifest.cameras, args.camera)  # a one-line error before the window opens
+    controls = WalkControls(manifest.cameras, manifest.camera_paths, home_camera(manifest, width / height),
                             start=args.camera)
 
     # here, not at the top: moderngl_window would slow every glint command's start-up (docs/VIEWER.md, "Start-up times")
     from glint.viewer.window import ViewerWindow, create_window, run
 
-    name = manifest["scene"]["name"]
+    name = manifest.scene.name
     try:
         window = create_window(size=(width, height), title=f"glint — {name}", vsync=args.vsync,
                                fullscreen=args.fullscreen)
     except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
         raise no_window(args.scene, f"{type(e).__name__}: {one_line(e)}") from e
-    save = sidecar_saver(args.scene, resolve(args.scene), [dict(m) for m in manifest["materials"]], args.edits)
+    save = sidecar_saver(args.scene, resolve(args.scene), [m.to_json() for m in manifest.materials], args.edits)
     rebaker = background_rebake(bake.model, report.bake_dir, args.edits)  # the worker loads the scene as edited
     try:
         viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,

@@ -183,7 +183,7 @@ def test_gl_calls_per_frame_do_not_grow_with_objects(ctx, tmp_path):
         out = tmp_path / f"{objects}.bake"
         bake_scene(scene, resolve_settings(scene.bake_settings, **FAST), out, progress=False)
         bake = Bake(out)
-        camera = ViewCamera.from_manifest(bake.manifest["cameras"][0])
+        camera = ViewCamera.from_manifest(bake.model.cameras[0])
         with Renderer(ctx, bake) as r:
             r.render(camera, 64, 36)
             profile = cProfile.Profile()

@@ -33,26 +33,9 @@ SCENES = ROOT / "scenes"
 
 # Modules that still read the manifest as JSON, with the reason (issue 23: to migrate next).
 PENDING = {
-    "core/skipped.py": "stale_reason / bake_record / summary_line read manifest dicts (the pipeline passes to_json())",
-    "bake/rebake.py": "the background re-bake reads and rewrites the manifest JSON",
-    "viewer/camera.py": "scene_bounds / clip_range take the manifest dict (callers pending below)",
-    "viewer/skipping.py": "skipping sections take the manifest dict (core/skipped.py)",
-    "glint/capture.py": "choose_views / lightmap_texels take the manifest dict (viewer/camera.py)",
-    "glint/view.py": "cameras and camera paths go to WalkControls as dicts (viewer/controls.py)",
-    "glint/cli.py": "summary_line (core/skipped.py) takes the manifest dict",
-    "glint/cubemap_stage.py": "diffuse_view rewrites the manifest JSON",
-    "bench/bench.py": "bench tools: cameras as dicts (viewer/camera.py)",
     "bench/edit_screenshots.py": "bench tools: cameras as dicts",
     "bench/measure_editing.py": "bench tools: cameras as dicts",
-    "bench/measure_frame_times.py": "bench tools: cameras as dicts",
-    "bench/measure_mirror.py": "bench tools: cameras as dicts",
     "bench/measure_rebake.py": "bench tools: cameras as dicts",
-    "bench/measure_many_objects.py": "bench tools: cameras as dicts",
-    "bench/measure_thin_raster.py": "bench tools: cameras as dicts",
-    "bench/measure_bake.py": "bench tools: statistics",
-    "bench/stress.py": "bench tools: cameras as dicts",
-    "bench/mitsuba.py": "bench tools: cameras as dicts",
-    "bench/measure_external.py": "bench tools: statistics from json.loads",
 }
 SCANNED = ("core", "bake", "viewer", "glint", "bench")
 MODEL = "core/manifest.py"

@@ -215,7 +215,7 @@ def test_bench_mitsuba_cornell_box(tmp_path, scalar):
     ctx = headless_context()
     try:
         renderer = Renderer(ctx, bake, exposure=1.0)
-        renderer.render(ViewCamera.from_manifest(bake.manifest["cameras"][0]), 16, 16)
+        renderer.render(ViewCamera.from_manifest(bake.model.cameras[0]), 16, 16)
         shown = renderer.read_srgb().astype(int)
         assert np.abs(display_srgb(renderer.read_linear(), 1.0, ctx).astype(int) - shown).max() <= 1
         renderer.release()

@@ -10,6 +10,7 @@ direction (a pinhole model written out in test_specular.py).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import replace
 
@@ -21,6 +22,7 @@ from test_view import HOME, Modifiers
 
 from glint.core import bsdf
 from glint.core.errors import GlintError
+from glint.core.manifest import Camera
 from glint.viewer.controls import WalkControls
 from glint.core.manifest import Material
 from glint.core.scene import Lobe
@@ -32,8 +34,8 @@ E = (2.0, 1.0, 0.5)  # the light map's irradiance, W/m^2
 KD0, KD1 = (0.5, 0.5, 0.5), (0.2, 0.4, 0.7)
 M0, M1 = 0.1, 0.3
 EYE, TARGET, YFOV = (0.0, 2.0, 2.0), (0.0, 0.0, 0.0), math.radians(40)
-CAMERA = {"name": "front", "eye": list(EYE), "forward": list(np.subtract(TARGET, EYE) / np.linalg.norm(EYE)),
-          "up": [0, 1, 0], "yfov": YFOV, "znear": 0.01, "zfar": 100.0}
+CAMERA = Camera(name="front", eye=list(EYE), forward=list(np.subtract(TARGET, EYE) / np.linalg.norm(EYE)),
+                up=[0, 1, 0], yfov=YFOV, znear=0.01, zfar=100.0)
 FRAMES = 1 + 24  # a walkthrough frame, then 24 still-camera frames: 192 samples per lobe and pixel
 
 
@@ -243,7 +245,7 @@ def test_keys_pick_and_undo(ctx, tmp_path):
     """M picks what is under the cursor: looking level, the floor fills the lower half and nothing
     (no sky) the upper; Ctrl+Z and Ctrl+Y undo and redo; F2 hides the panel. Deliberate bug tried:
     Renderer.pick without the flip to GL rows (y from the top) -> the upper half picked the floor."""
-    level = {**CAMERA, "eye": [0.0, 1.0, 0.0], "forward": [0.0, 0.0, -1.0]}
+    level = dataclasses.replace(CAMERA, eye=[0.0, 1.0, 0.0], forward=[0.0, 0.0, -1.0])
     wnd, viewer = panel_window(floor_bake(tmp_path / "b"), camera=level)
     try:
         frames(wnd)
@@ -323,8 +325,8 @@ def test_saved_panel_edits_capture_as_the_window_shows(tmp_path):
 
     bake = Bake(default_bake_dir(scene))
     forward = np.subtract(target, eye) / np.linalg.norm(np.subtract(target, eye))
-    camera = {"name": "floor", "eye": list(eye), "forward": list(forward), "up": [0, 1, 0],
-              "yfov": math.radians(fov), "znear": 0.01, "zfar": 100.0}
+    camera = Camera(name="floor", eye=list(eye), forward=list(forward), up=[0, 1, 0], yfov=math.radians(fov),
+                    znear=0.01, zfar=100.0)
     save = sidecar_saver(str(scene), scene, [dict(m) for m in bake.manifest["materials"]])
     wnd, viewer = panel_window(bake, camera=camera, on_save=save)
     try:

@@ -185,7 +185,7 @@ def test_window_takes_the_sources_probes(boxes):
 
     originals = {file: read_cubemap(boxes.path / file) for file in probe_files(boxes)}
     wnd = headless_window((96, 64))
-    camera = next(c for c in boxes.manifest["cameras"] if c["name"] == "view")
+    camera = next(c for c in boxes.model.cameras if c.name == "view")
     source = ProbeSource(None)
     viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=boxes, controls=WalkControls([camera], [], HOME, start="view"),
                           lightmap_source=source)

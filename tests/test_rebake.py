@@ -14,6 +14,7 @@ from test_view import HOME, frame, headless_window
 from glint.bake.rebake import Rebaker, material_overrides, pass_samples
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
+from glint.core.manifest import Camera
 from glint.viewer.controls import WalkControls
 
 SETTINGS = dict(FAST, samples=32)  # passes of 8 and 32 paths per texel
@@ -211,8 +212,8 @@ def test_window_swaps_the_sources_pages_and_refines_again(tmp_path):
 
     bake = plane_bake(tmp_path / "b")
     wnd = headless_window((40, 30))
-    camera = {"name": "front", "eye": [0, 0, 2], "forward": [0, 0, -1], "up": [0, 1, 0], "yfov": math.radians(60),
-              "aspect": None, "znear": 0.01, "zfar": 100}
+    camera = Camera(name="front", eye=[0, 0, 2], forward=[0, 0, -1], up=[0, 1, 0], yfov=math.radians(60),
+                    znear=0.01, zfar=100)
     source = Source(None)
     viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=bake, controls=WalkControls([camera], [], HOME),
                           lightmap_source=source)

@@ -17,6 +17,7 @@ import pytest
 
 from glint.core.bake_dir import FORMAT_VERSION, Bake, save_meshes, write_json
 from glint.core.image_io import write_image
+from glint.core.manifest import Camera, CameraPath
 from glint.viewer.camera import ViewCamera, camera_path_at, gl_bytes, in_frustum
 from glint.viewer.passes.resolve import ResolvePass
 from glint.viewer.passes.tonemap import TonemapPass
@@ -240,7 +241,7 @@ def test_degenerate_up_and_camera_from_manifest():
     np.testing.assert_allclose(basis @ basis.T, np.eye(3), atol=1e-9)
     entry = {"name": "c", "eye": [0, 0, 3.9], "forward": [0, 0, -1], "up": [0, 1, 0], "yfov": 0.686,
              "aspect": 1.0, "znear": 0.001, "zfar": 100.0}
-    cam = ViewCamera.from_manifest(entry)
+    cam = ViewCamera.from_manifest(Camera(**entry))
     assert cam.name == "c" and cam.yfov == 0.686 and cam.znear == 0.001
     np.testing.assert_allclose(cam.view_matrix() @ [0, 0, 0, 1], [0, 0, -3.9, 1], atol=1e-6)
     with pytest.raises(ValueError):
@@ -252,7 +253,7 @@ def test_camera_path_catmull_rom():
             {"time": 1.0, "eye": [1, 0, 0], "target": [1, 0, -1], "yfov": 1.0},
             {"time": 3.0, "eye": [2, 1, 0], "target": [2, 1, -1]},
             {"time": 4.0, "eye": [0, 0, 0], "target": [0, 0, -1]}]
-    path = {"name": "p", "keys": keys}
+    path = CameraPath.from_json({"name": "p", "keys": keys})
     for k in keys:  # passes through every key
         np.testing.assert_allclose(camera_path_at(path, k["time"]).eye, k["eye"], atol=1e-12)
     np.testing.assert_allclose(camera_path_at(path, -5).eye, keys[0]["eye"])  # clamped

@@ -9,6 +9,7 @@ a lobe, a kd and no change (asserted on the files, not only the record), and the
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -22,7 +23,7 @@ from test_specular import pinhole_rays
 
 from glint.cli import main
 from glint.core.bake_dir import Bake
-from glint.core.skipped import NO_LOBE, PLANAR, last_bake
+from glint.core.skipped import NO_LOBE, PLANAR
 from glint.scenes.gltf_writer import GltfWriter
 from glint.viewer.camera import ViewCamera
 from glint.viewer.passes.gbuffer import read_gbuffer
@@ -83,9 +84,9 @@ def test_all_diffuse_scene_skips_all_view_dependent_work(ctx, tmp_path):
     b = Bake(tmp_path / "room.bake")
     size = (40, 24)
     with Renderer(ctx, b, supersample=1) as r:
-        r.render(ViewCamera.from_manifest(b.manifest["cameras"][0]), *size)
+        r.render(ViewCamera.from_manifest(b.model.cameras[0]), *size)
         stats = r.stats
-    s = skipping_section(stats, b.manifest)
+    s = skipping_section(stats, b.model)
     assert not (tmp_path / "room.bake" / "cubemaps").exists()  # no cube map file at all
     assert s["cube_maps"]["objects"] == 8 and s["cube_maps"]["baked"] == 0  # write_room: 7 quads + a box
     assert s["cube_maps"]["without_by_reason"][NO_LOBE]["count"] == 8
@@ -111,9 +112,9 @@ def test_specular_tiles_are_those_the_glossy_sphere_covers(ctx, tmp_path):
         r.render(camera, *size)
         stats = r.stats
         gb = read_gbuffer(r.gbuffer.targets)
-    s = skipping_section(stats, b.manifest)
-    names = [o["name"] for o in b.manifest["objects"]]
-    assert s["cube_maps"]["baked"] == 1 and b.manifest["objects"][names.index("Sphere")]["cubemap"]
+    s = skipping_section(stats, b.model)
+    names = [o.name for o in b.model.objects]
+    assert s["cube_maps"]["baked"] == 1 and b.model.objects[names.index("Sphere")].cubemap
     assert s["cube_maps"]["without_by_reason"][PLANAR]["names"] == ["Floor"]
     assert s["mirror"]["skipped"]["budget 0"]["count"] == 1 and s["mirror"]["passes_run"] == 0
     # The sphere's pixels from the G-buffer's object ids (image rows), not from the specular counters.
@@ -143,8 +144,8 @@ def stage(tmp_path_factory):
     bake(path, d / "stage.bake")
     with_lobes = Bake(d / "stage.bake")
     without = Bake(d / "stage.bake")  # the same light maps; the floor's lobes removed
-    without.manifest = {**without.manifest, "materials": [{**m, "lobes": [] if m["name"] == "Floor" else m["lobes"]}
-                                                          for m in without.manifest["materials"]]}
+    without.model = dataclasses.replace(without.model, materials=[
+        dataclasses.replace(m, lobes=[]) if m.name == "Floor" else m for m in without.model.materials])
     return with_lobes, without
 
 
@@ -159,7 +160,7 @@ def test_mirror_pass_skipped_for_an_unseen_reflector(ctx, stage, view, reason):
     size = (32, 24)
     frame, stats = render(ctx, with_lobes, camera, size)
     plain, _ = render(ctx, without, camera, size)
-    m = skipping_section(stats, with_lobes.manifest)["mirror"]
+    m = skipping_section(stats, with_lobes.model)["mirror"]
     assert m["reflectors"] == 1
     assert plain.max() > 0.01  # an image, not black
     if reason is None:
@@ -188,7 +189,7 @@ def test_rebake_reuses_charts_and_redoes_light_maps_for_kd_and_lobes(tmp_path, c
     assert main(args) == 0
     first = snapshot(out)
     pages = [k for k in first if k.startswith("lightmaps/")]
-    assert pages and last_bake(Bake(out).manifest)["light_maps"] == "re-baked"
+    assert pages and Bake(out).model.statistics.last_bake["light_maps"] == "re-baked"
     capsys.readouterr()
 
     write_room(path, floor_lobes=GLOSSY)  # a lobe only
@@ -199,7 +200,7 @@ def test_rebake_reuses_charts_and_redoes_light_maps_for_kd_and_lobes(tmp_path, c
     second = snapshot(out)
     assert second["meshes.npz"][2] == first["meshes.npz"][2]  # the charts: the same content (unwrap reused)
     assert all(second[page][2] != first[page][2] for page in pages)  # the floor now reflects light onto the walls
-    record = last_bake(Bake(out).manifest)
+    record = Bake(out).model.statistics.last_bake
     assert record["light_maps"] == "re-baked" and record["unwrap"] == "reused" and "lobes of Floor" in record["changed"]
 
     write_room(path, floor_lobes=GLOSSY, kd=(0.3, 0.3, 0.3))  # a diffuse colour
@@ -207,7 +208,7 @@ def test_rebake_reuses_charts_and_redoes_light_maps_for_kd_and_lobes(tmp_path, c
     assert "light maps re-baked (changed: kd of Wall, kd of Floor)" in capsys.readouterr().out
     third = snapshot(out)
     assert all(third[page][2] != second[page][2] for page in pages)  # new irradiance
-    record = last_bake(Bake(out).manifest)
+    record = Bake(out).model.statistics.last_bake
     assert record["light_maps"] == "re-baked" and record["unwrap"] == "reused"
 
     assert main(args) == 0  # nothing changed: nothing done, not even the manifest rewritten

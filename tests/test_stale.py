@@ -184,6 +184,7 @@ def test_a_camera_a_last_bit_apart_is_not_named(tmp_path, capsys):
     """When something did change (a setting), a camera direction computed a last bit differently on
     another machine is not named with it. Catches stale_reason comparing derived floats exactly
     (was: "changed: ..., cameras" for a camera nobody moved)."""
+    from glint.core.manifest import Manifest
     from glint.core.skipped import stale_reason
 
     scene = write_room(tmp_path / "room.glb", sidecar=CAMERA)
@@ -193,4 +194,4 @@ def test_a_camera_a_last_bit_apart_is_not_named(tmp_path, capsys):
     new["cameras"][0]["forward"] = [float(np.nextafter(x, 2.0)) for x in new["cameras"][0]["forward"]]
     new["settings"]["samples"] = 16
     assert new["cameras"] != old["cameras"]
-    assert stale_reason(old, new) == "changed: bake settings (samples 8 -> 16)"
+    assert stale_reason(Manifest.from_json(old), Manifest.from_json(new)) == "changed: bake settings (samples 8 -> 16)"

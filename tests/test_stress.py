@@ -24,7 +24,7 @@ def baked(case, tmp):
 
 
 def assert_finite_and_bounded(case, bake, rendered):
-    counts = stress.bake_nonfinite(bake.path, bake.manifest)
+    counts = stress.bake_nonfinite(bake.path, bake.model)
     assert counts["nan"] == 0 and counts["inf"] == 0 and counts["files"] >= 1
     for images in rendered["images"].values():
         for image in images.values():
@@ -67,8 +67,8 @@ def test_views_without_clip_planes_scale_with_the_scene(ctx, rooms):
     images = {}
     for name in ("scale-1mm", "scale-1m", "scale-10km"):
         bake = rooms[name][1]
-        near, far = clip_range(bake.manifest)
-        path = bake.manifest["camera_paths"][0]
+        near, far = clip_range(bake.model)
+        path = bake.model.camera_paths[0]
         with Renderer(ctx, bake) as r:
             r.render(camera_path_at(path, 2.0, znear=near, zfar=far), *SIZE)
             images[name] = r.read_linear()
@@ -110,13 +110,13 @@ def test_1e5_emitters_stay_finite(ctx, tmp_path):
 
     case = scenes.emitters(tmp_path / "scenes")
     bake = baked(case, tmp_path)
-    counts = stress.bake_nonfinite(bake.path, bake.manifest)
+    counts = stress.bake_nonfinite(bake.path, bake.model)
     assert counts["max_value"] > 65504 and counts["float32_files"]
     rendered = stress.render_case(ctx, bake, SIZE)
     assert_finite_and_bounded(case, bake, rendered)
     assert rendered["images"]["lamp"]["walk"].max() >= 0.9 * scenes.HOT_RADIANCE
     with Renderer(ctx, bake) as r:
-        r.render(ViewCamera.from_manifest(bake.manifest["cameras"][1]), *SIZE)
+        r.render(ViewCamera.from_manifest(bake.model.cameras[1]), *SIZE)
         mirror = r.mirror.read(0)
         assert np.isfinite(mirror).all() and mirror[..., :3].max() == 65504.0  # the lamp, clamped
         assert np.isfinite(r.read_linear()).all()
@@ -129,8 +129,8 @@ def test_bsdf_extremes_grazing_and_back_facing_views(ctx, tmp_path):
     assert set(rendered["images"]) == {"head_on", "grazing", "behind", "inside"}
     assert_finite_and_bounded(case, bake, rendered)
     # the grazing camera looks 89.9 degrees off the strips' normal
-    cam = next(c for c in bake.manifest["cameras"] if c["name"] == "grazing")
-    assert math.degrees(math.acos(abs(np.dot(cam["forward"], (0, 1, 0))))) >= 89
+    cam = next(c for c in bake.model.cameras if c.name == "grazing")
+    assert math.degrees(math.acos(abs(np.dot(cam.forward, (0, 1, 0))))) >= 89
 
 
 def test_degenerate_geometry(ctx, tmp_path):
@@ -160,7 +160,7 @@ def test_walkthrough_no_growth_no_drift(ctx, rooms):
     assert walk["frame0_drift"] <= stress.DRIFT_TOLERANCE
     from glint.viewer.camera import ViewCamera
 
-    camera = ViewCamera.from_manifest(bake.manifest["cameras"][0])
+    camera = ViewCamera.from_manifest(bake.model.cameras[0])
     walk["accumulation_drift"] = stress.accumulation_drift(ctx, bake, camera, frames=128)
     assert walk["accumulation_drift"] <= stress.ACCUMULATION_TOLERANCE
     assert stress.walkthrough_failures(walk) == []

@@ -12,22 +12,20 @@ import numpy as np
 import pytest
 from conftest import FAST, NOT_ERRORS, write_room
 
+from glint.core.manifest import Camera, CameraPath
 from glint.viewer.camera import ViewCamera
 from glint.viewer.controls import LOOK_SENSITIVITY, MAX_DT, MAX_PITCH, RUN_FACTOR, SPEED_STEP, WalkControls
 
 SPEED = 2.0
 CAMERAS = [
-    {"name": "north", "eye": [0.0, 1.6, 0.0], "forward": [0.0, 0.0, -1.0], "up": [0, 1, 0], "yfov": 0.9,
-     "znear": 0.05, "zfar": 50.0},
-    {"name": "east", "eye": [3.0, 1.2, -1.0], "forward": [1.0, 0.0, 0.0], "up": [0, 1, 0], "yfov": 1.1,
-     "znear": 0.05, "zfar": 50.0},
-    {"name": "down", "eye": [0.0, 5.0, 0.0], "forward": [0.0, -1.0, 1.0], "up": [0, 1, 0], "yfov": 0.7,
-     "znear": 0.05, "zfar": 50.0},
+    Camera(name="north", eye=[0.0, 1.6, 0.0], forward=[0.0, 0.0, -1.0], up=[0, 1, 0], yfov=0.9, znear=0.05, zfar=50.0),
+    Camera(name="east", eye=[3.0, 1.2, -1.0], forward=[1.0, 0.0, 0.0], up=[0, 1, 0], yfov=1.1, znear=0.05, zfar=50.0),
+    Camera(name="down", eye=[0.0, 5.0, 0.0], forward=[0.0, -1.0, 1.0], up=[0, 1, 0], yfov=0.7, znear=0.05, zfar=50.0),
 ]
 # Two keys: the spline's tangents at both ends are the chord, so the path is the straight line
 # between them, travelled at constant speed -- easy to predict without the spline code.
-PATH = {"name": "tour", "keys": [{"time": 1.0, "eye": [0.0, 1.5, 0.0], "target": [0.0, 1.5, -5.0]},
-                                 {"time": 5.0, "eye": [4.0, 1.5, 0.0], "target": [4.0, 1.5, -5.0]}]}
+PATH = CameraPath.from_json({"name": "tour", "keys": [{"time": 1.0, "eye": [0.0, 1.5, 0.0], "target": [0.0, 1.5, -5.0]},
+                                                      {"time": 5.0, "eye": [4.0, 1.5, 0.0], "target": [4.0, 1.5, -5.0]}]})
 HOME = ViewCamera(eye=(9.0, 9.0, 9.0), forward=(0.0, 0.0, -1.0))
 
 
@@ -137,16 +135,16 @@ def test_camera_cycling():
     for _ in range(4):
         c.key_press("tab")
         seen.append(c.update(0.0).eye.tolist())
-    assert seen == [CAMERAS[1]["eye"], CAMERAS[2]["eye"], CAMERAS[0]["eye"], CAMERAS[1]["eye"]]
+    assert seen == [CAMERAS[1].eye, CAMERAS[2].eye, CAMERAS[0].eye, CAMERAS[1].eye]
     c.key_press("tab", shift=True)
-    np.testing.assert_allclose(c.update(0.0).eye, CAMERAS[0]["eye"])
+    np.testing.assert_allclose(c.update(0.0).eye, CAMERAS[0].eye)
     c.key_press("3")
     camera = c.update(0.0)
-    np.testing.assert_allclose(camera.eye, CAMERAS[2]["eye"])
+    np.testing.assert_allclose(camera.eye, CAMERAS[2].eye)
     np.testing.assert_allclose(camera.forward, np.array([0, -1, 1]) / math.sqrt(2), atol=1e-12)
     assert camera.yfov == pytest.approx(0.7)
     c.key_press("9")  # no ninth camera: nothing happens
-    np.testing.assert_allclose(c.update(0.0).eye, CAMERAS[2]["eye"])
+    np.testing.assert_allclose(c.update(0.0).eye, CAMERAS[2].eye)
     assert controls(start="east").camera_index == 1
 
 
@@ -195,7 +193,7 @@ def test_action_keys():
     assert c.key_press("escape") == "quit"
     assert c.key_press("w") is None
     c.key_release("w")
-    np.testing.assert_allclose(c.update(0.1).eye, CAMERAS[0]["eye"])  # Ctrl+S did not walk back
+    np.testing.assert_allclose(c.update(0.1).eye, CAMERAS[0].eye)  # Ctrl+S did not walk back
 
 
 # -- overlay text and screenshot names ----------------------------------------------------------
@@ -337,8 +335,8 @@ def test_window_renders_walks_and_screenshots(room_bake, tmp_path):
     from glint.viewer.window import ViewerWindow
 
     wnd = headless_window((128, 160))
-    manifest = room_bake.manifest
-    controls = WalkControls(manifest["cameras"], manifest["camera_paths"], HOME)
+    manifest = room_bake.model
+    controls = WalkControls(manifest.cameras, manifest.camera_paths, HOME)
     viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=room_bake, controls=controls, name="room",
                           screenshot_dir=tmp_path)
     try:
@@ -402,9 +400,9 @@ def test_window_resizes_with_the_window(room_bake):
     from glint.viewer.window import ViewerWindow
 
     wnd = headless_window((64, 48))
-    manifest = room_bake.manifest
+    manifest = room_bake.model
     viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=room_bake,
-                          controls=WalkControls(manifest["cameras"], [], HOME))
+                          controls=WalkControls(manifest.cameras, [], HOME))
     try:
         frame(wnd)
         wnd.size = (80, 40)
@@ -429,8 +427,8 @@ def test_main_loop_runs_until_escape(room_bake):
                 press(self.wnd, "ESCAPE")
 
     wnd = headless_window()
-    manifest = room_bake.manifest
-    viewer = Scripted(ctx=wnd.ctx, wnd=wnd, bake=room_bake, controls=WalkControls(manifest["cameras"], [], HOME))
+    manifest = room_bake.model
+    viewer = Scripted(ctx=wnd.ctx, wnd=wnd, bake=room_bake, controls=WalkControls(manifest.cameras, [], HOME))
     run(viewer)  # returns only once the window closes; destroys the context
     assert wnd.frames >= 3 and wnd.is_closing
 
@@ -445,8 +443,8 @@ def test_exposure_reaches_the_window(room_bake, tmp_path):
     means = []
     for ev in (0.0, 1.0):
         wnd = headless_window((64, 48))
-        manifest = room_bake.manifest
-        controls = WalkControls(manifest["cameras"], manifest["camera_paths"], HOME)
+        manifest = room_bake.model
+        controls = WalkControls(manifest.cameras, manifest.camera_paths, HOME)
         viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=room_bake, controls=controls, name="room",
                               screenshot_dir=tmp_path, panel=False, exposure=ev)
         try:

@@ -19,6 +19,7 @@ import numpy as np
 import pyrr
 
 from glint.core.errors import GlintError
+from glint.core.manifest import Camera, CameraPath, Manifest
 
 DEFAULT_YFOV = math.radians(50.0)  # bake/sidecar.py's default for cameras without one
 WORLD_UP = np.array([0.0, 1.0, 0.0])
@@ -76,11 +77,10 @@ class ViewCamera:
         return cls(eye=eye, forward=d, up=up, yfov=yfov, znear=znear, zfar=zfar, name=name)
 
     @classmethod
-    def from_manifest(cls, entry: dict) -> "ViewCamera":
-        """A camera of the bake manifest (`bake.pipeline.describe`); its aspect is not used."""
-        return cls(eye=entry["eye"], forward=entry["forward"], up=entry.get("up", WORLD_UP),
-                   yfov=entry.get("yfov", DEFAULT_YFOV), znear=entry.get("znear", 0.01),
-                   zfar=entry.get("zfar", 1000.0), name=entry.get("name", ""))
+    def from_manifest(cls, entry: Camera) -> "ViewCamera":
+        """A camera of the bake manifest (`Bake.model.cameras`, core/manifest.py); its aspect is not used."""
+        return cls(eye=entry.eye, forward=entry.forward, up=entry.up, yfov=entry.yfov, znear=entry.znear,
+                   zfar=entry.zfar, name=entry.name)
 
     @classmethod
     def framing(cls, lo, hi, aspect: float = 16 / 9, yfov: float = DEFAULT_YFOV) -> "ViewCamera":
@@ -169,14 +169,13 @@ def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
 
 
 # -- camera paths ---------------------------------------------------------------------------------
-def path_span(path: dict) -> tuple[float, float]:
-    keys = path["keys"]
-    return float(keys[0]["time"]), float(keys[-1]["time"])
+def path_span(path: CameraPath) -> tuple[float, float]:
+    return float(path.keys[0].time), float(path.keys[-1].time)
 
 
-def camera_path_at(path: dict, t: float, *, yfov: float = DEFAULT_YFOV, znear: float = 0.01,
+def camera_path_at(path: CameraPath, t: float, *, yfov: float = DEFAULT_YFOV, znear: float = 0.01,
                    zfar: float = 1000.0) -> ViewCamera:
-    """The camera of a manifest camera path (`{"name", "keys": [{time, eye, target[, yfov]}]}`) at time t.
+    """The camera of a manifest camera path (core/manifest.py `CameraPath`: keys of time, eye, target[, yfov]) at time t.
 
     Eye and target each follow a Catmull-Rom spline through the keys, in the form
     for uneven key times: a cubic Hermite segment per pair of keys with tangents
@@ -187,12 +186,12 @@ def camera_path_at(path: dict, t: float, *, yfov: float = DEFAULT_YFOV, znear: f
     interpolated linearly (keys without one use `yfov`); up is world +Y. t is
     clamped to the keys' time span.
     """
-    keys = path["keys"]
-    times = np.array([k["time"] for k in keys], np.float64)
-    eyes = np.array([k["eye"] for k in keys], np.float64)
-    targets = np.array([k["target"] for k in keys], np.float64)
-    fovs = np.array([k.get("yfov", yfov) for k in keys], np.float64)
-    name = path.get("name", "")
+    keys = path.keys
+    times = np.array([k.time for k in keys], np.float64)
+    eyes = np.array([k.eye for k in keys], np.float64)
+    targets = np.array([k.target for k in keys], np.float64)
+    fovs = np.array([yfov if k.yfov is None else k.yfov for k in keys], np.float64)
+    name = path.name
     if len(keys) == 1:
         return ViewCamera(eyes[0], targets[0] - eyes[0], WORLD_UP, fovs[0], znear, zfar, name)
     t = float(np.clip(t, times[0], times[-1]))
@@ -224,26 +223,26 @@ def _hermite(p: np.ndarray, times: np.ndarray, i: int, s: float, closed: bool) -
             + (-2 * s3 + 3 * s2) * p[i + 1] + (s3 - s2) * m1)
 
 
-def find_named(entries: list[dict], name: str, what: str = "camera",
-               none: str = "the scene has no cameras") -> dict:
-    """The manifest entry called `name`, or a one-line GlintError listing the names there are."""
-    entry = next((e for e in entries if e["name"] == name), None)
+def find_named(entries: list, name: str, what: str = "camera", none: str = "the scene has no cameras"):
+    """The entry called `name` (anything with a `.name`: a manifest or a scene camera or camera path),
+    or a one-line GlintError listing the names there are."""
+    entry = next((e for e in entries if e.name == name), None)
     if entry is None:
-        have = ", ".join(e["name"] for e in entries)
+        have = ", ".join(e.name for e in entries)
         raise GlintError(f"unknown {what} '{name}'; " + (f"the scene has: {have}" if have else none))
     return entry
 
 
-def scene_bounds(manifest: dict) -> tuple[np.ndarray, np.ndarray]:
+def scene_bounds(manifest: Manifest) -> tuple[np.ndarray, np.ndarray]:
     """The box round every object with triangles in a bake manifest (a unit cube round the origin
     when there is none)."""
-    boxes = np.array([o["bounds"] for o in manifest.get("objects", []) if o.get("triangles")], np.float64)
+    boxes = np.array([o.bounds for o in manifest.objects if o.triangles], np.float64)
     if not len(boxes):
         return np.full(3, -1.0), np.full(3, 1.0)
     return boxes[:, 0].min(axis=0), boxes[:, 1].max(axis=0)
 
 
-def clip_range(manifest: dict, eye=None) -> tuple[float, float]:
+def clip_range(manifest: Manifest, eye=None) -> tuple[float, float]:
     """Near and far planes for views the scene does not define: far enough to hold the whole
     scene from wherever the eye is (at least 1 km); near 1 cm, less in a scene under 2 m across
     (1 % of its radius: a 1 mm model still shows) and 2e-5 of its reach in one over about 1 km (so

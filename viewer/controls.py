@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glint.core.manifest import Camera, CameraPath
 from glint.viewer.camera import DEFAULT_YFOV, ViewCamera, camera_path_at, path_span
 
 KEY_HELP = """\
@@ -83,9 +84,9 @@ class Pose:
 
 
 class WalkControls:
-    """The walker's state; `cameras` and `paths` are the bake manifest's lists."""
+    """The walker's state; `cameras` and `paths` are the bake manifest's (`Bake.model`'s) lists."""
 
-    def __init__(self, cameras: list[dict], paths: list[dict], home: ViewCamera, *,
+    def __init__(self, cameras: list[Camera], paths: list[CameraPath], home: ViewCamera, *,
                  start: str | None = None, speed: float = WALK_SPEED):
         self.cameras = [ViewCamera.from_manifest(c) for c in cameras]
         self.paths = paths

@@ -1,6 +1,6 @@
 """The `skipping` section: how much of a frame's and a bake's work was skipped, and why.
 
-    section = skipping_section(renderer.stats, bake.manifest, bake_status=report.status)
+    section = skipping_section(renderer.stats, bake.model, bake_status=report.status)
 
 One fixed shape (every key always present), built only here, for `glint capture --stats`,
 `glint bench` (bench.json per camera, a table in bench.md) and the window's overlay line:
@@ -22,7 +22,8 @@ named); the fraction is count / of, 0 when there is nothing to count.
 """
 from __future__ import annotations
 
-from glint.core.skipped import DIFFUSE_ROLE, NO_LOBE, NOT_BAKED, PLANAR, cube_map_skips, last_bake
+from glint.core.manifest import Manifest
+from glint.core.skipped import DIFFUSE_ROLE, NO_LOBE, NOT_BAKED, PLANAR, cube_map_skips
 from glint.viewer.reflectors import SkipReason
 
 BUDGET_OFF = "budget 0"
@@ -97,20 +98,20 @@ def mirror_part(stats: dict) -> dict:
 PROBE_KEYS = ("probes", "shared_probes", "mib", "face_sizes", "budget")
 
 
-def cube_map_part(manifest: dict) -> dict:
+def cube_map_part(manifest: Manifest) -> dict:
     cubes = cube_map_skips(manifest)
     n = cubes["objects"]
     without = {reason: skipped(len(names), n, CUBE_MAP_REASONS[reason], names)
                for reason, names in cubes["without"].items()}
-    stats = (manifest.get("statistics") or {}).get("cubemaps") or {}
+    stats = manifest.statistics.cubemaps
     probes = {k: stats[k] for k in PROBE_KEYS if k in stats}  # the bake's probes and budget (bake/cubemap.py)
     return {"objects": n, "baked": cubes["baked"],
             "without": skipped(n - cubes["baked"], n, "see without_by_reason"),
             "without_by_reason": without, **({"probes": probes} if probes else {})}
 
 
-def bake_part(manifest: dict, bake_status: str | None) -> dict:
-    record = last_bake(manifest)
+def bake_part(manifest: Manifest, bake_status: str | None) -> dict:
+    record = manifest.statistics.last_bake
     return {
         "this_command": None if bake_status is None else {"status": bake_status,
                                                           "redone": BAKE_STATUS.get(bake_status, bake_status)},
@@ -124,13 +125,13 @@ def frame_section(stats: dict) -> dict:
     return {"specular": specular_part(stats), "mirror": mirror_part(stats)}
 
 
-def bake_section(manifest: dict, bake_status: str | None = None) -> dict:
+def bake_section(manifest: Manifest, bake_status: str | None = None) -> dict:
     """The parts that come from the bake: `manifest` and `bake_status`, the status of the bake step
     the command itself ran (BakeReport.status; None: it ran none)."""
     return {"cube_maps": cube_map_part(manifest), "bake": bake_part(manifest, bake_status)}
 
 
-def skipping_section(stats: dict, manifest: dict, bake_status: str | None = None) -> dict:
+def skipping_section(stats: dict, manifest: Manifest, bake_status: str | None = None) -> dict:
     """The whole section: the frame of `stats` (renderer.stats) and the bake (`bake_section`)."""
     return {**frame_section(stats), **bake_section(manifest, bake_status)}
 
