@@ -51,9 +51,8 @@ def main() -> None:
         bake_dir = Path(tmp) / "scene.bake"
         bake_scene(scene, resolve_settings(scene.bake_settings, quality="draft"), bake_dir, progress=False)
         bake = Bake(bake_dir)
-        manifest = bake.manifest
-        material = [m["name"] for m in manifest["materials"]].index(args.material)
-        camera = manifest["cameras"][0]
+        material = [m.name for m in bake.model.materials].index(args.material)
+        camera = bake.model.cameras[0]
         home = ViewCamera.from_manifest(camera)
         wnd = Window(size=size, gl_version=GL_VERSION, backend="egl", aspect_ratio=None)
         with background_rebake(bake.model, bake_dir) as rebaker:

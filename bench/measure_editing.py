@@ -24,6 +24,7 @@ import argparse
 import json
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 from statistics import median
 
@@ -32,6 +33,7 @@ import numpy as np
 from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import resolve_settings
 from glint.core.bake_dir import Bake
+from glint.core.manifest import Material
 from glint.scenes import resolve
 from glint.services import bake_scene, parse_size
 from glint.viewer.camera import ViewCamera
@@ -40,7 +42,7 @@ from glint.viewer.renderer import Renderer
 
 
 def measure(renderer: Renderer, camera: ViewCamera, size, frames: int, way: str, material: int) -> dict:
-    entry = dict(renderer.scene.materials[material])
+    entry = Material.from_json(renderer.scene.materials[material])  # the GPU scene keeps manifest entries
     wall, passes, edit = [], [], []
     for k in range(frames + 2):
         view = camera
@@ -50,10 +52,10 @@ def measure(renderer: Renderer, camera: ViewCamera, size, frames: int, way: str,
         start = time.perf_counter()
         if way == "editing":
             t = k / max(frames, 1)
-            lobes = [dict(lobe) for lobe in entry.get("lobes") or []]
+            lobes = list(entry.lobes)
             if lobes:
-                lobes[0]["mx"] = lobes[0]["my"] = 0.05 + 0.2 * t
-            renderer.set_material(material, {**entry, "kd": [0.2 + 0.5 * t, 0.3, 0.4], "lobes": lobes})
+                lobes[0] = replace(lobes[0], mx=0.05 + 0.2 * t, my=0.05 + 0.2 * t)
+            renderer.set_material(material, replace(entry, kd=[0.2 + 0.5 * t, 0.3, 0.4], lobes=lobes))
             edit.append((time.perf_counter() - start) * 1e3)
         renderer.render(view, *size, mode="auto")
         renderer.ctx.finish()
@@ -80,13 +82,13 @@ def main() -> None:
     report = bake_scene(scene, resolve_settings(scene.bake_settings, quality=args.quality),
                         out / f"{scene_file.stem}.bake", progress=False)
     bake = Bake(report.bake_dir)
-    manifest = bake.manifest
-    names = [m["name"] for m in manifest["materials"]]
+    model = bake.model
+    names = [m.name for m in model.materials]
     if args.material not in names:
         raise SystemExit(f"no material {args.material!r}; the scene has {', '.join(names)}")
-    if not manifest["cameras"]:
+    if not model.cameras:
         raise SystemExit(f"{args.scene} has no camera")
-    camera = ViewCamera.from_manifest(manifest["cameras"][0])
+    camera = ViewCamera.from_manifest(model.cameras[0])
     ctx = headless_context()
     results = []
     for way in ("walking", "still", "editing"):

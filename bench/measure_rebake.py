@@ -55,11 +55,11 @@ def bake(path: Path, quality: str) -> tuple[Bake, float]:
     scene = load_scene(path)
     report = bake_scene(scene, resolve_settings(scene.bake_settings, quality=quality), path.with_suffix(".bake"),
                         force=True, progress=False)
-    return Bake(report.bake_dir), report.manifest["statistics"]["lightmaps"]["seconds"]
+    return Bake(report.bake_dir), report.model.statistics.lightmaps["seconds"]
 
 
-def tour(manifest: dict):
-    path = manifest["camera_paths"][0]
+def tour(model):
+    path = model.camera_paths[0]
     return lambda t: camera_path_at(path, t)
 
 
@@ -73,9 +73,9 @@ def frame_ms(renderer: Renderer, camera, size) -> float:
 def measure_edit(renderer: Renderer | None, base: Bake, scene_path: Path, size, material: str, key: str, value,
                  nice: int) -> dict:
     """One edit's re-bake; with a `renderer`, walkthrough frames drawn back to back meanwhile."""
-    materials = [dict(m) for m in base.manifest["materials"]]
+    materials = [m.to_json() for m in base.model.materials]  # the re-bake takes material entries (JSON)
     next(m for m in materials if m["name"] == material)[key] = value
-    at = tour(base.manifest)
+    at = tour(base.model)
     with Rebaker(scene_path, base.path, nice=nice, probes=ProbeRefresher) as rebaker:
         while rebaker.ready is None:  # the worker has loaded the scene, as it has long before a user's first edit
             rebaker.poll()
@@ -149,7 +149,7 @@ def main() -> None:
             rows.append(measure_edit(renderer, base, scene_path, size, *EDITS[name], args.nice))
             rows[-1]["name"] = name
             if renderer is not None:  # back to the bake's light maps for the next edit
-                renderer.replace_lightmaps([base.lightmap(k) for k in range(len(base.manifest["lightmaps"]))],
+                renderer.replace_lightmaps([base.lightmap(k) for k in range(len(base.model.lightmaps))],
                                            [base.lightmap(k, back=True) for k in range(len(base.back_pages))])
                 renderer.replace_probes({f: mip_chain(read_cubemap(base.path / f)) for f in renderer.scene.cubemaps.slots})
         renderer_name = describe(ctx) if ctx is not None else None

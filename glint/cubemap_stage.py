@@ -61,7 +61,7 @@ from glint.bake.executor import TASKS_PER_WORKER
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
-from glint.core.manifest import Manifest
+from glint.core.manifest import Manifest, Material
 from glint.core.signals import quiet_child
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
@@ -214,7 +214,7 @@ class ProbeRefresher:
         for i, entry in enumerate(materials):
             diffuse = {**entry, "lobes": []}
             if diffuse != self.shown[i]:
-                self.renderer.set_material(i, diffuse)
+                self.renderer.set_material(i, Material.from_json(diffuse))  # the renderer takes typed materials
                 self.shown[i] = diffuse
         self.renderer.replace_lightmaps(front, back)
         for group in batches(plans):
