@@ -15,6 +15,7 @@ import pytest
 from test_renderer import material, quad
 from test_specular import cube_file, direction_colours, lobe, specular_bake
 
+from glint.core.manifest import Camera
 from glint.viewer.camera import ViewCamera
 from glint.viewer.progressive import Progressive
 from glint.viewer.renderer import Renderer
@@ -183,8 +184,8 @@ def test_window_refines_while_the_camera_stands_still(bake):
 
     wnd = headless_window()
     try:
-        start = {"name": "start", "eye": [0.0, -2.0, 1.5], "forward": [0.0, 2.5, -1.5], "up": [0, 0, 1],
-                 "yfov": 0.9, "znear": 0.01, "zfar": 100.0}
+        start = Camera(name="start", eye=[0.0, -2.0, 1.5], forward=[0.0, 2.5, -1.5], up=[0, 0, 1], yfov=0.9,
+                       znear=0.01, zfar=100.0)
         controls = WalkControls([start], [], ViewCamera(eye=(0, 0, 5), forward=(0, 0, -1)), speed=1.0)
         viewer = ViewerWindow(ctx=wnd.ctx, wnd=wnd, bake=bake, controls=controls)
         wnd.config = viewer
