@@ -1,18 +1,21 @@
 """Runs independent bake jobs (texel tiles, cube-map probes) on local worker processes or on a Dask cluster.
 
-One interface, `executor.run(setup, setup_args, job, tasks)`: each task is handled by
+One interface, the protocol `Executor` (the one way the bake and the cube-map stage run work in
+parallel), `executor.run(setup, setup_args, job, tasks)`: each task, a small typed object, is handled by
 `job(state, task)` in a worker whose `state = setup(*setup_args)` was built once per worker
 process (an Embree scene cannot be pickled, so every worker builds its own). Results come back in
 completion order as (task index, result); the caller puts them in place, so the outcome does not
 depend on the number of workers or on which worker ran what.
 
-- `LocalExecutor(jobs)`: forked processes of this machine (they inherit setup_args unpickled).
+- `LocalExecutor(jobs)`: forked processes of this machine (they inherit setup_args unpickled);
+  `LocalExecutor(jobs, start_method="spawn")` where a worker's state does not survive fork (the
+  cube-map stage's GL contexts).
 - `DaskExecutor(address)`: the workers of a Dask cluster (`distributed`), for `glint bake
   --scheduler`: `tcp://HOST:PORT` (a running `dask scheduler`) or `local:N` (a cluster of N worker
   processes on this machine, started and closed by the executor: bake/local_cluster.py). setup_args are scattered once
   (`client.scatter`, to every worker) and travel once to each worker, which builds its state from
   them on its first task and keeps it for the others; each task carries only its own small
-  description (a tile's first texel and count; a list of probes). Dask is imported here only when
+  description (a TileTask: a tile's first texel and count; a ProbeTask: its probes). Dask is imported here only when
   such an executor starts (an optional extra: `pip install 'glint[cluster]'`).
 
 `executor_for(settings)` picks one; use it as a context manager (`with executor_for(s) as ex:`), and
@@ -31,7 +34,9 @@ import pickle
 import re
 import threading
 import time
-from typing import Any, Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any, Callable, Iterable, Iterator, Protocol
 
 from glint.bake import local_cluster
 from glint.core.errors import GlintError, one_line, warn
@@ -70,11 +75,44 @@ def _run_task(indexed):
     return index, _worker_job(_worker_state, task)
 
 
+class Executor(Protocol):
+    """What a bake stage runs its tasks on (the module docstring): `LocalExecutor` or `DaskExecutor`.
+
+    `start(modules)` once work is certain (`modules`: what a cluster's workers import ahead of the
+    tasks); `run(setup, setup_args, job, tasks)` yields (task index, result) in completion order, each
+    task a small typed object (bake/lightmap.py TileTask, glint/cubemap_stage.py ProbeTask) handled by
+    `job(state, task)` on a worker whose `state = setup(*setup_args)` was built once; `workers()` what
+    a stage may size its tasks by; `distributed`: the workers are a Dask cluster's (they do not share
+    this machine's files); `statistics`: what the cluster cost (empty for local processes). A context
+    manager: leaving it closes what `start` opened."""
+
+    distributed: bool
+    statistics: dict
+
+    def __enter__(self) -> "Executor": ...
+
+    def __exit__(self, *exc) -> None: ...
+
+    def start(self, modules: tuple[str, ...] = ()) -> None: ...
+
+    def workers(self) -> int: ...
+
+    def run(self, setup: Callable, setup_args: tuple, job: Callable, tasks: Iterable) -> Iterator[tuple[int, Any]]: ...
+
+
 class LocalExecutor:
+    """Processes of this machine, `jobs` at most, started by each `run` (one job or one task: this
+    process). `start_method` "fork" (the default): the workers inherit setup_args unpickled; "spawn" for
+    a state that does not survive fork (a GL context: the cube-map stage), setup_args then pickled.
+    A worker that dies ends the run with one line (GlintError); an error or a signal here stops the
+    workers rather than wait for them."""
+
     distributed = False
 
-    def __init__(self, jobs: int):
+    def __init__(self, jobs: int, start_method: str = "fork"):
         self.jobs = max(1, int(jobs))
+        self.start_method = start_method
+        self.statistics: dict = {}
 
     def __enter__(self) -> "LocalExecutor":
         return self
@@ -83,7 +121,7 @@ class LocalExecutor:
         pass
 
     def start(self, modules: tuple[str, ...] = ()) -> None:
-        """Nothing to start: the processes are forked by each `run`."""
+        """Nothing to start: the processes are started by each `run`."""
 
     def workers(self) -> int:
         return self.jobs
@@ -96,21 +134,30 @@ class LocalExecutor:
             for index, task in tasks:
                 yield index, job(state, task)
             return
-        # fork: workers inherit the scene without pickling it
-        ctx = mp.get_context("fork")
-        with deferred_signals():  # a signal between a fork and its worker's quiet_child is the bake's
-            pool = ctx.Pool(min(self.jobs, len(tasks)), _init_worker, (setup, setup_args, job))
+        pool = ProcessPoolExecutor(min(self.jobs, len(tasks)), mp_context=mp.get_context(self.start_method),
+                                   initializer=_init_worker, initargs=(setup, setup_args, job))
         try:
-            yield from pool.imap_unordered(_run_task, tasks)
-            pool.close()
-        except BaseException:
-            pool.terminate()
+            with deferred_signals():  # a signal between a fork and its worker's quiet_child is the bake's
+                futures = [pool.submit(_run_task, task) for task in tasks]  # the processes start here
+            for done in as_completed(futures):
+                yield done.result()
+        except BrokenProcessPool as e:  # a worker died (out of memory, killed): one line, no traceback
+            _stop(pool)
+            raise GlintError(f"a bake worker process stopped before its tasks were done ({e}); "
+                             "bake again, or with --jobs 1") from None
+        except BaseException:  # Ctrl-C, SIGTERM, an error: stop the workers, not wait for them
+            _stop(pool)
             raise
         finally:
-            pool.join()
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
-def executor_for(settings) -> "LocalExecutor | DaskExecutor":
+def _stop(pool: ProcessPoolExecutor) -> None:
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        process.terminate()
+
+
+def executor_for(settings) -> Executor:
     """The executor of a bake's settings: its Dask cluster (`settings.scheduler`), else `settings.workers`
     local processes."""
     scheduler = getattr(settings, "scheduler", None)

@@ -91,12 +91,23 @@ def _setup(scene: Scene, points: np.ndarray, normals: np.ndarray):
     return scene, RayTracer(scene), points, normals
 
 
-def _trace_tile(state, task):
-    """The irradiance, back-face share and ray count of texels first..first + count."""
+@dataclass(frozen=True)
+class TileTask:
+    """One light-map task: the texels first..first + count of the worker's state, traced with `samples`
+    paths each from the bake's `seed`, `max_depth` bounces at most."""
+    first: int
+    count: int
+    samples: int
+    seed: int
+    max_depth: int
+
+
+def _trace_tile(state, task: TileTask):
+    """The irradiance, back-face share and ray count of the task's texels."""
     scene, tracer, points, normals = state
-    first, count, samples, seed, max_depth = task
-    result = compute_irradiance(scene, tracer, points[first:first + count], normals[first:first + count], samples,
-                                seed=seed, max_depth=max_depth, first_index=first)
+    first, count = task.first, task.count
+    result = compute_irradiance(scene, tracer, points[first:first + count], normals[first:first + count], task.samples,
+                                seed=task.seed, max_depth=task.max_depth, first_index=first)
     return result.irradiance, result.backface, result.rays
 
 
@@ -141,7 +152,8 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     t0 = time.perf_counter()
     with executor_for(settings) if executor is None else nullcontext(executor) as tiles:
         tile = tile_size(n, tiles)
-        tasks = [(i, min(tile, n - i), settings.samples, settings.seed, settings.max_depth) for i in range(0, n, tile)]
+        tasks = [TileTask(i, min(tile, n - i), settings.samples, settings.seed, settings.max_depth)
+                 for i in range(0, n, tile)]
         for index, (e, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
             start = index * tile
             E[start:start + len(e)] = e

@@ -17,9 +17,13 @@ depth, as the renderer's `read_distance`: the mean over the pixels of the texel
 Processes: a software renderer (Mesa's llvmpipe) processes vertices on the thread that issues the
 draw and rasterises on others, so one GL context keeps about one core busy with a probe's many
 small triangles. There the probes are shared out, PROBES_PER_TASK at a time, among `workers`
-processes (the bake's --jobs), each with its own EGL context and renderer, started with spawn (a GL
-context does not survive fork); each probe is rendered alone, so the files are the same bytes
+processes (the bake's --jobs), each with its own EGL context and renderer (`ProbeWorker`, built once
+per process), started with spawn (a GL context does not survive fork: bake/executor.py
+LocalExecutor's start_method); each probe is rendered alone, so the files are the same bytes
 whichever process renders it. A GPU gets one context: its driver queues the work anyway.
+
+Local processes and a Dask cluster's workers are one code path (`_render_on_workers`): the executor's
+`run` of `ProbeTask`s, each handled by `_probe_task` on the worker's state.
 
 On a Dask cluster (`glint bake --scheduler`, bake/executor.py DaskExecutor) the workers do not share
 this machine's file system: the bake inputs the renderer reads (the bake directory written so far,
@@ -33,14 +37,12 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import multiprocessing as mp
 import os
 import shutil
 import socket
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Callable
 
@@ -57,12 +59,11 @@ from glint.bake.cubemap import (
     CubeMapPlan,
     supersample,
 )
-from glint.bake.executor import TASKS_PER_WORKER
+from glint.bake.executor import TASKS_PER_WORKER, LocalExecutor
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
 from glint.core.manifest import Manifest, Material
-from glint.core.signals import quiet_child
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
 from glint.viewer.cubemaps import finite_radiance, mip_chain
@@ -105,10 +106,11 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
     On a software renderer with `workers` > 1 the probes are shared out among that many processes,
     each with its own GL context (see the module docstring); on a GPU one context renders them all.
     `cluster`: a Dask cluster's executor (bake/executor.py DaskExecutor), whose workers render them
-    instead (`workers` is then unused)."""
+    instead (`workers` is then unused). Processes and a cluster's workers are the same code path: an
+    executor's (`_render_on_workers`)."""
     t0 = time.perf_counter()
     if cluster is not None:
-        return {**_render_on_cluster(cluster, bake_dir, plans, progress), "seconds": round(time.perf_counter() - t0, 3),
+        return {**_render_on_workers(cluster, bake_dir, plans, progress), "seconds": round(time.perf_counter() - t0, 3),
                 "batches": len(batches(plans))}
     ctx = headless_context()
     try:
@@ -120,22 +122,8 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
     finally:
         ctx.release()
     if processes > 1:
-        spawn = mp.get_context("spawn")  # a GL context does not survive fork
-        try:
-            with ProcessPoolExecutor(processes, mp_context=spawn, initializer=_start_worker,
-                                     initargs=(str(bake_dir),)) as pool:
-                try:
-                    for done in as_completed([pool.submit(_worker_task, task) for task in probe_tasks(plans)]):
-                        for _ in range(done.result()):
-                            if progress is not None:
-                                progress()
-                except BaseException:  # Ctrl-C, SIGTERM, an error: stop the workers, not wait for them
-                    for process in list((getattr(pool, "_processes", None) or {}).values()):
-                        process.terminate()
-                    raise
-        except BrokenProcessPool as e:  # a worker died (out of memory, killed): one line, no traceback
-            raise GlintError(f"a cube-map worker process stopped before its probes were rendered ({e}); "
-                             "bake again, or with --jobs 1") from None
+        with LocalExecutor(processes, start_method="spawn") as local:  # a GL context does not survive fork
+            _render_on_workers(local, bake_dir, plans, progress)
     return {"seconds": round(time.perf_counter() - t0, 3), "batches": len(groups), "processes": max(processes, 1),
             "device": device}
 
@@ -227,11 +215,18 @@ class ProbeRefresher:
         self.ctx.release()
 
 
-def probe_tasks(plans: list[CubeMapPlan], per_task: int = PROBES_PER_TASK) -> list[list[CubeMapPlan]]:
+@dataclasses.dataclass(frozen=True)
+class ProbeTask:
+    """One cube-map task: the probes a worker renders, each alone (so its file is the same bytes
+    whichever task and worker it falls to)."""
+    plans: tuple[CubeMapPlan, ...]
+
+
+def probe_tasks(plans: list[CubeMapPlan], per_task: int = PROBES_PER_TASK) -> list[ProbeTask]:
     """The plans in tasks of `per_task` for worker processes: the largest faces first, so that the last
     tasks are short and the processes end together."""
     by_size = sorted(plans, key=lambda p: -p.size)
-    return [by_size[k:k + per_task] for k in range(0, len(by_size), per_task)]
+    return [ProbeTask(tuple(by_size[k:k + per_task])) for k in range(0, len(by_size), per_task)]
 
 
 class ProbeWorker:
@@ -242,32 +237,40 @@ class ProbeWorker:
     processes already keep the cores busy, and its raster threads would only contend with them."""
 
     def __init__(self, bake_dir: str | Path):
+        t0 = time.perf_counter()
         os.environ.setdefault("LP_NUM_THREADS", "0")  # read when the first context opens, just below
         self.bake_dir = Path(bake_dir)
         self.ctx = headless_context()
         self.device = describe(self.ctx)
         self.renderer = _diffuse_renderer(self.ctx, self.bake_dir)
+        self.setup_seconds = time.perf_counter() - t0
 
     def render(self, plans: list[CubeMapPlan]) -> int:
         _render_groups(self.ctx, self.bake_dir, batches(plans), None, self.renderer)
         return len(plans)
+
+    def render_task(self, task: ProbeTask) -> dict:
+        """The task's probes written in place: no files to hand back (`ClusterProbeWorker.render_task`'s form)."""
+        t0 = time.perf_counter()
+        self.render(list(task.plans))
+        return _task_result([], len(task.plans), self.device, t0, self.setup_seconds)
 
     def release(self) -> None:
         self.renderer.release()
         self.ctx.release()
 
 
-_worker: dict = {}
+def _task_result(files: list, probes: int, device: str, t0: float, setup_seconds: float) -> dict:
+    """A task's result: its files as bytes {"files": [(path in the bake, bytes)]} (none where written in
+    place), its probes, which process (host:pid) and device rendered them, in how many seconds, and the
+    seconds the worker took to get ready."""
+    return {"files": files, "probes": probes, "process": f"{socket.gethostname()}:{os.getpid()}", "device": device,
+            "seconds": time.perf_counter() - t0, "setup_seconds": setup_seconds}
 
 
-def _start_worker(bake_dir: str) -> None:
-    """ProcessPoolExecutor initializer of the local worker processes."""
-    quiet_child()  # Ctrl-C and SIGHUP are the bake's, which stops its workers
-    _worker["probes"] = ProbeWorker(bake_dir)
-
-
-def _worker_task(plans: list[CubeMapPlan]) -> int:
-    return _worker["probes"].render(plans)
+def _probe_task(worker: "ProbeWorker | ClusterProbeWorker", task: ProbeTask) -> dict:
+    """One task on a worker, local process or Dask worker: `render_task`'s result."""
+    return worker.render_task(task)
 
 
 # -- on a Dask cluster --------------------------------------------------------------------------------
@@ -301,18 +304,16 @@ class ClusterProbeWorker:
             self._remove()
             raise
 
-    def render(self, plans: list[CubeMapPlan]) -> dict:
-        """The task's files {"files": [(path in the bake, bytes)]}, which process (host:pid) and device
-        rendered them, in how many seconds, and the seconds this worker took to get ready."""
+    def render_task(self, task: ProbeTask) -> dict:
+        """The task's result (`_task_result`), its probes' files as bytes."""
         t0 = time.perf_counter()
-        self.thread.submit(self.probes.render, plans).result()
+        self.thread.submit(self.probes.render, list(task.plans)).result()
         files = []
-        for plan in plans:
+        for plan in task.plans:
             path = self.folder / plan.file
             files.append((plan.file, path.read_bytes()))
             path.unlink()
-        return {"files": files, "process": f"{socket.gethostname()}:{os.getpid()}", "device": self.probes.device,
-                "seconds": time.perf_counter() - t0, "setup_seconds": self.setup_seconds}
+        return _task_result(files, len(task.plans), self.probes.device, t0, self.setup_seconds)
 
     def release(self) -> None:
         self.thread.submit(self.probes.release).result()
@@ -323,29 +324,33 @@ class ClusterProbeWorker:
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
-def _cluster_task(worker: ClusterProbeWorker, plans: list[CubeMapPlan]):
-    return worker.render(plans)
-
-
-def _render_on_cluster(cluster, bake_dir: Path, plans: list[CubeMapPlan], progress) -> dict:
-    """The probes rendered by the cluster's workers, their files written here; statistics: the worker
-    processes that rendered, their devices, the longest task and the longest a worker took to get ready
-    (unpack the inputs, open its GL context, build the renderer)."""
-    # tasks small enough that every worker thread gets several, at most PROBES_PER_TASK probes
-    per_task = max(1, min(PROBES_PER_TASK, len(plans) // (TASKS_PER_WORKER * cluster.workers())))
-    processes, devices, longest, setup = set(), set(), 0.0, 0.0
-    for _, task in cluster.run(ClusterProbeWorker, (bake_inputs(bake_dir),), _cluster_task,
-                               probe_tasks(plans, per_task)):
+def _render_on_workers(executor, bake_dir: Path, plans: list[CubeMapPlan], progress) -> dict:
+    """The probes rendered by the executor's workers (bake/executor.py), tasks of PROBES_PER_TASK: local
+    processes (`ProbeWorker`, each writing its files into the bake), or a Dask cluster's workers
+    (`ClusterProbeWorker` on their copy of the inputs, the files written here; tasks small enough that
+    every worker thread gets several). On a cluster, statistics: the worker processes that rendered,
+    their devices, the longest task and the longest a worker took to get ready (unpack the inputs, open
+    its GL context, build the renderer)."""
+    if executor.distributed:
+        per_task = max(1, min(PROBES_PER_TASK, len(plans) // (TASKS_PER_WORKER * executor.workers())))
+        setup, setup_args = ClusterProbeWorker, (bake_inputs(bake_dir),)
+    else:
+        per_task, setup, setup_args = PROBES_PER_TASK, ProbeWorker, (str(bake_dir),)
+    processes, devices, longest, setup_max = set(), set(), 0.0, 0.0
+    for _, task in executor.run(setup, setup_args, _probe_task, probe_tasks(plans, per_task)):
         processes.add(task["process"])
         devices.add(task["device"])
-        longest, setup = max(longest, task["seconds"]), max(setup, task["setup_seconds"])
+        longest, setup_max = max(longest, task["seconds"]), max(setup_max, task["setup_seconds"])
         for name, data in task["files"]:
             (Path(bake_dir) / name).parent.mkdir(parents=True, exist_ok=True)
             (Path(bake_dir) / name).write_bytes(data)
+        for _ in range(task["probes"]):
             if progress is not None:
                 progress()
-    return {"processes": len(processes), "device": "; ".join(sorted(devices)), "cluster": cluster.address,
-            "task_seconds_max": round(longest, 3), "worker_setup_seconds_max": round(setup, 3)}
+    if not executor.distributed:
+        return {}
+    return {"processes": len(processes), "device": "; ".join(sorted(devices)), "cluster": executor.address,
+            "task_seconds_max": round(longest, 3), "worker_setup_seconds_max": round(setup_max, 3)}
 
 
 def farthest(lo, hi, centre) -> float:

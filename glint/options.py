@@ -10,12 +10,22 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from glint.bake.executor import check_scheduler_address
 from glint.bake.sidecar_schema import BAKE
 from glint.bake.settings import PRESETS
 from glint.core.errors import GlintError
 
 SCENE_HELP = ("a built-in scene name (see `glint scenes`) or a .glb/.gltf file; "
               "an optional NAME.glint.toml beside the file adds lights, sky, material overrides and bake settings")
+
+
+def _scheduler(text: str) -> str:
+    """argparse type of --scheduler: `local:N` or [SCHEME://]HOST:PORT (glint.bake.executor
+    check_scheduler_address), checked here, before the command reads the scene."""
+    try:
+        return check_scheduler_address(text)
+    except GlintError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _setting(key: str):
@@ -53,7 +63,7 @@ def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_e
                    help="light-map resolution (overrides the preset)")
     p.add_argument("-j", "--jobs", type=_setting("jobs"), metavar="N",
                    help="worker processes (default: the sidecar's [bake] jobs, else 0 = one per core)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
+    p.add_argument("--scheduler", type=_scheduler, metavar="ADDRESS",
                    help="bake on a Dask cluster: the light-map tiles and cube maps become tasks on its workers. "
                         "ADDRESS is tcp://HOST:PORT of a running `dask scheduler` (workers started with `dask worker "
                         "tcp://HOST:PORT --nthreads 1`, each with this glint version and, for the cube maps, EGL: "
