@@ -24,8 +24,8 @@ def _scheduler(text: str) -> str:
     check_scheduler_address), checked here, before the command reads the scene."""
     try:
         return check_scheduler_address(text)
-    except GlintError as err:
-        raise argparse.ArgumentTypeError(str(err)) from None
+    except GlintError as err:  # argparse names the option itself: "argument --scheduler: bad 'x': ..."
+        raise argparse.ArgumentTypeError(str(err).replace("bad --scheduler ", "bad ", 1)) from None
 
 
 def _setting(key: str):
