@@ -30,6 +30,11 @@ def lobe_from_json(d: dict) -> Lobe:
     return Lobe(**known)
 
 
+def _fields(obj) -> dict:
+    """A flat dataclass as JSON, its fields in their order (lists and tuples as lists)."""
+    return {k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in vars(obj).items()}
+
+
 @dataclass(frozen=True)
 class Sampler:
     """A textured material's glTF sampler (`kd_sampler`); the default (REPEAT, LINEAR) is left out."""
@@ -42,7 +47,7 @@ class Sampler:
         return cls(**(d or {}))
 
     def to_json(self) -> dict:
-        return {"wrap_s": self.wrap_s, "wrap_t": self.wrap_t, "mag_filter": self.mag_filter}
+        return _fields(self)
 
 
 @dataclass(frozen=True)
@@ -57,7 +62,7 @@ class Volume:
         return cls(**d)
 
     def to_json(self) -> dict:
-        return {"ior": self.ior, "thickness": self.thickness, "absorption": list(self.absorption)}
+        return _fields(self)
 
 
 @dataclass(frozen=True)
@@ -131,7 +136,7 @@ class BoundingPlane:
         return cls(d["point"], d["normal"], d.get("object"))
 
     def to_json(self) -> dict:
-        return {"point": list(self.point), "normal": list(self.normal), "object": self.object}
+        return _fields(self)
 
 
 @dataclass(frozen=True)
@@ -163,7 +168,7 @@ class Plane:
     normal: list
 
     def to_json(self) -> dict:
-        return {"point": list(self.point), "normal": list(self.normal)}
+        return _fields(self)
 
 
 @dataclass(frozen=True)
@@ -220,10 +225,6 @@ class DirectionalLight:
     irradiance: list
 
 
-def _fields(obj) -> dict:
-    return {k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in vars(obj).items()}
-
-
 @dataclass(frozen=True)
 class Lights:
     point: list = field(default_factory=list)
@@ -248,7 +249,7 @@ class Sky:
     map: str | None = None
 
     def to_json(self) -> dict:
-        return {"radiance": list(self.radiance), "map": self.map}
+        return _fields(self)
 
 
 @dataclass(frozen=True)
@@ -301,7 +302,7 @@ class SceneInfo:
     hash: str = ""
 
     def to_json(self) -> dict:
-        return {"name": self.name, "source": self.source, "hash": self.hash}
+        return _fields(self)
 
 
 @dataclass(frozen=True)
