@@ -83,7 +83,7 @@ def sidecar_changes(old: dict | None, new: dict | None) -> list[str]:
     """The sidecar's change between two manifests' `inputs.sidecar` ({file, content} or None), e.g.
     ["sidecar room.glint.toml changed: [bake] samples, [cameras.Door]"]; [] when the same."""
     old_content, new_content = (old or {}).get("content") or {}, (new or {}).get("content") or {}
-    if (old or None) is None and (new or None) is None or old_content == new_content and bool(old) == bool(new):
+    if bool(old) == bool(new) and old_content == new_content:  # both absent, or the same tables
         return []
     keys = []
     for table in sorted(set(old_content) | set(new_content), key=lambda t: (t not in new_content, t)):
