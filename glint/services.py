@@ -21,8 +21,8 @@ from glint.bake.lightmap import INVALID_WARN_SHARE, UNLIT_WARN_SHARE
 from glint.bake.pipeline import BakeReport
 from glint.bake.settings import BakeSettings, resolve_settings
 from glint.core.bake_dir import check_bake_target, default_bake_dir, read_model, remove_dead_temporaries
-from glint.core.manifest import Manifest
 from glint.core.errors import GlintError, summarised
+from glint.core.manifest import Manifest
 from glint.core.scene import Scene
 from glint.scenes import BUILTIN, resolve
 from glint.viewer.camera import find_named
@@ -120,7 +120,8 @@ def settings_for(scene: Scene, args, existing: Manifest | None) -> BakeSettings:
     sidecar = {k: v for k, v in (scene.bake_settings or {}).items() if k != "quality"}
     # The files unchanged (an edited scene's bake starts from the unedited one's manifest): only
     # the [bake] keys that `--set` gives apply; jobs never changes a result.
-    if existing.scene.hash in (pipeline.source_hash(scene), pipeline.source_hash(scene, edits=False)):
+    unchanged = {pipeline.source_hash(scene)} | ({pipeline.source_hash(scene, edits=False)} if scene.edits else set())
+    if existing.scene.hash in unchanged:  # without edits both hashes are one: the scene's files read once
         sidecar = {k: v for k, v in sidecar.items() if k == "jobs" or k in edited_bake_keys(scene.edits)}
     return resolve_settings({**made_with, **sidecar}, **cli)
 
