@@ -53,7 +53,8 @@ class Key:
         """`value` checked and converted (int, float, bool, str, or an (3,) array for vec3 and rgb);
         a one-line GlintError "{where} {key} must be ..., not VALUE" otherwise. `key` "": `where`
         names the value alone (a command-line option)."""
-        ok = {"choice": lambda v: isinstance(v, str) and v in self.choices,"bool": lambda v: isinstance(v, bool), "string": lambda v: isinstance(v, str),
+        ok = {"choice": lambda v: isinstance(v, str) and v in self.choices,
+              "bool": lambda v: isinstance(v, bool), "string": lambda v: isinstance(v, str),
               "vec3": lambda v: isinstance(v, list) and len(v) == 3 and all(map(self._in_range, v)),
               "rgb": lambda v: (self._in_range(v) if _is_number(v)
                                 else isinstance(v, list) and len(v) == 3 and all(map(self._in_range, v)))
