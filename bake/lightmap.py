@@ -180,12 +180,14 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     some_valid[back] |= valid[front:]
     # a texel invalid on every side is counted as invalid only; an emitter's texels are seen by their
     # emission, never black: not unlit
-    unlit = ~lit & some_valid & ~emissive_objects(scene)[objects]
+    emitting = emissive_objects(scene)[objects]
+    unlit = ~lit & some_valid & ~emitting
     unlit_by_object = np.bincount(objects[unlit], minlength=count)
-    median_radiance = _median_radiance(scene, objects, E[:front], lit & valid[:front] & ~emissive_objects(scene)[objects])
+    median_radiance = _median_radiance(scene, objects, E[:front], lit & valid[:front] & ~emitting)
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
-                         unlit_by_object=unlit_by_object, median_radiance=median_radiance, trace_seconds=trace_seconds, tiles=len(tasks))
+                         unlit_by_object=unlit_by_object, median_radiance=median_radiance,
+                         trace_seconds=trace_seconds, tiles=len(tasks))
 
 
 def _median_radiance(scene: Scene, objects: np.ndarray, E: np.ndarray, texels: np.ndarray) -> float | None:
