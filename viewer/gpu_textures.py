@@ -45,7 +45,8 @@ class GpuTextures:
         """Every material's textures (`<kind>_textures`: a texture or None per material) from the
         bake directory; software: the context renders on the CPU (no anisotropic filtering)."""
         self.ctx, self._gl, self.software = ctx, gl, software
-        self.white = ctx.texture((1, 1), 4, np.ones(4, np.float32).tobytes(), dtype="f4")
+        with gl.checked("upload the 1x1 white texture"):  # what every material without a texture samples
+            self.white = ctx.texture((1, 1), 4, np.ones(4, np.float32).tobytes(), dtype="f4")
         self.kd_textures: list[moderngl.Texture | None] = []
         self.emission_textures: list[moderngl.Texture | None] = []
         self.metallic_roughness_textures: list[moderngl.Texture | None] = []
