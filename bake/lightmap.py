@@ -30,7 +30,7 @@ import numpy as np
 from glint.bake.alpha import cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
-from glint.bake.executor import TASKS_PER_WORKER, executor_for
+from glint.parallel.executor import TASKS_PER_WORKER, executor_for
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
 from glint.bake.texels import TexelPage
@@ -132,7 +132,7 @@ def emissive_objects(scene: Scene) -> np.ndarray:
 
 def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None,
                    executor=None) -> LightmapPages:
-    """The light maps of `pages`; the tiles traced by `executor` (bake/executor.py: the bake's, which
+    """The light maps of `pages`; the tiles traced by `executor` (parallel/executor.py: the bake's, which
     may be a Dask cluster; default: `settings`' own)."""
     two = two_sided_objects(scene)
     # Texels in the cut-out parts of MASK materials are never seen: not traced, left to dilation.

@@ -22,7 +22,7 @@ from tqdm import tqdm
 
 from glint.bake import hashing
 from glint.bake.cubemap import CubeMapPlan, ProbeRules, budget_statistics, plan_cubemaps
-from glint.bake.executor import executor_for
+from glint.parallel.executor import executor_for
 from glint.bake.lightmap import bake_lightmaps, two_sided_objects, warn_texels
 from glint.bake.settings import PROBE_SETTINGS, BakeSettings
 from glint.bake.texels import rasterize_texels
@@ -299,9 +299,10 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     probes_to_render = _to_render(cubemaps, old, old_dir)
     if not reuse_lightmaps or probes_to_render:
         # a remote scheduler is reached now, before anything is written; a local:N cluster starts in
-        # the background while the scene is unwrapped (its workers with the cube maps' module imported
-        # where there are cube maps to render)
-        executor.start(modules=tuple(worker_modules) if probes_to_render and render_cubemaps else ())
+        # the background while the scene is unwrapped, its workers with the light maps' module imported,
+        # and the cube maps' where there are cube maps to render
+        cube_maps = tuple(worker_modules) if probes_to_render and render_cubemaps else ()
+        executor.start(modules=(bake_lightmaps.__module__, *cube_maps))
     with executor, BakeDirWriter(bake_dir) as out:
         _write_textures(scene, out.path)
         if reuse_lightmaps:

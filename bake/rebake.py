@@ -4,7 +4,8 @@ The light maps store irradiance E (Eq. 4.1: diffuse radiance = kd / pi x E), so 
 kd shows at once without them; but every surface's kd, emission and lobes change the light that
 reaches all the others (the bake's paths scatter by the whole BSDF, bake/irradiance.py). A
 `Rebaker` re-bakes the light maps of an existing bake directory for edited materials in ONE
-worker process (spawned, not forked: the viewer's process holds an OpenGL context and threads),
+background worker process (parallel/background.py: spawned, not forked, since the viewer's process
+holds an OpenGL context and threads; an edit is a request, a newer one makes the running pass stale),
 so the viewer keeps its frame rate while the bake's own integrator runs:
 
 - The worker loads the scene once (or is handed one), reads the bake's atlas and meshes
@@ -46,9 +47,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import multiprocessing as mp
-import os
-import queue
 import time
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
@@ -66,11 +64,11 @@ from glint.core.bake_dir import read_model
 from glint.core.errors import GlintError
 from glint.core.manifest import Manifest
 from glint.core.scene import Scene
+from glint.parallel.background import BackgroundWorker, Inbox
 
 FIRST_SAMPLES = 8  # paths per texel of the first pass: seconds on the living room (docs/VIEWER.md)
 PASS_GROWTH = 4  # samples of a pass over the one before: each pass halves the noise
 NICE = 10  # the worker's niceness: the viewer's frames come first
-PARENT_CHECK_SECONDS = 1.0  # how often an idle worker checks that the viewer's process still runs
 STOP_SECONDS = 5.0  # close(): how long the worker may take to stop before it is terminated
 
 
@@ -176,46 +174,25 @@ def _prepare(source, bake_dir: Path, edits=()):
     return scene, settings, manifest, pages
 
 
-def _newest(commands, command):
-    """The newest command waiting after `command` (a stop wins)."""
-    while command[0] != "stop":
-        try:
-            command = commands.get_nowait()
-        except queue.Empty:
-            break
-    return command
-
-
-def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, results, latest, nice: int,
-            edits=(), probes=None) -> None:
-    """The worker process: prepare once, then one progressive re-bake per edit (module docstring)."""
-    with contextlib.suppress(OSError, AttributeError):
-        os.nice(nice)
+def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, edits=(), probes=None) -> None:
+    """The worker process (parallel/background.py): prepare once, then one progressive re-bake per
+    edit (module docstring)."""
     try:
         start = time.perf_counter()
         scene, settings, manifest, pages = _prepare(source, Path(bake_dir), edits)
         schedule = schedule or pass_samples(settings.samples)
         plans = bake_probes(scene, manifest, settings) if probes is not None else []
-        results.put(("ready", 0, {"seconds": time.perf_counter() - start, "schedule": schedule,
-                                  "texels": int(sum((p.object >= 0).sum() for p in pages)), "probes": len(plans)}))
+        inbox.send(("ready", 0, {"seconds": time.perf_counter() - start, "schedule": schedule,
+                                 "texels": int(sum((p.object >= 0).sum() for p in pages)), "probes": len(plans)}))
     except Exception as e:  # noqa: BLE001 -- reported to the viewer as one line, never a traceback
-        results.put(("error", 0, _one_line(e)))
+        inbox.send(("error", 0, _one_line(e)))
         return
     refresher = None  # made at the first edit's probes: a GL context, the diffuse view
-    parent = mp.parent_process()
-    while True:
-        try:
-            command = _newest(commands, commands.get(timeout=PARENT_CHECK_SECONDS))
-        except queue.Empty:
-            if parent is not None and not parent.is_alive():
-                return  # the viewer ended without close(): no orphan left running
-            continue
-        if command[0] == "stop":
-            break
-        _, generation, overrides, materials, made = command
+    while (request := inbox.next()) is not None:
+        generation, (overrides, materials, made) = request
 
         def check(_texels=0, generation=generation):
-            if latest.value != generation or (parent is not None and not parent.is_alive()):
+            if inbox.stale(generation):
                 raise _Cancelled
 
         try:
@@ -223,26 +200,26 @@ def _worker(source, bake_dir: Path, schedule: list[int] | None, commands, result
             for k, samples in enumerate(schedule):
                 result = bake_lightmaps(edited, pages, replace(settings, samples=samples), progress=check)
                 front, back = result.rgba()
-                results.put(("pass", generation, Update(front, back, generation, k, len(schedule), samples,
-                                                        time.time() - made)))
+                inbox.send(("pass", generation, Update(front, back, generation, k, len(schedule), samples,
+                                                       time.time() - made)))
                 check()
                 if plans and refresher is not False and k in (0, len(schedule) - 1):
                     refresher = _refresh_probes(probes, refresher, bake_dir, plans, materials, front, back,
-                                                results, generation, k, made, check)
+                                                inbox, generation, k, made, check)
         except _Cancelled:
-            results.put(("cancelled", generation, None))
+            inbox.send(("cancelled", generation, None))
         except Exception as e:  # noqa: BLE001
-            results.put(("error", generation, _one_line(e)))
+            inbox.send(("error", generation, _one_line(e)))
     if refresher:
         refresher.release()
 
 
-def _refresh_probes(factory, refresher, bake_dir, plans, materials, front, back, results, generation: int,
+def _refresh_probes(factory, refresher, bake_dir, plans, materials, front, back, inbox: Inbox, generation: int,
                     index: int, made: float, check):
     """Render `plans` again for pass `index` (module docstring) and deliver each probe; returns the
     refresher to keep, or False when it failed (reported once; the light maps go on without it)."""
     def deliver(plan, chain):
-        results.put(("probe", generation, ProbeUpdate(plan.file, chain, generation, index, time.time() - made)))
+        inbox.send(("probe", generation, ProbeUpdate(plan.file, chain, generation, index, time.time() - made)))
 
     try:
         refresher = refresher or factory(Path(bake_dir))
@@ -250,9 +227,9 @@ def _refresh_probes(factory, refresher, bake_dir, plans, materials, front, back,
     except _Cancelled:
         raise
     except Exception as e:  # noqa: BLE001 -- e.g. no EGL: the cube maps keep the bake's light
-        results.put(("probe-error", generation, _one_line(e)))
+        inbox.send(("probe-error", generation, _one_line(e)))
         return False
-    results.put(("probes", generation, (index, time.time() - made)))
+    inbox.send(("probes", generation, (index, time.time() - made)))
     return refresher
 
 
@@ -287,13 +264,8 @@ class Rebaker:
                              "run `glint bake`")
         self.baked = [m.to_json() for m in manifest.materials]  # as the edits come: material entries (JSON)
         self.schedule = list(schedule or pass_samples(bake_settings(manifest).samples))
-        ctx = mp.get_context("spawn")
-        self._commands, self._results = ctx.Queue(), ctx.Queue()
-        self._latest = ctx.Value("q", 0, lock=False)  # the newest edit's generation: the worker's cancel flag
-        self._process = ctx.Process(target=_worker, name="glint-rebake", daemon=True,
-                                    args=(scene, self.bake_dir, self.schedule, self._commands, self._results,
-                                          self._latest, int(nice), tuple(edits), probes))
-        self._process.start()
+        self._worker = BackgroundWorker(_worker, (scene, self.bake_dir, self.schedule, tuple(edits), probes),
+                                        name="glint-rebake", nice=nice, stop_seconds=STOP_SECONDS)
         self.generation = 0
         self.ready: dict | None = None  # the worker's set-up: seconds, schedule, texels, probes
         self.last: Update | None = None  # the newest pass delivered for the newest edit
@@ -313,12 +285,10 @@ class Rebaker:
         """Re-bake for these material entries (the whole list, in the manifest's order); cancels the
         re-bake of an earlier edit. A GlintError (naming the material and key) for a bad value."""
         overrides = material_overrides(materials, self.baked)
-        self.generation += 1
-        self._latest.value = self.generation
         self._edited_at = time.time()
         self.last, self.error, self._pages = None, None, None
         self.probes_done, self.probes_in, self._probes, self._probe_pass = None, 0, {}, -1
-        self._commands.put(("edit", self.generation, overrides, [dict(m) for m in materials], self._edited_at))
+        self.generation = self._worker.request((overrides, [dict(m) for m in materials], self._edited_at))
 
     def poll(self) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
         """Never blocks: None, or (front, back) pages of the newest pass of the newest edit that
@@ -336,11 +306,7 @@ class Rebaker:
 
     def _drain(self) -> None:
         """Every message of the worker so far, sorted into what poll() and poll_probes() return."""
-        while True:
-            try:
-                kind, generation, payload = self._results.get_nowait()
-            except (queue.Empty, OSError, ValueError):
-                break
+        for kind, generation, payload in self._worker.messages():
             if kind == "ready":
                 self.ready = payload
             elif kind == "cancelled":
@@ -410,7 +376,7 @@ class Rebaker:
                 out.append(self.last)
             elif self.error is not None:
                 raise GlintError(f"re-bake failed: {self.error}")
-            elif time.monotonic() > deadline or not self._process.is_alive():
+            elif time.monotonic() > deadline or not self._worker.alive():
                 raise GlintError(f"re-bake: no final pass after {timeout:.0f} s")
             else:
                 time.sleep(poll_interval)
@@ -418,22 +384,7 @@ class Rebaker:
 
     def close(self) -> None:
         """Stop the worker (at once if it is between passes; terminated after STOP_SECONDS)."""
-        if self._process is None:
-            return
-        self._latest.value = -1  # cancels a running pass
-        with contextlib.suppress(Exception):
-            self._commands.put(("stop",))
-        deadline = time.monotonic() + STOP_SECONDS
-        while self._process.is_alive() and time.monotonic() < deadline:
-            self.poll()  # a worker blocked on a full result pipe needs it read
-            self._process.join(0.05)
-        if self._process.is_alive():
-            self._process.terminate()
-            self._process.join()
-        for q in (self._commands, self._results):
-            q.close()
-            q.cancel_join_thread()
-        self._process = None
+        self._worker.close()
 
     def __enter__(self) -> "Rebaker":
         return self

@@ -4,7 +4,7 @@ from __future__ import annotations
 import os
 from dataclasses import asdict, dataclass, fields, replace
 
-from glint.bake.executor import check_scheduler_address
+from glint.parallel.executor import check_scheduler_address
 from glint.bake.sidecar_schema import BAKE
 
 # samples: hemisphere paths per texel; texels_per_metre: light-map resolution.
@@ -38,7 +38,8 @@ class BakeSettings:
     backface_threshold: float = _default("backface_threshold")
     seed: int = _default("seed")
     jobs: int = _default("jobs")  # 0 = one per core
-    # A Dask scheduler's address (`tcp://HOST:PORT`) or `local:N` (bake/executor.py DaskExecutor); None: local processes
+    # A Dask scheduler's address (`tcp://HOST:PORT`) or `local:N` (parallel/executor.py DaskExecutor);
+    # None: local processes
     scheduler: str | None = _default("scheduler")
     # The cube-map probes (bake/cubemap.py "Probes"): sharing factor (0: one probe per object) and budget.
     probe_sharing: float = _default("probe_sharing")

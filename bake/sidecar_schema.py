@@ -30,7 +30,7 @@ BAKE = {
     "backface_threshold": Key("number", lo=0, hi=1, default=0.2),
     "seed": Key("whole", lo=0, hi=2 ** 32 - 1, default=0),
     "jobs": Key("whole", lo=0, default=0),  # 0: one per core
-    # a Dask scheduler's address or local:N (bake/executor.py checks its form); command line only
+    # a Dask scheduler's address or local:N (parallel/executor.py checks its form); command line only
     "scheduler": Key("string"),
     "probe_sharing": Key("number", lo=0, default=1.0),  # 0: a probe per object
     "cubemap_budget": Key("whole", lo=1, default=2048),  # probes

@@ -146,16 +146,16 @@ def _no_state():
 
 
 # Run in a fresh interpreter (`python -c`), as `glint bake --scheduler local:2` meets them: the phases of
-# starting a local:N cluster (bake/executor.py DaskExecutor.start and _connect, bake/local_cluster.py),
+# starting a local:N cluster (parallel/executor.py DaskExecutor.start and _connect, parallel/local_cluster.py),
 # each timed on its own.
 STARTUP = """
 import json, time
 t0 = time.perf_counter()
-from glint.bake import local_cluster as L
+from glint.parallel import local_cluster as L
 L.fork_server()  # as glint/entry.py does, first of all
 t1 = time.perf_counter()
 import glint.cli  # what the glint command imports meanwhile
-from glint.bake import executor as E
+from glint.parallel import executor as E
 t2 = time.perf_counter()
 executor = E.DaskExecutor("local:2")
 executor.start()
@@ -180,7 +180,7 @@ def measure_startup(runs: int = 5) -> dict:
 
 def measure_overhead(tasks: int = 400) -> dict:
     """Seconds per task beyond its work, on local:2 (started beforehand) and on two local processes."""
-    from glint.bake.executor import DaskExecutor, LocalExecutor
+    from glint.parallel.executor import DaskExecutor, LocalExecutor
 
     out = {"tasks": tasks, "startup_phases_median_of_5": measure_startup()}
     with DaskExecutor("local:2") as cluster:
@@ -202,7 +202,7 @@ def measure_sizes(scene_arg: str, quality: str, bake_dir: Path | None) -> dict:
     what the cube-map stage scatters (bake_inputs) and its probe files' sizes by face size."""
     import pickle
 
-    from glint.bake.executor import _pickled_bytes
+    from glint.parallel.executor import _pickled_bytes
     from glint.bake.lightmap import TILE, _cut_out
     from glint.bake.settings import resolve_settings
     from glint.bake.texels import rasterize_texels
@@ -246,7 +246,7 @@ def model(runs: list[dict], overhead: dict, cores=CORES) -> list[dict]:
     local-executor runs (serial parts, work) and its cluster runs (the cube-map workers' set-up, the
     longest cube-map task, the inputs scattered) and the engine's time per task (`overhead`, --overhead).
     docs/BAKE.md "A model for larger clusters" states it and what it assumes."""
-    from glint.bake.executor import TASKS_PER_WORKER
+    from glint.parallel.executor import TASKS_PER_WORKER
     from glint.bake.lightmap import MIN_CLUSTER_TILE, TILE
     from glint.cubemap_stage import PROBES_PER_TASK
 

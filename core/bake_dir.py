@@ -17,7 +17,7 @@ The manifest's schema and its defaults are core/manifest.py's `Manifest` (the ba
                            {glTF feature: count} the loader ignored (Scene.ignored_features),
                            and `statistics.lightmaps.invalid_texels` of `texels` inside geometry;
                            optional `statistics.cluster`: where a bake on a Dask cluster ran and
-                           what starting and feeding it cost (bake/executor.py DaskExecutor)
+                           what starting and feeding it cost (parallel/executor.py DaskExecutor)
     meshes.npz             per object o<i>_*: positions, normals, uvs (texture), colors
                            (COLOR_0, optional), tangents (glTF TANGENT in world space, optional), lm_uv, lm_page, indices -- vertices already split along light-map chart seams
     lightmaps/page_<k>.exr irradiance E in W/m^2 (RGB) + A = 1 where baked, 0 where dilated;

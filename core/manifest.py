@@ -344,7 +344,7 @@ class Statistics:
 
     @property
     def cluster(self) -> dict | None:
-        """Where a bake on a Dask cluster ran (bake/executor.py); None otherwise."""
+        """Where a bake on a Dask cluster ran (parallel/executor.py); None otherwise."""
         return self.data.get("cluster")
 
 

@@ -18,14 +18,14 @@ Processes: a software renderer (Mesa's llvmpipe) processes vertices on the threa
 draw and rasterises on others, so one GL context keeps about one core busy with a probe's many
 small triangles. There the probes are shared out, PROBES_PER_TASK at a time, among `workers`
 processes (the bake's --jobs), each with its own EGL context and renderer (`ProbeWorker`, built once
-per process), started with spawn (a GL context does not survive fork: bake/executor.py
+per process), started with spawn (a GL context does not survive fork: parallel/executor.py
 LocalExecutor's start_method); each probe is rendered alone, so the files are the same bytes
 whichever process renders it. A GPU gets one context: its driver queues the work anyway.
 
 Local processes and a Dask cluster's workers are one code path (`_render_on_workers`): the executor's
 `run` of `ProbeTask`s, each handled by `_probe_task` on the worker's state.
 
-On a Dask cluster (`glint bake --scheduler`, bake/executor.py DaskExecutor) the workers do not share
+On a Dask cluster (`glint bake --scheduler`, parallel/executor.py DaskExecutor) the workers do not share
 this machine's file system: the bake inputs the renderer reads (the bake directory written so far,
 cube maps aside: manifest, meshes, light maps, textures) travel once to each worker as bytes
 (`bake_inputs`), which unpacks them into a folder of its own and renders there as a local worker
@@ -59,7 +59,7 @@ from glint.bake.cubemap import (
     CubeMapPlan,
     supersample,
 )
-from glint.bake.executor import TASKS_PER_WORKER, LocalExecutor
+from glint.parallel.executor import TASKS_PER_WORKER, LocalExecutor
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError
 from glint.core.image_io import write_image
@@ -105,7 +105,7 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
     its cubemaps/ folder, batch by batch; returns statistics (seconds, batches, processes, device).
     On a software renderer with `workers` > 1 the probes are shared out among that many processes,
     each with its own GL context (see the module docstring); on a GPU one context renders them all.
-    `cluster`: a Dask cluster's executor (bake/executor.py DaskExecutor), whose workers render them
+    `cluster`: a Dask cluster's executor (parallel/executor.py DaskExecutor), whose workers render them
     instead (`workers` is then unused). Processes and a cluster's workers are the same code path: an
     executor's (`_render_on_workers`)."""
     t0 = time.perf_counter()
@@ -325,7 +325,7 @@ class ClusterProbeWorker:
 
 
 def _render_on_workers(executor, bake_dir: Path, plans: list[CubeMapPlan], progress) -> dict:
-    """The probes rendered by the executor's workers (bake/executor.py), tasks of PROBES_PER_TASK: local
+    """The probes rendered by the executor's workers (parallel/executor.py), tasks of PROBES_PER_TASK: local
     processes (`ProbeWorker`, each writing its files into the bake), or a Dask cluster's workers
     (`ClusterProbeWorker` on their copy of the inputs, the files written here; tasks small enough that
     every worker thread gets several). On a cluster, statistics: the worker processes that rendered,

@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from glint.bake.executor import check_scheduler_address
+from glint.parallel.executor import check_scheduler_address
 from glint.bake.sidecar_schema import BAKE
 from glint.bake.settings import PRESETS
 from glint.core.errors import GlintError
@@ -20,7 +20,7 @@ SCENE_HELP = ("a built-in scene name (see `glint scenes`) or a .glb/.gltf file; 
 
 
 def _scheduler(text: str) -> str:
-    """argparse type of --scheduler: `local:N` or [SCHEME://]HOST:PORT (glint.bake.executor
+    """argparse type of --scheduler: `local:N` or [SCHEME://]HOST:PORT (glint.parallel.executor
     check_scheduler_address), checked here, before the command reads the scene."""
     try:
         return check_scheduler_address(text)

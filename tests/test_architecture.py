@@ -50,28 +50,30 @@ import networkx as nx
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-FOLDERS = {"glint": "glint", "core": "glint.core", "bake": "glint.bake", "viewer": "glint.viewer",
+FOLDERS = {"glint": "glint", "core": "glint.core", "parallel": "glint.parallel", "bake": "glint.bake",
+           "viewer": "glint.viewer",
            "shaders": "glint.shaders", "scenes": "glint.scenes", "bench": "glint.bench"}
-BARE = {"core", "bake", "viewer", "shaders", "scenes", "bench"}
+BARE = {"core", "parallel", "bake", "viewer", "shaders", "scenes", "bench"}
 
 # layer of a module -> the layers it may import (its own included)
 ALLOWED = {
     "core": {"core"},
-    "bake": {"core", "bake"},
+    "parallel": {"core", "parallel"},
+    "bake": {"core", "parallel", "bake"},
     "viewer": {"core", "viewer", "shaders"},
     "scenes": {"core", "scenes"},
     "shaders": {"shaders"},
-    "services": {"core", "bake", "viewer", "scenes", "services"},
-    "measurements": {"core", "bake", "viewer", "scenes", "shaders", "services", "measurements"},
-    "commands": {"core", "bake", "viewer", "scenes", "services", "measurements", "commands"},
-    "tools": {"core", "bake", "viewer", "scenes", "shaders", "services", "measurements", "tools"},
+    "services": {"core", "parallel", "bake", "viewer", "scenes", "services"},
+    "measurements": {"core", "parallel", "bake", "viewer", "scenes", "shaders", "services", "measurements"},
+    "commands": {"core", "parallel", "bake", "viewer", "scenes", "services", "measurements", "commands"},
+    "tools": {"core", "parallel", "bake", "viewer", "scenes", "shaders", "services", "measurements", "tools"},
 }
 SERVICES = {"glint.services", "glint.options", "glint.cubemap_stage"}
 # Modules that import a module whose name is not a literal, and where those names come from.
 DYNAMIC_IMPORTS = {
     # the worker server pre-imports TASK_MODULES (literals, edges here) and the modules its caller
     # names: bake/pipeline.py's `worker_modules`, which glint/services.py passes (a string edge there)
-    "glint.bake.local_cluster",
+    "glint.parallel.local_cluster",
 }
 MODULE_PATH = re.compile(r"glint(\.[A-Za-z_][A-Za-z0-9_]*)+")
 
@@ -104,7 +106,7 @@ def layer(module: str) -> str:
         return "core"  # glint/__init__.py: the version only
     if parts[1] == "bench":
         return "tools" if module in tools() else "measurements"
-    if parts[1] in ("core", "bake", "viewer", "shaders", "scenes"):
+    if parts[1] in ("core", "parallel", "bake", "viewer", "shaders", "scenes"):
         return parts[1]
     return "services" if module in SERVICES else "commands"
 
@@ -186,7 +188,7 @@ def test_every_module_is_in_the_graph(graph):
             "glint.viewer.renderer", "glint.bench.bench", "glint.cubemap_stage"} <= set(graph)
     assert graph.number_of_edges() > 100
     # the edges this test once dropped: to the package `glint`, and by string
-    assert graph.has_edge("glint.bake.executor", "glint") and graph.has_edge("glint.cli", "glint")
+    assert graph.has_edge("glint.parallel.executor", "glint") and graph.has_edge("glint.cli", "glint")
     assert graph.edges["glint.viewer.shader_source", "glint.shaders"]["kind"] == "string"
     assert graph.edges["glint.services", "glint.cubemap_stage"]["kind"] in ("import", "string")
     assert {layer(m) for m in graph} == set(ALLOWED)

@@ -1,5 +1,5 @@
 """`glint bake --scheduler`: the bake's light-map tiles and cube maps as tasks on a Dask cluster
-(bake/executor.py DaskExecutor, glint/cubemap_stage.py), on loopback.
+(parallel/executor.py DaskExecutor, glint/cubemap_stage.py), on loopback.
 
 The reference of every comparison is the local executor's bake of the same scene (two forked
 processes, cube maps rendered in this process): the cluster's bake must be its bytes, file by file
@@ -24,9 +24,9 @@ import pytest
 from conftest import FAST
 
 import glint
-from glint.bake import executor as executor_module
+from glint.parallel import executor as executor_module
 from glint.bake import lightmap
-from glint.bake.executor import DaskExecutor
+from glint.parallel.executor import DaskExecutor
 from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import resolve_settings
 from glint.cli import main
@@ -137,7 +137,7 @@ def test_cluster_bake_is_the_bytes_of_the_local_bake(scene_path, reference, monk
 def test_a_worker_killed_mid_bake_and_the_bake_is_still_the_same_bytes(scene_path, reference, monkeypatch, workers):
     """Once the first result of each stage (light-map tiles, cube maps) is in, the process of a worker
     that is running a task is killed (SIGKILL): Dask runs its tasks again on the other worker or the
-    one the worker server forks in its place (bake/local_cluster.py), and the bake is the local bake's bytes. With one worker the
+    one the worker server forks in its place (parallel/local_cluster.py), and the bake is the local bake's bytes. With one worker the
     scattered inputs die with it: they are scattered again to its successor.
     Deliberate bug tried: no retries (`distributed.scheduler.allowed-failures` 0): the bake ends with
     "a bake task ended the Dask worker that ran it, on every try (Attempted to run task
@@ -315,7 +315,7 @@ def test_without_dask_the_scheduler_option_says_what_to_install(monkeypatch):
 def test_a_local_bake_does_not_import_dask(tmp_path):
     """Without --scheduler Dask is never imported (an optional extra): a whole `glint bake` in a fresh
     interpreter leaves `dask` and `distributed` out of sys.modules.
-    Deliberate bug tried: `import distributed` at the top of bake/executor.py: "0 ['dask', 'distributed']"."""
+    Deliberate bug tried: `import distributed` at the top of parallel/executor.py: "0 ['dask', 'distributed']"."""
     code = ("import sys; from glint.cli import main; "
             f"code = main(['bake', 'cornell-box', '-o', {str(tmp_path / 'c.bake')!r}, '-q', 'draft', '--samples', '1', "
             "'--no-denoise']); "
@@ -325,7 +325,7 @@ def test_a_local_bake_does_not_import_dask(tmp_path):
     assert run.stdout.strip().splitlines()[-1] == "0 []", run.stdout + run.stderr
 
 
-# -- local:N's own worker server (bake/local_cluster.py) --------------------------------------------
+# -- local:N's own worker server (parallel/local_cluster.py) --------------------------------------------
 def glint_processes(marker: str) -> list:
     """The processes whose command line names `marker` (a forked worker server and its workers carry the
     command line of the `glint` process they were forked from)."""
@@ -384,8 +384,8 @@ def test_a_killed_bake_leaves_no_worker_processes(scene_path, tmp_path):
 
 GIVES_UP = """
 import os
-from glint.bake import local_cluster
-from glint.bake.executor import DaskExecutor
+from glint.parallel import local_cluster
+from glint.parallel.executor import DaskExecutor
 from glint.core.errors import GlintError
 def end_the_worker(state, task):
     os._exit(3)
@@ -417,7 +417,7 @@ def test_workers_that_keep_dying_end_the_bake_with_one_line(tmp_path):
 def test_a_local_cluster_bake_does_not_import_dask_in_the_bake_process(scene_path, reference, tmp_path):
     """`glint bake --scheduler local:1` in a fresh interpreter: the bake is the local bake's bytes and
     `distributed` never entered the bake's own process (the cluster's client is its worker server's,
-    bake/local_cluster.py), which is what keeps the cluster's start and exit off a small bake's time.
+    parallel/local_cluster.py), which is what keeps the cluster's start and exit off a small bake's time.
     Deliberate bug tried: DaskExecutor.run for local:N through the in-process client (`self.client`)
     instead of the server's: "0 ['dask', 'distributed']"."""
     out = tmp_path / "client.bake"

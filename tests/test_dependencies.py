@@ -139,7 +139,7 @@ for name in ("matplotlib", "mitsuba", "distributed", "dask"):
 from glint.core.errors import GlintError
 from glint.bench.report import pyplot
 from glint.bench.mitsuba import choose_variant
-from glint.bake.executor import executor_for
+from glint.parallel.executor import executor_for
 from glint.bake.settings import BakeSettings
 for call in (pyplot, lambda: choose_variant("auto"), lambda: executor_for(BakeSettings(scheduler="tcp://127.0.0.1:1")).start()):
     try:

@@ -47,10 +47,11 @@ RESTARTS = 16  # workers forked in place of dead ones, in one cluster's life, be
 POLL_SECONDS = 0.05  # how often the server looks for dead workers while it waits on its pipe
 STOP_SECONDS = 2.0  # a worker's time to end once the server has asked (SIGTERM), before SIGKILL
 WORKER_DEATH_SECONDS = 10  # a worker cut off from its scheduler this long ends itself
-# what the workers' tasks run, imported by a spawned server before it forks them
-# (the cube maps' glint.cubemap_stage, with its GL renderer, only where the bake has cube maps to render:
-# WorkerServer.start's modules)
-TASK_MODULES = ("distributed", "glint.bake.lightmap")
+# what every worker runs, imported by the server before it forks them; the modules of the tasks come
+# from the caller (fork_server's, take_server's and WorkerServer.start's `modules`: the bake names its
+# light-map stage and, where it has cube maps to render, the stage its caller handed it), so this layer
+# never names a layer above it
+TASK_MODULES = ("distributed",)
 # the kinds of the server's reports, each line "KIND TEXT"
 ADDRESS, UP, FAILED, GAVE_UP = "address", "up", "failed", "gave-up"
 
@@ -66,16 +67,18 @@ def asks_for_local_cluster(args: list[str]) -> bool:
     return any(LOCAL_ADDRESS.fullmatch(value) for value in values)
 
 
-def fork_server() -> None:
-    """Fork the worker server now, for the next `local:N` cluster of this process. Called by the `glint`
-    command before anything else runs in its process (see the module docstring); once."""
+def fork_server(modules: tuple[str, ...] = ()) -> None:
+    """Fork the worker server now, for the next `local:N` cluster of this process, with `modules` (those
+    its tasks will run) imported ahead. Called by the `glint` command before anything else runs in its
+    process (see the module docstring); once."""
     global _forked
     if _forked is None and hasattr(os, "fork"):
-        _forked = WorkerServer.fork()
+        _forked = WorkerServer.fork(modules)
 
 
-def take_server() -> WorkerServer:
-    """The server `fork_server` forked, or else a spawned one (module docstring)."""
+def take_server(modules: tuple[str, ...] = ()) -> WorkerServer:
+    """The server `fork_server` forked, or else a spawned one importing `modules` ahead (module
+    docstring)."""
     global _forked
     server, _forked = _forked, None
     if server is not None and server.running():
@@ -83,7 +86,7 @@ def take_server() -> WorkerServer:
     if not hasattr(os, "fork"):
         raise GlintError("--scheduler local:N needs os.fork (Linux, macOS): start `dask scheduler` and "
                          "`dask worker` and pass --scheduler tcp://HOST:PORT")
-    return WorkerServer.spawn()
+    return WorkerServer.spawn(modules)
 
 
 class WorkerServer:
@@ -107,7 +110,7 @@ class WorkerServer:
                 {"command": command_w, "status": status_r, "requests": requests_w, "results": results_r})
 
     @classmethod
-    def fork(cls) -> WorkerServer:
+    def fork(cls, modules: tuple[str, ...] = ()) -> WorkerServer:
         theirs, ours = cls._pipes()
         pid = os.fork()
         if pid == 0:  # the server: never returns
@@ -116,7 +119,7 @@ class WorkerServer:
                 for fd in ours.values():
                     os.close(fd)
                 _detach_output()
-                code = serve(**theirs)
+                code = serve(**theirs, modules=tuple(modules))
             finally:
                 os._exit(code)
         for fd in theirs.values():
@@ -124,9 +127,10 @@ class WorkerServer:
         return cls(pid, ours)
 
     @classmethod
-    def spawn(cls) -> WorkerServer:
+    def spawn(cls, modules: tuple[str, ...] = ()) -> WorkerServer:
         theirs, ours = cls._pipes()
-        code = f"import sys; from glint.bake.local_cluster import serve; sys.exit(serve(**{theirs!r}))"
+        arguments = {**theirs, "modules": tuple(modules)}
+        code = f"import sys; from glint.parallel.local_cluster import serve; sys.exit(serve(**{arguments!r}))"
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}  # this process's glint
         try:
             popen = subprocess.Popen([sys.executable, "-c", code], pass_fds=tuple(theirs.values()), env=env,
@@ -145,8 +149,8 @@ class WorkerServer:
             return False
 
     def start(self, count: int, log_level: int, modules: tuple[str, ...] = ()) -> None:
-        """Start the scheduler, `count` workers with `modules` imported (besides TASK_MODULES) and the
-        client process, Dask's log lines below `log_level` held back."""
+        """Start the scheduler, `count` workers with `modules` imported (besides TASK_MODULES and the
+        server's own) and the client process, Dask's log lines below `log_level` held back."""
         os.write(self.command_fd, f"{count} {log_level} {','.join(modules) or '-'}\n".encode())
 
     def watch(self, report: Callable[[str, str], None]) -> None:
@@ -208,10 +212,11 @@ def _detach_output() -> None:
     os.close(null)
 
 
-def serve(command: int, status: int, requests: int, results: int) -> int:
-    """The worker server's life: import, wait for "COUNT LOG_LEVEL MODULES" (WorkerServer.start), fork the
-    scheduler, COUNT workers and the client process, keep the workers until the command pipe closes,
-    then stop them all. The arguments are the server's ends of its pipes (WorkerServer._pipes)."""
+def serve(command: int, status: int, requests: int, results: int, modules: tuple[str, ...] = ()) -> int:
+    """The worker server's life: import TASK_MODULES and `modules`, wait for "COUNT LOG_LEVEL MODULES"
+    (WorkerServer.start), import those, fork the scheduler, COUNT workers and the client process, keep
+    the workers until the command pipe closes, then stop them all. The first four arguments are the
+    server's ends of its pipes (WorkerServer._pipes)."""
     command_fd, status_fd = command, status
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the bake's: it closes the cluster
     try:
@@ -220,16 +225,13 @@ def serve(command: int, status: int, requests: int, results: int) -> int:
     except Exception as e:
         _report(status_fd, GAVE_UP, f"the worker server cannot import {module} ({one_line(e)})")
         return 1
+    _import_quietly(modules)
     line = _read_line(command_fd)
     if not line:
         return 0
-    count, log_level, modules = line.split()
+    count, log_level, started = line.split()
     count, log_level = int(count), int(log_level)
-    for module in modules.split(",") if modules != "-" else ():
-        try:  # the cube maps' module, where the bake will render some: once here, not in every worker
-            __import__(module)
-        except Exception:  # a worker imports it when a task needs it, or says why it cannot
-            pass
+    _import_quietly(started.split(",") if started != "-" else ())
     address_r, address_w = os.pipe()
     scheduler = _fork(_run_scheduler, log_level, address_w,
                       close=(command_fd, status_fd, requests, results, address_r))
@@ -276,6 +278,16 @@ def serve(command: int, status: int, requests: int, results: int) -> int:
             workers[worker(f"local-{slot}-{restarts}")] = slot
     _stop([client, *workers, scheduler])
     return 0
+
+
+def _import_quietly(modules) -> None:
+    """Import the tasks' modules once here, not in every worker. One that fails is left to the workers:
+    a worker imports it when a task needs it, or says why it cannot."""
+    for module in modules:
+        try:
+            __import__(module)
+        except Exception:  # noqa: BLE001 -- reported by the task that needs it
+            pass
 
 
 def _read_line(fd: int) -> str:

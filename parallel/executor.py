@@ -12,9 +12,9 @@ depend on the number of workers or on which worker ran what.
   cube-map stage's GL contexts).
 - `DaskExecutor(address)`: the workers of a Dask cluster (`distributed`), for `glint bake
   --scheduler`: `tcp://HOST:PORT` (a running `dask scheduler`) or `local:N` (a cluster of N worker
-  processes on this machine, started and closed by the executor: bake/local_cluster.py). setup_args are scattered once
-  (`client.scatter`, to every worker) and travel once to each worker, which builds its state from
-  them on its first task and keeps it for the others; each task carries only its own small
+  processes on this machine, started and closed by the executor: parallel/local_cluster.py).
+  setup_args are scattered once (`client.scatter`, to every worker) and travel once to each worker,
+  which builds its state from them on its first task and keeps it for the others; each task carries only its own small
   description (a TileTask: a tile's first texel and count; a ProbeTask: its probes). Dask is imported here only when
   such an executor starts (an optional extra: `pip install 'glint[cluster]'`).
 
@@ -38,7 +38,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Iterable, Iterator, Protocol
 
-from glint.bake import local_cluster
+from glint.parallel import local_cluster
 from glint.core.errors import GlintError, one_line, warn
 from glint.core.signals import deferred_signals, quiet_child
 
@@ -287,7 +287,7 @@ class DaskExecutor:
     def start(self, modules: tuple[str, ...] = ()) -> None:
         """Reach the scheduler now (a remote one: a wrong address fails before any work), or start the
         `local:N` cluster in the background (the caller goes on), its workers with `modules` imported
-        (those the tasks will run beyond the light maps'). Twice is once."""
+        (those its tasks will run). Twice is once."""
         if self._client is not None or self._server is not None:
             return
         if self.local_workers is None:
@@ -296,7 +296,7 @@ class DaskExecutor:
         self._started = time.perf_counter()
         if importlib.util.find_spec("distributed") is None:  # the server would fail to import it
             _import_distributed()  # raises the one line that says what to install
-        self._server = local_cluster.take_server()  # forked or spawned here, on the main thread
+        self._server = local_cluster.take_server(modules)  # forked or spawned here, on the main thread
         self._server.start(self.local_workers, QUIET, modules)
         self.statistics.update(worker_server=self._server.started, workers=self.local_workers,
                                threads=self.local_workers)
@@ -450,7 +450,7 @@ class DaskExecutor:
                              f"held them ended, on each of {1 + LOST_INPUTS_RETRIES} tries; bake again")
 
     def _run_on_local_cluster(self, setup, setup_args, job, tasks, version):
-        """`run` on a local:N cluster: the request goes to its server's client process (bake/local_cluster.py),
+        """`run` on a local:N cluster: the request goes to its server's client process (parallel/local_cluster.py),
         which runs it with a DaskExecutor of its own (`_run_in_client_process`); results come back as
         they come, and what the client process counted goes into this executor's statistics."""
         self.start()
@@ -518,7 +518,7 @@ class DaskExecutor:
 
 _INPUTS_LOST = object()  # DaskExecutor._result of a task to submit again
 
-# In a local:N cluster's client process (bake/local_cluster.py): its DaskExecutor, made on the first request
+# In a local:N cluster's client process (parallel/local_cluster.py): its DaskExecutor, made on the first request
 _client_executor: DaskExecutor | None = None
 
 
