@@ -210,7 +210,7 @@ def _dask_task(setup: Callable, setup_args: tuple, key: str, job: Callable, task
 
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
 MMAP_THRESHOLD = 32 << 20  # glibc's own upper bound for its dynamic mmap threshold (64-bit)
-TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # glibc's dynamic trim threshold follows the mmap threshold so
+TRIM_THRESHOLD = 2 * MMAP_THRESHOLD  # twice the mmap threshold, as glibc's dynamic rule sets it
 
 
 def _heap_for_large_arrays() -> None:
