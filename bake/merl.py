@@ -143,7 +143,7 @@ def bin_centres():
     return theta_h.ravel(), theta_d.ravel(), phi_d.ravel()
 
 
-def write_merl(path: Path, brdf: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> None:
+def write_merl(path: Path, brdf: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> Path:
     """Write `brdf(wi, wo) -> (..., 3)` as a MERL .binary file at the bins' centres; MISSING below the
     surface. (For tests and the fit-back check; the real database comes from MERL.)"""
     wi, wo = from_half_diff(*bin_centres())
@@ -154,6 +154,7 @@ def write_merl(path: Path, brdf: Callable[[np.ndarray, np.ndarray], np.ndarray])
     with open(path, "wb") as f:
         f.write(np.array([RES_THETA_H, RES_THETA_D, RES_PHI_D], "<i4").tobytes())
         f.write(data.tobytes())
+    return Path(path)
 
 
 # ----------------------------------------------------------------------------- the CSV table
