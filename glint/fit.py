@@ -21,7 +21,7 @@ from pathlib import Path
 
 from glint.core.errors import GlintError
 
-METHODS = ("hierarchical", "multistart")  # bake/brdf_fit.py METHODS (not imported: start-up)
+METHODS = ("multistart", "hierarchical")  # bake/brdf_fit.py METHODS, default first (not imported: start-up)
 PLOT_THETA_I = (0, 15, 30, 45, 60, 75)  # degrees: one panel each (thesis Fig. 3.12)
 
 
@@ -37,7 +37,7 @@ def add_fit_options(p: argparse.ArgumentParser) -> None:
                    help="sidecar to write [materials.\"NAME\"] into (created if absent, edited in place)")
     p.add_argument("--lobes", type=int, choices=(1, 2), default=1, help="reflection lobes to fit (default 1)")
     p.add_argument("--method", choices=METHODS, default=METHODS[0],
-                   help="parameter search: the thesis' hierarchical brute force (default) or multi-start L-BFGS-B")
+                   help="parameter search: multi-start L-BFGS-B (default) or the thesis' hierarchical brute force")
     p.add_argument("--plots", type=Path, metavar="DIR", help="write PNG plots of data against fit into DIR")
     p.set_defaults(run=run_fit)
 

@@ -59,7 +59,7 @@ def merl_data(tmp_path_factory):
 
 
 def test_merl_file_fits_back_to_its_lobe(merl_data):
-    result = brdf_fit.fit(merl_data, 1)
+    result = brdf_fit.fit(merl_data, 1, method="hierarchical")  # the thesis' search; multistart below
     np.testing.assert_allclose(result.kd, KD, atol=0.01)
     assert len(result.lobes) == 1
     check_lobe(result.lobes[0], KNOWN)

@@ -32,7 +32,7 @@ def test_fit_writes_a_sidecar_glint_reads(tmp_path, measured, capsys):
     side = tmp_path / "room.glint.toml"
     side.write_text('# lighting\n[bake]\nquality = "draft"  # fast\n\n[materials."Floor"]\nemission = [0, 0, 0]\n'
                     'kd = 0.9\n\n[materials."Wall"]\nkd = 0.5\n')
-    assert main(["fit", str(measured), "--name", "Floor", "-o", str(side), "--method", "multistart"]) == 0
+    assert main(["fit", str(measured), "--name", "Floor", "-o", str(side)]) == 0
     out = capsys.readouterr().out
     assert "replaced kd and lobes of [materials.\"Floor\"]" in out and "80°" in out
     text = side.read_text()
@@ -49,7 +49,7 @@ def test_fit_writes_a_sidecar_glint_reads(tmp_path, measured, capsys):
 
 
 def test_without_output_prints_the_table(measured, capsys):
-    assert main(["fit", str(measured), "--name", "Floor tiles", "--method", "multistart"]) == 0
+    assert main(["fit", str(measured), "--name", "Floor tiles"]) == 0
     out = capsys.readouterr().out
     toml = out[out.index('[materials."Floor tiles"]'):]
     side = parse_sidecar(parse_toml(toml, "x.glint.toml"), "x.glint.toml")
@@ -78,7 +78,7 @@ def test_bad_input_is_one_line(tmp_path, capsys):
 
 
 def test_plots(tmp_path, measured, capsys, monkeypatch):
-    assert main(["fit", str(measured), "--name", "Floor", "--method", "multistart", "--plots", str(tmp_path)]) == 0
+    assert main(["fit", str(measured), "--name", "Floor", "--plots", str(tmp_path)]) == 0
     png = tmp_path / "fit-Floor.png"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # as if the bench extra were not installed
