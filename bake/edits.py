@@ -150,7 +150,12 @@ def save_sidecar(scene_path: Path, assignments: list) -> Path:
     """Write `assignments` into the sidecar beside `scene_path` (created when absent) and return
     its path. The file is edited in place with tomlkit: comments, order and the other keys stay.
     Checked first (apply_assignments); written atomically (core/atomic.py)."""
-    path = sidecar_path(scene_path)
+    return save_sidecar_file(sidecar_path(scene_path), assignments)
+
+
+def save_sidecar_file(path: Path, assignments: list) -> Path:
+    """`save_sidecar` for the sidecar file `path` itself (`glint fit -o`)."""
+    path = Path(path)
     text = read_sidecar_text(path) or ""
     items = _assignments(assignments)
     expected = apply_assignments(parse_toml(text, path), items, path=path)

@@ -77,6 +77,12 @@ def _bench_options(p: argparse.ArgumentParser) -> None:
     add_bench_options(p)
 
 
+def _fit_options(p: argparse.ArgumentParser) -> None:
+    from glint.fit import add_fit_options
+
+    add_fit_options(p)
+
+
 @dataclass(frozen=True)
 class Command:
     help: str
@@ -89,6 +95,7 @@ COMMANDS = {
     "view": Command("walk through a scene in a window (bakes first if needed)", _view_options),
     "capture": Command("render images headless (PNG or EXR), no window needed", _capture_options),
     "bench": Command("run time against error of the specular integration methods", _bench_options),
+    "fit": Command("fit the material model to a measured BRDF (MERL .binary or .csv) into a sidecar", _fit_options),
 }
 
 
