@@ -354,7 +354,10 @@ def sample(p: GltfMaterialParams, wo, u1, u2, u3):
         density = pdf(p, wi, wo)
         f = evaluate(p, wi, wo)
         weight = f * (np.abs(wi[..., 2]) / np.where(density > 0.0, density, 1.0))[..., None]
-        valid = (density > 0.0) & (wo[..., 2] > 0.0)
+        # A component's direction on the wrong side (a visible normal reflecting below the surface)
+        # is dropped: its density there is not in the mixture pdf, so evaluating it would bias.
+        side = np.where(component == 2, wi[..., 2] < 0.0, wi[..., 2] > 0.0)
+        valid = (density > 0.0) & (wo[..., 2] > 0.0) & side
         weight = np.where(valid[..., None], weight, 0.0)
     return wi, np.nan_to_num(weight, nan=0.0, posinf=0.0, neginf=0.0), np.where(valid, density, 0.0)
 
