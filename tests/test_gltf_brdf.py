@@ -76,14 +76,17 @@ def test_off_peak_metal_by_hand():
                                expected, rtol=1e-9)
 
 
-def test_dielectric_with_specular_extension_by_hand():
+@pytest.mark.parametrize("ior,f0_ior", [(2.0, 1.0 / 9.0), (0.0, 1.0)])
+def test_dielectric_with_specular_extension_by_hand(ior, f0_ior):
     """Normal view and light (H = N, fresnel_w = 0): KHR_materials_specular's dielectric_f0 =
     min(((1 - ior)/(1 + ior))^2 * specularColor, 1) * specular, and the diffuse part weighted by
-    1 - max(r, g, b) of it. ior 2 -> f0 1/9; specularColor (3, 1, 0) clamps red to 1/3; specular 0.5.
-    Caught (1e-9): the mean instead of the max of the RGB Fresnel, the clamp after the specular factor,
-    f0 from 0.04 regardless of ior."""
-    p = P(base_color=(0.9, 0.5, 0.1), metallic=0.0, roughness=0.5, ior=2.0, specular=0.5, specular_color=(3.0, 1.0, 0.0))
-    f0 = np.minimum(np.array([3.0, 1.0, 0.0]) / 9.0, 1.0) * 0.5
+    1 - max(r, g, b) of it. ior 2 -> f0 1/9, ior 0 (KHR_materials_ior's special value) -> f0 1;
+    specularColor (3, 1, 0); specular 0.5. Caught (1e-9): the mean instead of the max of the RGB
+    Fresnel, the clamp applied after the specular factor (ior 0: red 1 instead of 0.5), f0 from 0.04
+    regardless of ior."""
+    color = np.array([3.0, 1.0, 0.0])
+    p = P(base_color=(0.9, 0.5, 0.1), metallic=0.0, roughness=0.5, ior=ior, specular=0.5, specular_color=tuple(color))
+    f0 = np.minimum(f0_ior * color, 1.0) * 0.5
     spec = 1 / (math.pi * 0.25 ** 2) * spec_vis_hc(1.0, 1.0, 0.25)
     expected = f0 * spec + (1 - f0.max()) * np.array([0.9, 0.5, 0.1]) / math.pi
     z = np.array([0.0, 0.0, 1.0])
