@@ -68,7 +68,7 @@ from glint.core.errors import GlintError
 ALPHA_MIN = 1e-4          # floor of alpha = roughness^2 (module docstring)
 COAT_F0 = 0.04            # [COAT]: fresnel_coat with ior = 1.5
 VIS_DEN_MIN = 1e-300      # Vis denominators: only 0 when both cosines are 0, where Vis is not used
-ALBEDO_N = 1 << 16        # directional_albedo's default number of samples (converged: tests)
+ALBEDO_N = 1 << 14        # directional_albedo's default samples: within 0.03 % of 2^19 (docs/BENCHMARKS.md)
 ALBEDO_SEED = 24          # its fixed Sobol scramble: deterministic results
 COMPONENTS = ("diffuse", "specular", "transmission", "clearcoat")
 
@@ -377,7 +377,7 @@ def directional_albedo(p: GltfMaterialParams, theta_o, n: int = ALBEDO_N, part: 
     theta_o.shape + (3,), for a viewer at theta_o (radians from the normal; phi is irrelevant:
     the BRDF is isotropic). `part`: "reflect" (upper hemisphere), "transmit" (lower) or "total".
     Estimated with `sample` (one-sample MIS over the components) at n scrambled Sobol points: the
-    tests hold it to quadrature of `evaluate` and to n = 2^20 within 0.3 %."""
+    tests hold it to quadrature of `evaluate` and to 2^18 random points within 0.3 %."""
     if part not in ("reflect", "transmit", "total"):
         raise GlintError(f"directional_albedo: part must be reflect, transmit or total, not {part!r}")
     theta = np.asarray(theta_o, float)
