@@ -49,9 +49,9 @@ def spec_vis_hc(nl, nv, a):
 @pytest.mark.parametrize("theta", [0.0, 60.0, 80.0])
 def test_white_metal_at_the_mirror_direction_by_hand(theta):
     """At the mirror direction H = N: D = 1 / (pi a^2), F = 1 for base colour 1, so f = Vis / (pi a^2).
-    roughness 0.5 -> alpha 0.25. Caught (relative 1e-9): alpha = roughness (f 4x smaller at 0 deg),
-    a missing 4 |N.L||N.V| (factor 4 at 0 deg, 4 cos^2 at 60), the separable Smith form in
-    place of the height-correlated one (80 deg: 1.078x; 60 deg: 1.0018x)."""
+    roughness 0.5 -> alpha 0.25. Caught (relative 1e-9): alpha = roughness, a missing 4 |N.L||N.V|
+    (factor 4 at 0 deg; at 60 deg 4 cos^2 = 1 hides it, 80 deg sees it), the separable Smith form in
+    place of the height-correlated one (60 and 80 deg), D's denominator not squared."""
     a = 0.25
     wo = direction(theta)
     wi = direction(theta, 180.0)
@@ -65,7 +65,8 @@ def test_off_peak_metal_by_hand():
     """A configuration off the peak with a coloured metal: V at 30 deg, L at 50 deg on the other side
     (phi 180), H half-way at 10 deg from N, V.H = cos 40 deg. f = (b + (1 - b)(1 - V.H)^5) Vis D with
     D = a^2 / (pi (cos^2(10) (a^2 - 1) + 1)^2) as printed. Caught (1e-9): |V.H| replaced by N.V in
-    the Fresnel term, the D denominator's square dropped, alpha = roughness."""
+    the Fresnel term, the D denominator's square dropped, alpha = roughness, Vis with the root of
+    N.L on both sides of its sum."""
     a, b = 0.3 ** 2, np.array([0.8, 0.5, 0.2])
     wo, wi = direction(30.0), direction(50.0, 180.0)
     nh, vh = math.cos(math.radians(10.0)), math.cos(math.radians(40.0))
@@ -108,8 +109,8 @@ def test_specular_factor_zero_is_lambert():
 
 def test_reciprocity():
     """Without a clearcoat (whose Fresnel uses N.V) the spec's BRDF is reciprocal: f(l, v) = f(v, l)
-    (|V.H| = |L.H|, the height-correlated G is symmetric). Caught (1e-12): Vis with |N.V| and |N.L|
-    swapped on one side of its sum."""
+    (|V.H| = |L.H|, the height-correlated G is symmetric). Caught (1e-12): Vis with the root of N.L
+    on both sides of its sum, the Fresnel term at N.V instead of |V.H|."""
     p = P(base_color=(0.8, 0.5, 0.2), metallic=0.4, roughness=0.35, ior=1.7, specular=0.8, specular_color=(1, 0.7, 0.4))
     rng = np.random.default_rng(1)
     d = rng.normal(size=(2, 500, 3))
@@ -126,8 +127,8 @@ ANGLES = np.radians([0, 15, 30, 45, 60, 70, 75, 80])
 @pytest.mark.parametrize("roughness", [0.0, 0.01, 0.05])
 def test_white_metal_mirror_reflects_everything(roughness):
     """Metal, base colour 1, roughness -> 0: directional albedo 1 at every angle to 80 deg within 0.3 %
-    (Smith's loss vanishes with alpha). Caught: alpha = roughness at roughness 0.05 (0.990 at 80 deg);
-    glint's current mapping reads 0.34 at 70 deg for roughness 0.05 (issue 24)."""
+    (Smith's loss vanishes with alpha). Caught: alpha = roughness (roughness 0.05), a missing
+    4 |N.L||N.V|; glint's current mapping reads 0.34 at 70 deg for roughness 0.05 (issue 24)."""
     a = G.directional_albedo(P(metallic=1.0, roughness=roughness), ANGLES)
     np.testing.assert_allclose(a, 1.0, rtol=3e-3)
 
@@ -136,8 +137,8 @@ def test_white_metal_mirror_reflects_everything(roughness):
 def test_black_dielectric_mirror_reflects_schlick(ior, specular):
     """A black dielectric mirror (base colour 0, roughness 0) reflects exactly the Fresnel term:
     albedo(theta) = specular (f0' + (1 - f0') (1 - cos theta)^5), f0' = ((1 - ior)/(1 + ior))^2,
-    within 0.3 %. Caught: the Fresnel with V.N of the wrong sign (0 at all angles), f0 from 0.04 at
-    ior 2 (0.04 vs 0.111 at 0 deg)."""
+    within 0.3 %. Caught: f0 = 0.04 whatever the ior (ior 2), dielectric_f90 = 1 instead of the
+    specular factor (specular 0.5), a missing 4 |N.L||N.V|."""
     f0 = ((1 - ior) / (1 + ior)) ** 2
     expected = specular * (f0 + (1 - f0) * (1 - np.cos(ANGLES)) ** 5)
     a = G.directional_albedo(P(base_color=(0, 0, 0), metallic=0.0, roughness=0.0, ior=ior, specular=specular), ANGLES)
@@ -148,7 +149,8 @@ def test_clear_thin_sheet_transmits_one_minus_fresnel():
     """Thin-walled transmission (KHR_materials_transmission), roughness 0: the sheet reflects
     F = 0.04 + 0.96 (1 - cos)^5 and transmits (1 - F) baseColor (Vis_T -> 1 / (4 |N.L||N.V|) as
     alpha -> 0), within 0.3 %. Caught: the transmitted part weighted by 1 - F of the reflection half
-    vector H (meaningless for L below: -13 % at 80 deg), baseColor missing from the BTDF."""
+    vector H (meaningless for L below), baseColor missing from the BTDF, the transmission pdf taken
+    at wi instead of its mirror image."""
     base = np.array([0.9, 0.5, 0.2])
     p = P(base_color=tuple(base), metallic=0.0, roughness=0.0, transmission=1.0)
     F = (0.04 + 0.96 * (1 - np.cos(ANGLES)) ** 5)[:, None]
@@ -159,7 +161,8 @@ def test_clear_thin_sheet_transmits_one_minus_fresnel():
 def test_clearcoat_over_nothing_reflects_its_fresnel():
     """A clearcoat (factor 1, roughness 0) over a material that reflects nothing (a dielectric with
     base colour 0 and specular 0) reflects clearcoat_fresnel = 0.04 + 0.96 (1 - N.V)^5, within 0.3 %;
-    factor 0.5 halves it. Caught: the coat's Fresnel from the base's f0 (ior 1.7 here)."""
+    factor 0.5 halves it. Caught: the coat's Fresnel from the material's ior (1.7 here) instead of
+    1.5, dielectric_f90 = 1 (the base then reflects)."""
     expected = 0.04 + 0.96 * (1 - np.cos(ANGLES)) ** 5
     for c in (1.0, 0.5):
         p = P(base_color=(0, 0, 0), metallic=0.0, specular=0.0, ior=1.7, clearcoat=c, clearcoat_roughness=0.0)
@@ -167,7 +170,8 @@ def test_clearcoat_over_nothing_reflects_its_fresnel():
 
 
 def test_emission_strength_and_coat():
-    """emissiveFactor x emissiveStrength; under a clearcoat darkened by 1 - clearcoat F_c(N.V)."""
+    """emissiveFactor x emissiveStrength; under a clearcoat darkened by 1 - clearcoat F_c(N.V) (exact to
+    1e-7). Caught: the coat's Fresnel from an f0 other than 0.04."""
     p = P(emissive=(1.0, 0.5, 0.0), emissive_strength=20.0)
     np.testing.assert_allclose(G.emission(p), [20.0, 10.0, 0.0])
     coated = P(emissive=(1.0, 0.5, 0.0), emissive_strength=20.0, clearcoat=1.0)
@@ -190,8 +194,8 @@ def test_sampled_albedo_equals_quadrature(k):
     """directional_albedo (Sobol points through sample(): weights f cos / pdf) against Gauss-Legendre
     quadrature of evaluate() over the hemisphere, per channel, 0.3 % relative, view 0-85 deg (rough
     materials; a 256 x 512 grid: 96 x 192 was 0.8 % short at 85 deg, where the lobe hugs the
-    horizon, while 2^14 to 2^20 samples agreed within 0.01 %). Caught: a pdf missing G1(V)
-    (2-10 % high at 60-85 deg), a mixture pdf without the component probabilities."""
+    horizon, while 2^14 to 2^20 samples agreed within 0.01 %). Caught: a pdf missing G1(V), D's
+    denominator not squared."""
     p = QUAD_MATERIALS[k]
     thetas = np.radians([0, 30, 60, 75, 85])
     d, dw = hemisphere_grid(256, 512)
@@ -218,7 +222,8 @@ def test_pdf_is_normalised_and_matches_sample():
     mixture pdf integrates over the sphere (quadrature) to the fraction of sample()'s directions that
     are valid (the visible-normal reflections that land below the surface are dropped, weight 0: the
     pdf is that of the valid ones), within 1 % (20000 samples: 0.3 % noise). Caught: the transmission
-    pdf evaluated at wi instead of its mirror image (integral 0.68 against 0.92 valid)."""
+    pdf evaluated at wi instead of its mirror image, reflected samples below the surface kept (they
+    biased the transmission: a bug of the first version), a pdf missing G1(V)."""
     p = P(base_color=(0.6, 0.7, 0.8), metallic=0.3, roughness=0.6, transmission=0.5, clearcoat=0.5, clearcoat_roughness=0.6)
     wo = direction(40.0, 30.0)
     total = 0.0

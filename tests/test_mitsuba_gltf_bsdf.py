@@ -60,7 +60,8 @@ def test_eval_and_pdf_equal_numpy(plugin, k):
     """eval (f |cos theta_L|) and pdf of the plugin equal core/gltf_brdf.py's at 300 random direction
     pairs (both hemispheres for the light) to 1e-4 relative (float32), where the half vectors are
     well conditioned (|l + v| and |mirror(l) + v| > 0.1); finite everywhere. Caught: the plugin's
-    Vis with |N.L| on both sides of its sum (3e-1), its transmission Fresnel at H instead of H_T."""
+    Vis with the root of N.L on both sides of its sum, its transmission Fresnel at H instead of H_T,
+    eval() without |cos theta_L|, eval_pdf()'s pdf with viewer and light swapped."""
     p = MATERIALS[k]
     b = load(plugin, p)
     rng = np.random.default_rng(k)
@@ -82,7 +83,7 @@ def test_sample_equals_numpy(plugin, k):
     """sample() maps the same random numbers to the same direction, pdf and weight as
     core/gltf_brdf.py sample() (directions 1e-4, pdf and weight 1e-3 relative: float32 through the
     visible-normal warp). Caught: Mitsuba's concentric cosine warp in place of the polar one (the
-    diffuse directions differ), the component order swapped."""
+    diffuse directions differ), a weight without |cos theta_L|, the plugin's Vis altered."""
     p = MATERIALS[k]
     b = load(plugin, p)
     rng = np.random.default_rng(10 + k)
@@ -104,7 +105,8 @@ def test_sample_equals_numpy(plugin, k):
 def test_plugin_sampled_albedo_equals_numpy(plugin, k):
     """The directional albedo estimated with the plugin's own sample() weights (2048 Sobol points per
     view, another scramble than core/gltf_brdf.py's) equals directional_albedo within 1 % at 0, 45 and
-    75 deg (reflection and transmission together). Caught: a weight without the cosine (-30 % at 75)."""
+    75 deg (reflection and transmission together). Caught: a weight without |cos theta_L|, the
+    plugin's Vis altered, its transmission Fresnel at H."""
     p = MATERIALS[k]
     b = load(plugin, p)
     ctx = mi.BSDFContext()
@@ -124,9 +126,10 @@ def test_white_furnace_sphere(plugin):
     """A sphere (metal, base colour 1, roughness 0.3) under a constant emitter of radiance 1, rendered
     by Mitsuba's path tracer through the plugin: a convex object reflects each view direction once, so
     a pixel reads the directional albedo at its view angle. Mean over three rings of pixels (view 0-30,
-    30-49, 49-64 deg) against directional_albedo at the same pixel centres, 1 % (measured 0.01-0.13 %
-    at 64 spp low-discrepancy). Caught: eval() returning f without |cos theta_L| (+40 % in the inner ring),
-    si.wi / wo swapped in sample() (the weights then belong to another direction: -9 % outer ring)."""
+    30-49, 49-64 deg) against directional_albedo at the same pixel centres, 1 % (measured 0.02-0.24 %
+    at 64 spp low-discrepancy, 16 x 16 pixels). Caught: eval() returning f without |cos theta_L|,
+    sample()'s weight without it, eval_pdf()'s pdf with viewer and light swapped (the path tracer's
+    MIS weights then do not sum to one)."""
     p = P(base_color=(1, 1, 1), metallic=1.0, roughness=0.3)
     res, extent = 16, 1.2
     scene = mi.load_dict({
@@ -190,8 +193,8 @@ def test_metal_albedo_against_roughconductor(plugin, alpha):
     Sobol points). At normal view the two Smith forms agree (G1(V) = 1): within 0.3 % (measured 0.04 %
     or less). At 60 and 80 deg the height-correlated form keeps more energy, so the glTF albedo is
     higher, by less than a bound 1.2x the gap measured at 80 deg with 4096 points (0.01 % / 2.4 % /
-    27.8 % at alpha 0.0025 / 0.25 / 1; docs/BENCHMARKS.md). Caught: alpha = roughness (at alpha 0.25
-    the glTF albedo drops 9 % at 0 deg)."""
+    27.8 % at alpha 0.0025 / 0.25 / 1; docs/BENCHMARKS.md). Caught: alpha = roughness (alpha 0.0025
+    and 0.25), a missing 4 |N.L||N.V|."""
     p = P(base_color=(1, 1, 1), metallic=1.0, roughness=math.sqrt(alpha))
     mitsuba_bsdf = mi.load_dict({"type": "roughconductor", "distribution": "ggx", "alpha": alpha})
     ctx = mi.BSDFContext()
