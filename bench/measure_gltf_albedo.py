@@ -121,13 +121,15 @@ def markdown(rows: list[AlbedoRow], title: str, command: str, revision: str, n: 
     for r in rows:
         groups.setdefault((r.colour, r.metallic), []).append(r)
     for (colour, metallic), group in groups.items():
-        lines += [f"## {'metal' if metallic == 1 else 'dielectric'} (metallic {metallic:.0f}), base colour {colour}", "",
+        kind = "metal" if metallic == 1 else "dielectric"
+        lines += [f"## {kind} (metallic {metallic:.0f}), base colour {colour}", "",
                   "| roughness | " + " | ".join(f"{t:.0f} deg" for t in thetas) + " |",
                   "|---|" + "---|" * len(thetas)]
         for rough in sorted({r.roughness for r in group}):
             cells = {r.theta_deg: r for r in group if r.roughness == rough}
             lines.append(f"| {rough:g} | " + " | ".join(
-                f"{np.mean(cells[t].reference):.3f} / {np.mean(cells[t].glint):.3f} ({cells[t].relative_difference * 100:+.0f} %)"
+                f"{np.mean(cells[t].reference):.3f} / {np.mean(cells[t].glint):.3f} "
+                f"({cells[t].relative_difference * 100:+.0f} %)"
                 for t in thetas) + " |")
         lines.append("")
     return "\n".join(lines)
@@ -144,7 +146,8 @@ def main(argv=None) -> None:
     rows = measure(n=args.n)
     command = " ".join([COMMAND] + (argv if argv is not None else sys.argv[1:]))
     revision = commit()
-    text = markdown(rows, f"Directional albedo: glTF BRDF against glint's mapping ({args.name})", command, revision, args.n)
+    title = f"Directional albedo: glTF BRDF against glint's mapping ({args.name})"
+    text = markdown(rows, title, command, revision, args.n)
     print(text.split("\n## ")[0])
     if args.out:
         args.out.mkdir(parents=True, exist_ok=True)

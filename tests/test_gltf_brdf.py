@@ -154,7 +154,8 @@ def test_clear_thin_sheet_transmits_one_minus_fresnel():
     base = np.array([0.9, 0.5, 0.2])
     p = P(base_color=tuple(base), metallic=0.0, roughness=0.0, transmission=1.0)
     F = (0.04 + 0.96 * (1 - np.cos(ANGLES)) ** 5)[:, None]
-    np.testing.assert_allclose(G.directional_albedo(p, ANGLES, part="reflect"), np.broadcast_to(F, (len(F), 3)), rtol=3e-3)
+    np.testing.assert_allclose(G.directional_albedo(p, ANGLES, part="reflect"), np.broadcast_to(F, (len(F), 3)),
+                               rtol=3e-3)
     np.testing.assert_allclose(G.directional_albedo(p, ANGLES, part="transmit"), (1 - F) * base, rtol=3e-3)
 
 
@@ -209,7 +210,8 @@ def test_albedo_converged_for_narrow_lobes():
     """Narrow lobes (roughness 0.05, 0.1) that no grid resolves: the default 2^16 points agree with
     2^18 independent random points within 0.3 %, so the bench's before/after figures are converged."""
     thetas = np.radians([0, 70, 85])
-    for p in (P(base_color=(0.9, 0.9, 0.9), metallic=0.0, roughness=0.05), P(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.1)):
+    for p in (P(base_color=(0.9, 0.9, 0.9), metallic=0.0, roughness=0.05),
+              P(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.1)):
         a = G.directional_albedo(p, thetas)
         wo = np.stack([np.sin(thetas), 0 * thetas, np.cos(thetas)], -1)[:, None, :]
         u = np.random.default_rng(7).random((1 << 18, 3))
@@ -224,7 +226,8 @@ def test_pdf_is_normalised_and_matches_sample():
     pdf is that of the valid ones), within 1 % (20000 samples: 0.3 % noise). Caught: the transmission
     pdf evaluated at wi instead of its mirror image, reflected samples below the surface kept (they
     biased the transmission: a bug of the first version), a pdf missing G1(V)."""
-    p = P(base_color=(0.6, 0.7, 0.8), metallic=0.3, roughness=0.6, transmission=0.5, clearcoat=0.5, clearcoat_roughness=0.6)
+    p = P(base_color=(0.6, 0.7, 0.8), metallic=0.3, roughness=0.6, transmission=0.5, clearcoat=0.5,
+          clearcoat_roughness=0.6)
     wo = direction(40.0, 30.0)
     total = 0.0
     for lower in (False, True):

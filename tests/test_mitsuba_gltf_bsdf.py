@@ -51,7 +51,8 @@ MATERIALS = [
     P(base_color=(0.8, 0.5, 0.2), metallic=0.0, roughness=0.5, ior=1.8, specular=0.7, specular_color=(1, 0.5, 2.0)),
     P(base_color=(0.9, 0.9, 0.9), metallic=0.3, roughness=0.2, transmission=0.6),
     P(base_color=(0.2, 0.2, 0.2), metallic=0.5, roughness=0.7, clearcoat=0.8, clearcoat_roughness=0.3),
-    P(base_color=(0.5, 0.6, 0.7), metallic=0.0, roughness=1.0, transmission=1.0, clearcoat=1.0, clearcoat_roughness=1.0),
+    P(base_color=(0.5, 0.6, 0.7), metallic=0.0, roughness=1.0, transmission=1.0, clearcoat=1.0,
+      clearcoat_roughness=1.0),
 ]
 
 
