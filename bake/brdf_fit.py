@@ -55,7 +55,7 @@ ALBEDO_DEGREES = 80.0  # the albedo must match up to here (issue 24); 85 is fitt
 NU = 40  # Gauss-Legendre nodes of u (theta_h = pi/2 u^2)
 NPHI = 32  # midpoints of phi_h in [0, pi]
 ALBEDO_WEIGHT = 4.0  # albedo rows against shape rows (module docstring)
-M_RANGE = (0.005, 1.0)  # Beckmann m searched (log-spaced)
+M_RANGE = (0.001, 1.0)  # Beckmann m searched (log-spaced): down to glTF roughness 0.05 (GGX alpha 0.0025)
 GRID_N = 9  # values per parameter of one hierarchical step (thesis Fig. 3.8)
 LEVELS = 5  # hierarchical refinements
 METHODS = ("multistart", "hierarchical")  # the first is the default: docs/BENCHMARKS.md
@@ -174,8 +174,10 @@ class _Problem:
     """The least-squares rows of the module docstring for one data set, with every sample's
     geometry precomputed so that a candidate lobe's column costs two exp() per sample."""
 
-    def __init__(self, data: BrdfData, albedo_weight: float = ALBEDO_WEIGHT):
+    def __init__(self, data: BrdfData, albedo_weight: float = ALBEDO_WEIGHT, diffuse: bool = True,
+                 ks_max: float | None = None):
         self.data = data
+        self.ks_max = ks_max
         w = data.mask_weight.copy()
         a = data.albedo().mean(axis=-1)
         scale = 1.0 / np.maximum(a, ALBEDO_FLOOR)  # per view
@@ -191,8 +193,9 @@ class _Problem:
         self.yy = float(np.sum(yw ** 2) + self.lam * np.sum(yw.sum(axis=1) ** 2))
         wo = np.broadcast_to(data.wo[:, None, :], data.wi.shape)
         self.geometry = {kind: self._geometry(data.wi, wo, kind) for kind in bsdf.KINDS}
-        diffuse = np.where(data.wi[..., 2] >= 0.0, 1.0 / np.pi, 0.0) * w  # kd/pi on the same side only
-        self.diffuse = diffuse
+        # kd/pi on the same side only; a material without a diffuse part (a metal) has kd = 0: a zero
+        # column, which the non-negative solve leaves at 0
+        self.diffuse = np.where(data.wi[..., 2] >= 0.0, 1.0 / np.pi, 0.0) * w * float(diffuse)
 
     @staticmethod
     def _geometry(wi, wo, kind):
@@ -252,6 +255,9 @@ class _Problem:
                 full[:, idx] = x
                 best_x = np.where(ok[:, None, :], full, best_x)
                 best_e = np.where(ok, e, best_e)
+        if self.ks_max is not None:  # the lobes' ks capped, and the error of that (feasible) solution
+            best_x[:, 1:] = np.minimum(best_x[:, 1:], self.ks_max)
+            best_e = -2.0 * np.einsum("cpn,cpn->cn", best_x, b) + np.einsum("cpn,cpq,cqn->cn", best_x, G, best_x)
         return best_x, (self.yy + best_e.sum(axis=-1)) / self.yy
 
 
@@ -270,6 +276,7 @@ class _Search:
     evaluations: int = 0
     chunk: int = 96
     fixed: list = field(default_factory=list)  # columns (V, K) of the lobes held fixed
+    bounds: np.ndarray = field(default_factory=lambda: BOUNDS.copy())  # (log m, r0, alpha) x (lo, hi)
 
     def evaluate(self, kind: str, cand: np.ndarray):
         """Errors (C,) and linear solutions of candidates cand (C, 3) = (log m, r0, alpha)."""
@@ -298,7 +305,8 @@ def _grid(lo, hi, n=GRID_N):
 
 
 def _hierarchical(search: _Search, kind: str) -> np.ndarray:
-    lo, hi = BOUNDS[:, 0].copy(), BOUNDS[:, 1].copy()
+    bounds = search.bounds
+    lo, hi = bounds[:, 0].copy(), bounds[:, 1].copy()
     best, best_e = None, np.inf
     for _ in range(LEVELS):
         cand = _grid(lo, hi)
@@ -307,8 +315,8 @@ def _hierarchical(search: _Search, kind: str) -> np.ndarray:
         if e[k] < best_e:
             best, best_e = cand[k], e[k]
         step = (hi - lo) / (GRID_N - 1)
-        lo = np.maximum(best - step, BOUNDS[:, 0])
-        hi = np.minimum(best + step, BOUNDS[:, 1])
+        lo = np.maximum(best - step, bounds[:, 0])
+        hi = np.minimum(best + step, bounds[:, 1])
     return best
 
 
@@ -319,12 +327,12 @@ MULTISTART_STARTS = 4  # ... the best few polished
 def _multistart(search: _Search, kind: str) -> np.ndarray:
     from scipy.optimize import minimize
 
-    cand = _grid(BOUNDS[:, 0], BOUNDS[:, 1], MULTISTART_GRID)
+    cand = _grid(search.bounds[:, 0], search.bounds[:, 1], MULTISTART_GRID)
     e, _ = search.evaluate(kind, cand)
     best, best_e = None, np.inf
     for k in np.argsort(e)[:MULTISTART_STARTS]:
         res = minimize(lambda p: float(search.evaluate(kind, p[None])[0][0]), cand[k], method="L-BFGS-B",
-                       bounds=BOUNDS, options={"maxiter": 60})
+                       bounds=search.bounds, options={"maxiter": 60})
         if res.fun < best_e:
             best, best_e = res.x, res.fun
     return best
@@ -339,16 +347,24 @@ def expected_evaluations(lobes: int, transmission: bool, method: str = "hierarch
 
 
 def fit(data: BrdfData, lobes: int = 1, *, method: str = METHODS[0],
-        progress: Callable[[int], None] | None = None, albedo_weight: float = ALBEDO_WEIGHT) -> FitResult:
+        progress: Callable[[int], None] | None = None, albedo_weight: float = ALBEDO_WEIGHT,
+        diffuse: bool = True, r0_range: tuple[float, float] = (0.0, 1.0), m_range: tuple[float, float] = M_RANGE,
+        ks_max: float | None = None) -> FitResult:
     """Fit kd and `lobes` (1 or 2) reflection lobes, plus a transmission lobe when the data has
-    transmission (module docstring). Deterministic."""
+    transmission (module docstring). `diffuse=False`: kd is held at 0 (a metal). `r0_range`,
+    `m_range`: where Schlick's r0 and Beckmann's m are searched (known physics, e.g. a metal's r0 near 1,
+    keeps the search from trading r0 against ks: the albedo alone cannot tell a large ks of a small r0
+    from the reverse). `ks_max`: the lobes' ks at most this (glint clamps ks to 1 where it renders and
+    bakes, bake/validate.py): the search then finds the shape that needs no more. Deterministic."""
     if lobes not in (1, 2):
         raise GlintError(f"--lobes must be 1 or 2, not {lobes}")
     if method not in METHODS:
         raise GlintError(f"fit method must be one of {', '.join(METHODS)}, not {method!r}")
     t0 = time.perf_counter()
-    problem = _Problem(data, albedo_weight)
+    problem = _Problem(data, albedo_weight, diffuse, ks_max)
     search = _Search(problem, progress)
+    search.bounds[0] = np.log(np.clip(m_range, M_RANGE[0], M_RANGE[1]))
+    search.bounds[1] = np.clip(r0_range, 0.0, 1.0)
     find = _hierarchical if method == "hierarchical" else _multistart
     slots = [_Slot("reflect") for _ in range(lobes)] + ([_Slot("transmit")] if data.transmission else [])
     order = [0] if lobes == 1 else [0, 1] + [0, 1] * (ROUNDS - 1)

@@ -8,18 +8,26 @@ _anisotropy (strength a), _clearcoat (c, r_c) and _emissive_strength (k).
 glTF's BRDF is mix(dielectric, metal, M), with the dielectric a Fresnel-weighted
 layer of specular reflection over mix(diffuse, specular transmission, t). So:
 
-- Roughness: glTF's r is perceptual, its microfacet width is alpha = r^2. The
-  Beckmann m of Eq. 3.3 is taken equal to it: m = max(r^2, 1e-4) (Beckmann and
-  GGX agree closely for narrow lobes, which are the ones that matter here).
-- Diffuse: kd = b * (1 - M) * (1 - t). The base colour texture, when present,
-  multiplies kd (`Material.kd_texture`), as in glTF.
-- Dielectric reflection: one reflect lobe, ks = (1 - M) * s, r0 = ((n - 1) / (n + 1))^2
-  times the mean of s_c (0.04 for the default n = 1.5), alpha = 0 (Eq. 3.4).
-- Metal reflection: one reflect lobe, ks = b * M, r0 = 1 (Schlick's F is then 1:
-  a metal's colour is its ks).
+- Lobes are fitted, not written down (issue 24): glTF's specular BRDF (GGX with alpha = r^2,
+  height-correlated Smith, Schlick) is not Eq. 3.4, and with Kurt's alpha = 0 a narrow lobe's
+  directional albedo falls like F cos(theta_o), so floors lost most of their reflection at the
+  angles a walkthrough sees them. Each lobe's (ks, m, r0, alpha) is read from the table of
+  bake/gltf_fit_table.py: the section 3.3 lobe fitted (thesis 3.4.1) to glTF's specular BRDF with
+  Schlick's Fresnel of normal-incidence reflectance f0, at roughness r (`FitTable.specular_lobe`).
+  How close the result is: docs/SCENES.md, "glTF materials: how close".
+- Diffuse: kd = b * (1 - M) * (1 - t) * share(f0), where share is what glTF's fresnel_mix leaves
+  to the diffuse term (0.953 for f0 = 0.04; with KHR_materials_specular's factor s, 1 - s (1 -
+  share)). The base colour texture, when present, multiplies kd (`Material.kd_texture`), as in glTF.
+- Dielectric reflection: one reflect lobe, the table's for f0 = ((n - 1) / (n + 1))^2 times the
+  mean of s_c (0.04 for the default n = 1.5), its ks times (1 - M) * s. No lobe when f0 = 0 (n = 1).
+- Metal reflection: glTF's conductor_fresnel is Schlick's with f0 = b, so one reflect lobe, the
+  table's for f0 = max(b), its ks times b / max(b) * M: exact for grey metals and at normal
+  incidence; a coloured metal keeps its colour towards grazing angles where glTF's whitens (one
+  lobe has one r0), its dimmer channels below the specification's there, never above.
 - Transmission (t > 0): one transmit lobe (Eq. 3.5, thin surface), ks = b * (1 - M) * t,
-  the same m and r0; Eq. 3.5's (1 - F) factor plays glTF's Fresnel weighting.
-- Clearcoat (c > 0): one more reflect lobe, ks = c, r0 = 0.04, m = max(r_c^2, 1e-4).
+  m = max(r^2, 1e-4), r0 = f0, alpha = 0; Eq. 3.5's (1 - F) factor plays glTF's Fresnel weighting.
+- Clearcoat (c > 0): one more reflect lobe, the table's for f0 = 0.04 at roughness r_c, its ks
+  times c (the layer under it is not dimmed by the coat's Fresnel, as glTF's would be).
 - Anisotropy a: the tangent width widens, mx = m + (1 - m) * a^2, my = m (the
   KHR_materials_anisotropy definition, applied to Beckmann m); tangent = the
   mesh's tangent (TANGENT, else MikkTSpace from the object's uvs), rotated by
@@ -35,8 +43,10 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   whose roughness r >= `diffuse_roughness` (0.5; sidecar `[bake] diffuse_roughness`)
   is dropped when the material does not transmit. Its highlight is too broad to be
   worth a cube map, and Blender's default Principled BSDF exports r = 0.5, so plain
-  walls stay in the `diffuse` role (light map only). Metal and transmit lobes are
-  always kept. Lobes whose ks is 0 are dropped.
+  walls stay in the `diffuse` role (light map only). The base layer's dropped lobe
+  reflected (1 - M) * s times its albedo under uniform light (the table's `specular_albedo`, about
+  0.05 for f0 = 0.04): that much joins kd, grey, so a wall keeps its energy. Metal and
+  transmit lobes are always kept. Lobes whose ks is 0 are dropped.
 - Emission (radiance, W/(m^2 sr)) = e * k; the emissiveTexture (sRGB, glTF 3.9.3) multiplies it
   per texel (`Material.emission_texture`, read by the loader).
 - Coverage (glTF 3.9.4): alphaMode, alphaCutoff (default 0.5) and the alpha of
@@ -52,7 +62,9 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   1 - M') where some texel has M' < 1 and, unless the material transmits, the smallest
   roughness r * min G lies below `diffuse_roughness` (then it is kept at every texel, also where
   r * G is above); the transmit lobe as without the texture (times 1 - M'). Their m is the
-  factor's, and per texel m' = max((r G)^2, 1e-4) = max(m G^2, 1e-4) (an anisotropic lobe keeps
+  table's at the texture's mean roughness r mean(G), m divided by mean(G)^2, so that per texel
+  m' = max(m G^2, 1e-4) is the table's m where G is the mean (the fitted m grows about as r^2; the
+  lobe keeps that row's r0 and alpha) (an anisotropic lobe keeps
   a^2 = (mx - my) / (1 - my): mx' = m' + (1 - m') a^2); `Lobe.mr` marks them ("metal",
   "dielectric"). Clearcoat and override lobes do not follow the texture. The bake's paths, which
   scatter by the lobes (bake/scatter.py), take their per-texel ks but the factor's m. Roles
@@ -86,9 +98,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glint.bake.gltf_fit_table import fit_table
 from glint.bake.validate import add_warning, check_number, warn_unknown_keys
 from glint.core.bsdf import M_MIN
 from glint.core.errors import GlintError, WarningKind
+from glint.core.gltf_brdf import GltfMaterialParams
 from glint.core.material_schema import LOBE_SCHEMA, checked_lobe, lobe_value, material_value
 from glint.core.scene import Lobe, Material
 
@@ -143,40 +157,85 @@ def fresnel_r0(ior: float) -> float:
     return ((ior - 1.0) / (ior + 1.0)) ** 2
 
 
+def dielectric_f0(p: GltfPbr) -> float:
+    """The specular layer's normal-incidence reflectance: ((n - 1) / (n + 1))^2 times the mean of
+    KHR_materials_specular's colour, at most 1 (its specular factor scales the layer: `map_pbr`)."""
+    return float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
+
+
+def _fitted(table, lobe_of, roughness: float, weight, m_scale: float = 1.0) -> tuple:
+    """(ks (3,), m, r0, alpha) of the fitted lobe `lobe_of(roughness)`, ks times `weight`, m times
+    `m_scale`."""
+    lobe = lobe_of(float(np.clip(roughness, 0.0, 1.0)))
+    m = float(np.clip(lobe.m * m_scale, M_MIN, 1.0))
+    return _rgb3(np.asarray(weight, np.float64) * lobe.ks), m, lobe.r0, lobe.alpha
+
+
 def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
             metallic_roughness: np.ndarray | None = None):
     """The rule of the module docstring: -> (kd (3,) float32, lobes, emission (3,) float32).
     `metallic_roughness`: the material's texture as `Material.metallic_roughness_texture` holds it
     (G the roughness multiplier, B the metallic M'), or None."""
+    table = fit_table()
     base = np.clip(np.asarray(p.base_color, np.float64)[:3], 0.0, None)
     metal = float(np.clip(p.metallic, 0.0, 1.0))
     t = float(np.clip(p.transmission, 0.0, 1.0))
-    m = beckmann_m(p.roughness)
     a = float(np.clip(p.anisotropy, 0.0, 1.0))
-    mx, my = m + (1.0 - m) * a * a, m
-    roughness, mr = p.roughness, ""
+    # `roughness` decides the rough rule (with a texture: the smallest roughness it can reach); the
+    # fitted lobes are the table's at `fitted` (with a texture: at its mean G, the lobe's m divided by
+    # that G^2, so that the viewer's per-texel m' = m G^2 gives the table's m where G is the mean)
+    factor = float(np.clip(p.roughness, 0.0, 1.0))
+    roughness, fitted, m_scale, mr = factor, factor, 1.0, ""
     if metallic_roughness is None:  # the factors: the lobes' weights at the one metallic M
         metal_ks, dielectric = metal, 1.0 - metal
     else:  # full weights, scaled per texel by M' or 1 - M'; kept if some texel needs them
         g, texel_metal = metallic_roughness[..., 1], metallic_roughness[..., 2]
         roughness *= float(np.min(g, initial=1.0))
+        mean_g = float(np.mean(g)) if g.size else 1.0
+        if mean_g > 0:
+            fitted, m_scale = factor * mean_g, 1.0 / (mean_g * mean_g)
         metal_ks = 1.0 if np.max(texel_metal, initial=0.0) > 0 else 0.0
         dielectric = 1.0 if np.min(texel_metal, initial=1.0) < 1 else 0.0
         mr = "dielectric"
     rough = roughness >= diffuse_roughness and t == 0.0
-    interface = INTERFACE_ALPHA if p.thickness > 0 and t > 0 else 0.0
+    volume = p.thickness > 0 and t > 0
+    f0 = dielectric_f0(p)
+    s = float(np.clip(p.specular, 0.0, 1.0))
 
-    kd = base * (1.0 - metal if mr == "" else 1.0) * (1.0 - t)
-    r0 = float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
+    def anisotropic(m):  # KHR_materials_anisotropy on Beckmann m: the tangent width widens
+        return m + (1.0 - m) * a * a, m
+
+    # fresnel_mix leaves the diffuse term (1 - s F) of the base colour (KHR_materials_specular)
+    share = 1.0 - s * (1.0 - table.diffuse_share(f0)) if f0 > 0 else 1.0
+    kd = base * (1.0 - metal if mr == "" else 1.0) * (1.0 - t) * share
     lobes = []
-    if not rough:
-        lobes.append(Lobe("reflect", _rgb3(dielectric * p.specular), mx, my, r0, interface, mr))
-    lobes.append(Lobe("reflect", _rgb3(base * metal_ks), mx, my, 1.0, 0.0, mr and "metal"))
+    if f0 > 0 and s > 0:
+        if volume:  # a glass solid's entry interface: Kurt's alpha 1/2 (module docstring)
+            m = beckmann_m(factor)
+            lobe = Lobe("reflect", _rgb3(dielectric * s), *anisotropic(m), f0, INTERFACE_ALPHA, mr)
+        else:
+            ks, m, r0, alpha = _fitted(table, lambda r: table.specular_lobe(r, f0), fitted, dielectric * s, m_scale)
+            lobe = Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr)
+        if not rough:
+            lobes.append(lobe)
+        else:  # a rough dielectric is diffuse: its layer's reflection joins kd, grey (module docstring)
+            kd = kd + dielectric * s * table.specular_albedo_at(fitted, f0)
+    # a metal's Fresnel is Schlick's with f0 = base colour b (glTF conductor_fresnel): b at normal
+    # incidence, white at grazing. One lobe has one r0: the lobe is the table's for f0 = max(b), and ks
+    # carries the colour, b / max(b) <= 1: exact for grey metals and at normal incidence; a coloured
+    # metal's other channels stay below white at grazing angles (never above: no channel gains energy)
+    brightest = float(np.max(base))
+    if brightest > 0:
+        ks, m, r0, alpha = _fitted(table, lambda r: table.specular_lobe(r, brightest), fitted,
+                                   base / brightest * metal_ks, m_scale)
+        lobes.append(Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr and "metal"))
     if t > 0:
-        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), mx, my, r0, interface, mr))
+        lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), *anisotropic(beckmann_m(factor)), f0,
+                          INTERFACE_ALPHA if volume else 0.0, mr))
     if p.clearcoat > 0 and not (p.clearcoat_roughness >= diffuse_roughness and t == 0.0):
-        mc = beckmann_m(p.clearcoat_roughness)
-        lobes.append(Lobe("reflect", _rgb3(p.clearcoat), mc, mc, CLEARCOAT_R0, 0.0))
+        ks, m, r0, alpha = _fitted(table, lambda r: table.specular_lobe(r, CLEARCOAT_R0), p.clearcoat_roughness,
+                                   p.clearcoat)
+        lobes.append(Lobe("reflect", ks, m, m, r0, alpha))
     lobes = [lobe for lobe in lobes if max(lobe.ks) > 0]
     emission = np.asarray(p.emissive, np.float64)[:3] * p.emissive_strength
     return kd.astype(np.float32), lobes, np.clip(emission, 0.0, None).astype(np.float32)
@@ -289,7 +348,7 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
         mr[..., 2] *= float(np.clip(pbr.metallic, 0.0, 1.0))  # B x metallicFactor = the texel's M'
     kd, lobes, emission = map_pbr(pbr, diffuse_roughness, mr)
     lobes = [checked_lobe(lobe, f"{where} lobes[{k}]") for k, lobe in enumerate(lobes)]  # glTF's ranges keep them valid
-    mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission,
+    mat = Material(name=name, kd=kd, kd_texture=kd_texture, lobes=lobes, emission=emission, gltf=_reference(pbr),
                    emission_texture=emission_texture, metallic_roughness_texture=mr,
                    **volume_fields(pbr),
                    **_surface_detail(gm, pbr, normal_texture, anisotropy_texture, where),
@@ -304,6 +363,22 @@ def material_from_gltf(gm: dict, name: str, *, kd_texture: np.ndarray | None = N
     return mat
 
 
+def _reference(p: GltfPbr):
+    """The glTF factors as core/gltf_brdf.py's parameters (`Material.gltf`), for references; None
+    where that BRDF does not cover the material (anisotropy, a glass solid) or its values are outside
+    the specification's ranges (the mapping clamps them)."""
+    if p.anisotropy > 0 or (p.thickness > 0 and p.transmission > 0):
+        return None
+    try:
+        return GltfMaterialParams(base_color=tuple(p.base_color[:3]), metallic=p.metallic, roughness=p.roughness,
+                                  ior=p.ior, specular=p.specular, specular_color=tuple(p.specular_color),
+                                  transmission=p.transmission, clearcoat=p.clearcoat,
+                                  clearcoat_roughness=p.clearcoat_roughness, emissive=tuple(p.emissive[:3]),
+                                  emissive_strength=p.emissive_strength)
+    except GlintError:
+        return None
+
+
 def _surface_detail(gm: dict, p: GltfPbr, normal_texture, anisotropy_texture, where: str) -> dict:
     """The normal map (glTF normalTexture and its scale) and the anisotropy direction
     (KHR_materials_anisotropy rotation and texture) -> Material's fields; an anisotropy
@@ -316,7 +391,10 @@ def _surface_detail(gm: dict, p: GltfPbr, normal_texture, anisotropy_texture, wh
 
 
 def apply_override(mat: Material, override: dict) -> Material:
-    """Replace the fields given in a parsed override (see `parse_material_override`)."""
+    """Replace the fields given in a parsed override (see `parse_material_override`). The material is
+    no longer its glTF factors' (`Material.gltf`)."""
+    if any(key in override for key in OVERRIDE_KEYS):
+        mat.gltf = None
     if "kd" in override:
         mat.kd = np.array(override["kd"], np.float32)
     if "emission" in override:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from glint.core.gltf_brdf import GltfMaterialParams
 from glint.core.volume import absorption_coefficient
 
 ROLES = ("diffuse", "curved", "planar", "transmissive")
@@ -82,6 +83,10 @@ class Material:
     counter-clockwise from the tangent towards the bitangent) and anisotropy_texture ((H, W, 3),
     linear: RG the direction in tangent space as 2 x value - 1, B a factor on the strength) are
     KHR_materials_anisotropy's; the lobes' mx, my carry the strength itself.
+
+    gltf: the glTF factors the loader mapped the material from (core/gltf_brdf.py's parameters), kept
+    so that a reference renders the material as its author defined it (bench/mitsuba_scene.py); None
+    for a material not from glTF, or once an override (extras.glint, the sidecar, `--set`) changed it.
     """
 
     name: str
@@ -106,6 +111,7 @@ class Material:
     thickness: float = 0.0
     attenuation_distance: float = float("inf")
     attenuation_color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    gltf: GltfMaterialParams | None = None
 
     @property
     def has_volume(self) -> bool:

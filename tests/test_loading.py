@@ -12,6 +12,7 @@ import pytest
 import trimesh
 
 from glint.bake.gltf_loader import load_scene
+from glint.bake.gltf_fit_table import fit_table
 from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.scenes.gltf_writer import GltfWriter
 
@@ -133,7 +134,8 @@ def test_multi_primitive_mesh_gives_one_object_per_primitive_with_its_material(t
     mats = [scene.material_of(o).name for o in scene.objects]
     assert mats == ["A", "B"]
     np.testing.assert_allclose(scene.objects[1].positions[:, 1], 1.0)
-    np.testing.assert_allclose(scene.material_of(scene.objects[1]).kd, [0, 0, 1])
+    kd = scene.material_of(scene.objects[1]).kd  # blue, plus the rough dielectric's dropped lobe (grey)
+    assert kd[2] > 0.9 and kd[0] == kd[1] < 0.05
 
 
 def test_gltf_with_external_bin_equals_glb(tmp_path):
@@ -146,8 +148,8 @@ def test_gltf_with_external_bin_equals_glb(tmp_path):
         np.testing.assert_array_equal(oa.positions, ob.positions)
         np.testing.assert_array_equal(oa.indices, ob.indices)
         np.testing.assert_array_equal(oa.uvs, ob.uvs)
-    np.testing.assert_allclose(a.materials[0].kd, [0.5, 0.25, 0.125])
-    np.testing.assert_allclose(b.materials[0].kd, [0.5, 0.25, 0.125])
+    np.testing.assert_array_equal(a.materials[0].kd, b.materials[0].kd)
+    np.testing.assert_allclose(a.materials[0].kd, [0.5, 0.25, 0.125], atol=0.02)
     assert a.name == "scene" and b.name == "other"
 
 
@@ -339,36 +341,47 @@ def test_emissive_strength_is_linear_radiance(tmp_path):
 
 
 def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
-    # Smooth dielectric: diffuse base + one white lobe, r0 of ior 1.5, m = r^2.
+    """The rule of bake/material_mapping.py with the fitted table's values (bake/gltf_fit_table.py;
+    that the table follows the glTF BRDF: tests/test_gltf_mapping_albedo.py)."""
+    table = fit_table()
+    share = table.diffuse_share(0.04)
+    # Smooth dielectric: diffuse base x fresnel_mix's share + one white lobe, the table's for f0 0.04.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.5, 0.4, 0.3), metallic=0, roughness=0.2))
-    np.testing.assert_allclose(kd, [0.5, 0.4, 0.3])
+    np.testing.assert_allclose(kd, np.array([0.5, 0.4, 0.3]) * share, rtol=1e-6)
     (lobe,) = lobes
-    assert lobe.kind == "reflect" and lobe.ks == (1, 1, 1)
-    assert lobe.r0 == pytest.approx(0.04) and lobe.mx == lobe.my == pytest.approx(0.04)
-    # Metal: no diffuse, coloured lobe with r0 = 1.
+    fitted = table.specular_lobe(0.2, 0.04)
+    assert lobe.kind == "reflect" and lobe.ks == pytest.approx((fitted.ks,) * 3)
+    assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == lobe.my == pytest.approx(fitted.m)
+    assert 0.85 * 0.04 <= lobe.r0 <= 1.15 * 0.04 and 0.3 < lobe.alpha < 0.6  # Kurt's alpha: not 0
+    # Metal: no diffuse; the table's lobe for f0 = the brightest channel, ks carrying the colour.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.9, 0.6, 0.2), metallic=1, roughness=0.7))
     np.testing.assert_allclose(kd, 0)
     (lobe,) = lobes
-    assert lobe.ks == pytest.approx((0.9, 0.6, 0.2)) and lobe.r0 == 1.0
-    assert lobe.mx == pytest.approx(0.49)
-    # Rough dielectric (Blender's default 0.5): no lobe; a lower threshold moves the line.
-    assert map_pbr(GltfPbr(metallic=0, roughness=0.5))[1] == []
+    fitted = table.specular_lobe(0.7, 0.9)
+    assert lobe.ks == pytest.approx(tuple(fitted.ks * c / 0.9 for c in (0.9, 0.6, 0.2)))
+    assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == pytest.approx(fitted.m)
+    # Rough dielectric (Blender's default 0.5): no lobe, its albedo joins kd; a lower threshold moves the line.
+    kd, lobes, _ = map_pbr(GltfPbr(metallic=0, roughness=0.5))
+    assert lobes == []
+    np.testing.assert_allclose(kd, share + table.specular_albedo_at(0.5, 0.04), rtol=1e-6)
     assert len(map_pbr(GltfPbr(metallic=0, roughness=0.5), diffuse_roughness=0.8)[1]) == 1
-    # Frosted glass, ior 1.33: no diffuse, reflect + transmit lobes, same m and r0.
+    # Frosted glass, ior 1.33: no diffuse, reflect + transmit lobes; the transmit lobe m = r^2, r0 = f0.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(1, 1, 1), metallic=0, roughness=0.6,
                                    transmission=1.0, ior=1.33))
     np.testing.assert_allclose(kd, 0)
     assert [lb.kind for lb in lobes] == ["reflect", "transmit"]
     r0 = (0.33 / 2.33) ** 2
-    assert lobes[0].r0 == pytest.approx(r0) and lobes[1].r0 == pytest.approx(r0)
+    assert lobes[0].r0 == pytest.approx(table.specular_lobe(0.6, r0).r0) and lobes[1].r0 == pytest.approx(r0)
     assert lobes[1].mx == pytest.approx(0.36) and lobes[1].ks == (1, 1, 1)
     # Anisotropic brushed metal: mx = m + (1 - m) s^2 along the tangent, my = m.
     _, (lobe,), _ = map_pbr(GltfPbr(metallic=1, roughness=0.3, anisotropy=0.5))
-    assert lobe.my == pytest.approx(0.09) and lobe.mx == pytest.approx(0.09 + 0.91 * 0.25)
-    # Mirror: m floored at 1e-4; half metal: two lobes weighted by metallic.
+    m = table.specular_lobe(0.3, 1.0).m
+    assert lobe.my == pytest.approx(m) and lobe.mx == pytest.approx(m + (1 - m) * 0.25)
+    # Mirror: m at the table's floor; half metal: two lobes weighted by metallic.
     _, lobes, _ = map_pbr(GltfPbr(base_color=(1, 0, 0), metallic=0.5, roughness=0.0))
-    assert [lb.r0 for lb in lobes] == [pytest.approx(0.04), 1.0]
-    assert lobes[0].ks == (0.5, 0.5, 0.5) and lobes[1].ks == (0.5, 0, 0)
+    assert [lb.r0 for lb in lobes] == [pytest.approx(0.04, rel=0.15), pytest.approx(1.0, rel=0.15)]
+    assert lobes[0].ks == pytest.approx((0.5 * table.specular_lobe(0.0, 0.04).ks,) * 3)
+    assert lobes[1].ks == pytest.approx((0.5 * table.specular_lobe(0.0, 1.0).ks, 0, 0))
     assert lobes[0].mx == 1e-4
 
 
@@ -380,11 +393,13 @@ def test_material_extensions_read_from_gltf(tmp_path):
     w = quad_writer(base_color=(1, 1, 1, 1), roughness=0.1, extensions=ext)
     scene = load_scene(write(w, tmp_path))
     mat = scene.materials[0]
-    np.testing.assert_allclose(mat.kd, [0.2] * 3, rtol=1e-6)
+    table = fit_table()  # KHR_materials_specular 0.5: the layer's Fresnel halved, the diffuse share 1 - F / 2
+    np.testing.assert_allclose(mat.kd, [0.2 * (1 - 0.5 * (1 - table.diffuse_share(1 / 9)))] * 3, rtol=1e-6)
     refl, trans = mat.lobes
-    assert refl.ks == (0.5, 0.5, 0.5) and refl.r0 == pytest.approx(1 / 9)
-    assert trans.ks == pytest.approx((0.8, 0.8, 0.8)) and trans.kind == "transmit"
-    assert refl.mx == pytest.approx(1.0) and refl.my == pytest.approx(0.01)
+    fitted = table.specular_lobe(0.1, 1 / 9)
+    assert refl.ks == pytest.approx((0.5 * fitted.ks,) * 3) and refl.r0 == pytest.approx(fitted.r0)
+    assert trans.ks == pytest.approx((0.8, 0.8, 0.8)) and trans.kind == "transmit" and trans.r0 == pytest.approx(1 / 9)
+    assert refl.mx == pytest.approx(1.0) and refl.my == pytest.approx(fitted.m)
     assert scene.objects[0].role == "transmissive"
     assert mat.anisotropy_rotation == pytest.approx(0.3)  # read, not warned about
     assert not any("anisotropyRotation" in m for m in scene.warnings)

@@ -20,6 +20,7 @@ import pytest
 from test_specular import cube_file, lobe, material, pinhole_rays, quad, specular_bake
 from test_view import HOME, Modifiers
 
+from glint.bake.gltf_fit_table import fit_table
 from glint.core import bsdf
 from glint.core.errors import GlintError
 from glint.core.manifest import Camera
@@ -216,7 +217,8 @@ def test_lobe_count_change_and_emission_show_at_once(ctx, tmp_path):
 
 def test_gltf_controls_use_the_handed_in_mapping(ctx, tmp_path):
     """The glTF-style controls go through the command layer's mapping (glint/view.py, the bake's
-    map_pbr): metallic 1 gives kd 0 and one metal lobe of ks = base colour, r0 = 1, m = roughness^2.
+    map_pbr): metallic 1 gives kd 0 and one metal lobe, the fitted table's for f0 = 0.9 at roughness 0.3
+    (bake/gltf_fit_table.py), ks carrying the colour.
     Deliberate bug tried: gltf_guess reading the roughness as m (not sqrt m) -> a roughness edit of
     another control moved m from 0.09 to 0.0081."""
     from glint.view import pbr_mapping
@@ -231,9 +233,11 @@ def test_gltf_controls_use_the_handed_in_mapping(ctx, tmp_path):
         assert entry.kd == [0.0, 0.0, 0.0]
         assert len(entry.lobes) == 1
         metal = entry.lobes[0]
-        assert metal.r0 == 1.0 and metal.mx == pytest.approx(0.09) and metal.ks == pytest.approx([0.9, 0.6, 0.2])
+        fitted = fit_table().specular_lobe(0.3, 0.9)
+        assert metal.r0 == pytest.approx(fitted.r0) and metal.mx == pytest.approx(fitted.m)
+        assert metal.ks == pytest.approx([fitted.ks * c / 0.9 for c in (0.9, 0.6, 0.2)])
         assert viewer.panel.set_gltf(metallic=0.0)  # the other values as last set: roughness 0.3 stays
-        assert viewer.edits.materials[0].lobes[0].mx == pytest.approx(0.09)
+        assert viewer.edits.materials[0].lobes[0].mx == pytest.approx(fit_table().specular_lobe(0.3, 0.04).m)
         frames(wnd)
         assert np.isfinite(viewer.renderer.read_linear()).all()
     finally:

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from conftest import quad
 
+from glint.bake.gltf_fit_table import fit_table
 from glint.bake.gltf_loader import load_scene
 from glint.scenes.gltf_writer import GltfWriter
 
@@ -21,6 +22,7 @@ NEAREST = {"magFilter": 9728, "minFilter": 9728}  # glTF 5.26: one value per tex
 STRIPES = 4                                   # stripes across the floor, along x
 G_LOW, G_HIGH = 38, 153                       # roughness 0.149 and 0.6 (roughnessFactor 1)
 BASE = (0.9, 0.8, 0.6)
+SHARE = fit_table().diffuse_share(0.04)  # what glTF's fresnel_mix leaves to the diffuse term (ior 1.5)
 BAR_RADIANCE = 5.0
 
 
@@ -63,20 +65,22 @@ def test_loader_and_mapping_read_the_texture_linear_and_keep_the_lobes_it_needs(
     mat = scene.materials[0]
     np.testing.assert_allclose(mat.metallic_roughness_texture[0, :, 1], [G_LOW / 255, G_HIGH / 255] * 2, atol=1e-6)
     np.testing.assert_allclose(mat.metallic_roughness_texture[0, :, 2], [0.0, 0.5] * 2, atol=1e-6)
-    np.testing.assert_allclose(mat.kd, BASE, rtol=1e-6)
-    assert [(lobe.mr, lobe.r0) for lobe in mat.lobes] == [("dielectric", pytest.approx(0.04)), ("metal", 1.0)]
-    np.testing.assert_allclose(mat.lobes[1].ks, BASE, rtol=1e-6)
+    np.testing.assert_allclose(mat.kd, np.array(BASE) * SHARE, rtol=1e-6)
+    assert [(lobe.mr, lobe.r0) for lobe in mat.lobes] == [("dielectric", pytest.approx(0.04, rel=0.15)),
+                                                         ("metal", pytest.approx(BASE[0], rel=0.15))]
+    np.testing.assert_allclose(mat.lobes[1].ks, np.array(BASE) / BASE[0] * mat.lobes[1].ks[0], rtol=1e-6)
     assert not any("metallicRoughnessTexture" in m for m in scene.warnings)
     assert scene.objects[0].role == "planar"
     plain = load_scene(write_bar_scene(tmp_path / "plain.glb", None, metallic=0.5))
     assert [lobe.mr for lobe in plain.materials[0].lobes] == [""]
-    np.testing.assert_allclose(plain.materials[0].kd, np.array(BASE) * 0.5, rtol=1e-6)
+    dropped = 0.5 * fit_table().specular_albedo_at(1.0, 0.04)  # roughness 1: the dielectric lobe joins kd, grey
+    np.testing.assert_allclose(plain.materials[0].kd, np.array(BASE) * 0.5 * SHARE + dropped, rtol=1e-6)
 
 
 def test_bake_albedo_is_kd_times_one_minus_metallic_per_texel(tmp_path):
     """The bake's albedo (bake/irradiance.py, what diffuse bounces and light maps read) at the centre
     of each texel of a metallic-striped floor is BASE x (1 - M'): BASE where B = 0, black where
-    B = 255 (numpy of glTF's kd = b (1 - M)).
+    B = 255 (numpy of glTF's kd = b (1 - M), times fresnel_mix's diffuse share).
 
     Deliberate bug this catches (tried): the albedo ignoring the texture (BASE everywhere)."""
     from glint.bake.irradiance import _transport
@@ -88,7 +92,7 @@ def test_bake_albedo_is_kd_times_one_minus_metallic_per_texel(tmp_path):
     o = np.stack([x, np.full(STRIPES, 0.5), np.full(STRIPES, 0.3)], 1)
     hit = tracer.intersect(o, np.tile([0.0, -1.0, 0.0], (STRIPES, 1)))
     albedo, metallic = _transport(scene, tracer).albedo(np.zeros(STRIPES, np.int64), hit.prim, hit.b1, hit.b2)
-    expected = np.array(BASE)[None] * (1 - np.array([0.0, 1.0] * 2))[:, None]
+    expected = np.array(BASE)[None] * SHARE * (1 - np.array([0.0, 1.0] * 2))[:, None]
     np.testing.assert_allclose(albedo, expected, atol=1e-6)
     np.testing.assert_allclose(metallic, [0.0, 1.0] * 2, atol=1e-6)  # M', which scales the `mr` lobes' ks
 

@@ -1,0 +1,141 @@
+"""The glTF BRDF fitted by the section 3.3 model: the table glTF materials are mapped through.
+
+glTF's metallic-roughness BRDF (GGX, height-correlated Smith, Schlick; core/gltf_brdf.py) is not
+the thesis' model (Kurt et al.'s Beckmann lobes, Eq. 3.3-3.4), so a glTF material's lobe cannot
+be written down from its factors: with Kurt's alpha = 0 a narrow lobe's directional albedo falls
+like F cos(theta_o) and a glossy floor lost most of its reflection at the angles a walkthrough sees
+it (issue 24). As the thesis does with measured data (3.4.1), the lobes are *fitted* to the BRDF,
+once, offline, by `python3 -m glint.bench.fit_gltf_table` (bake/brdf_fit.py on the reference), and
+shipped as gltf_fit_table.npz next to this module; loading a scene only interpolates it.
+
+The table holds, for glTF roughness r on the grid `roughness` and normal-incidence reflectance f0 on
+the grid `f0`:
+- `specular`: (F, R, 4) one reflect lobe (ks, m, r0, alpha) fitted to glTF's specular BRDF weighted
+  by Schlick's Fresnel with that f0 alone (kd held at 0). It is a dielectric's specular layer (f0 from
+  its ior: 0.04 for glTF's default 1.5) and, as glTF's conductor_fresnel is the same Schlick term
+  with f0 = base colour, a grey metal of that base colour (f0 = 1: a white metal).
+- `specular_albedo`: (F, R) that BRDF's albedo by the reference under uniform light (directional
+  albedo weighted by cos(theta_o) over the hemisphere): what a rough dielectric's dropped lobe adds
+  to kd (bake/material_mapping.py), the light it would have reflected of a diffuse room's.
+- `diffuse`: (F,) the share of the base colour that fresnel_mix leaves to the diffuse term,
+  averaged over view angles 0-80 degrees (it hardly depends on the angle: 0.960 to 0.944 for f0 0.04,
+  and not on the roughness): kd = base colour x `diffuse`.
+Between two rows, in r and then in f0: where both rows are one solution of the fit (their alpha within
+SAME_ALPHA, their m in the ratio r^2 predicts within a factor 2), each parameter is interpolated
+linearly (m through sqrt(m), about linear in r as m ~ r^2). Rough rows have two solutions of similar
+error (a narrow lobe with alpha ~ 0.5, a wide one with alpha ~ 0.2 and a large ks) and neighbouring
+rows may hold different ones; a lobe halfway between the two is neither, so there the nearer row's
+lobe is taken, its ks scaled to the interpolated albedo (`specular_albedo`). How well the table
+matches the reference, per material and view angle: docs/bench/gltf-fit/table.md.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+
+import numpy as np
+
+from glint.core.errors import GlintError
+
+TABLE_FILE = "gltf_fit_table.npz"
+FORMAT = 1
+
+
+@dataclass(frozen=True)
+class FittedLobe:
+    """One reflect lobe of Eq. 3.4 (isotropic: mx = my = m), ks grey."""
+
+    ks: float
+    m: float
+    r0: float
+    alpha: float
+
+
+@dataclass(frozen=True)
+class FitTable:
+    roughness: np.ndarray  # (R,) increasing, 0 ... 1
+    f0: np.ndarray  # (F,) increasing, up to 1
+    specular: np.ndarray  # (F, R, 4) ks, m, r0, alpha
+    specular_albedo: np.ndarray  # (F, R)
+    diffuse: np.ndarray  # (F,)
+
+    def specular_lobe(self, roughness: float, f0: float) -> FittedLobe:
+        """The lobe of glTF's specular BRDF with Schlick's Fresnel of normal-incidence reflectance f0;
+        below the grid's first f0, its row with r0 scaled by f0 / f0_row (the fitted r0 follows f0)."""
+        i, j, t = _bracket(self.f0, f0)
+        a, albedo_a = self._along_roughness(i, roughness)
+        b, albedo_b = self._along_roughness(j, roughness)
+        lobe = _between(a, b, t, albedo_a, albedo_b, 1.0)
+        row = float(np.clip(f0, self.f0[0], self.f0[-1]))
+        if row != f0:
+            lobe = FittedLobe(lobe.ks, lobe.m, float(np.clip(lobe.r0 * f0 / row, 0.0, 1.0)), lobe.alpha)
+        return lobe
+
+    def _along_roughness(self, f: int, roughness: float) -> tuple[FittedLobe, float]:
+        """Row f0[f]'s lobe at `roughness`, and its albedo."""
+        k, l, u = _bracket(self.roughness, roughness)
+        a, b = (FittedLobe(*map(float, self.specular[f, n])) for n in (k, l))
+        albedo_a, albedo_b = self.specular_albedo[f, k], self.specular_albedo[f, l]
+        r_a, r_b = self.roughness[k], self.roughness[l]
+        m_ratio = (r_b / r_a) ** 2 if r_a > 0 else b.m / a.m  # the rows below FITTED[0] scale m so
+        return _between(a, b, u, albedo_a, albedo_b, m_ratio), float((1 - u) * albedo_a + u * albedo_b)
+
+    def specular_albedo_at(self, roughness: float, f0: float) -> float:
+        """The mean directional albedo of that BRDF (below the grid's first f0: scaled by f0 / f0_row)."""
+        i, j, t = _bracket(self.f0, f0)
+        k, l, u = _bracket(self.roughness, roughness)
+        rows = self.specular_albedo
+        value = (1 - t) * ((1 - u) * rows[i, k] + u * rows[i, l]) + t * ((1 - u) * rows[j, k] + u * rows[j, l])
+        row = float(np.clip(f0, self.f0[0], self.f0[-1]))
+        return float(value * f0 / row)
+
+    def diffuse_share(self, f0: float) -> float:
+        i, j, t = _bracket(self.f0, f0)
+        return float((1 - t) * self.diffuse[i] + t * self.diffuse[j])
+
+    def save(self, path) -> None:
+        with open(path, "wb") as f:  # a file, so that numpy adds no suffix of its own
+            np.savez(f, format=np.array(FORMAT), **{k: getattr(self, k) for k in FIELDS})
+
+
+FIELDS = ("roughness", "f0", "specular", "specular_albedo", "diffuse")
+
+
+SAME_ALPHA = 0.15  # two rows whose alpha differ by more are two solutions (module docstring)
+
+
+def _between(a: FittedLobe, b: FittedLobe, t: float, albedo_a: float, albedo_b: float, m_ratio: float
+             ) -> FittedLobe:
+    """The lobe a fraction t from row a to row b (module docstring); `m_ratio`: b.m / a.m expected of
+    one solution."""
+    one_solution = abs(a.alpha - b.alpha) <= SAME_ALPHA and 0.5 <= (b.m / a.m) / m_ratio <= 2.0
+    if one_solution:
+        root_m = (1 - t) * np.sqrt(a.m) + t * np.sqrt(b.m)
+        return FittedLobe(float((1 - t) * a.ks + t * b.ks), float(root_m * root_m),
+                          float((1 - t) * a.r0 + t * b.r0), float((1 - t) * a.alpha + t * b.alpha))
+    near, albedo_near = (a, albedo_a) if t < 0.5 else (b, albedo_b)
+    albedo = (1 - t) * albedo_a + t * albedo_b
+    return FittedLobe(float(near.ks * albedo / max(albedo_near, 1e-9)), near.m, near.r0, near.alpha)
+
+
+def _bracket(grid: np.ndarray, x: float) -> tuple[int, int, float]:
+    """Indices i <= j around x on `grid` and the weight of j (clamped at the ends)."""
+    x = float(np.clip(x, grid[0], grid[-1]))
+    j = int(np.clip(np.searchsorted(grid, x), 1, len(grid) - 1))
+    i = j - 1
+    t = (x - grid[i]) / (grid[j] - grid[i])
+    return i, j, float(t)
+
+
+@cache
+def fit_table() -> FitTable:
+    """The shipped table (read once)."""
+    try:
+        with resources.files("glint.bake").joinpath(TABLE_FILE).open("rb") as f:
+            data = np.load(f)
+            if int(data["format"]) != FORMAT:
+                raise GlintError(f"{TABLE_FILE}: format {int(data['format'])}, expected {FORMAT}; reinstall glint")
+            return FitTable(*(np.array(data[k], np.float64) for k in FIELDS))
+    except (OSError, KeyError, ValueError) as e:
+        raise GlintError(f"glint's fitted glTF table {TABLE_FILE} cannot be read ({e}); reinstall glint") from None

@@ -1,0 +1,181 @@
+"""Fit the section 3.3 model to the glTF BRDF and write the table glint maps glTF materials through.
+
+    python3 -m glint.bench.fit_gltf_table [--out bake/gltf_fit_table.npz] [--report docs/bench/gltf-fit/table.md]
+
+The reference is core/gltf_brdf.py (the glTF specification's Appendix B, written without glint's
+model); the fit is bake/brdf_fit.py (thesis 3.4.1: albedo per view angle plus lobe shape, multi-start
+least squares). What the table holds and how it is read: bake/gltf_fit_table.py. Rows:
+
+- glTF's specular BRDF with Schlick's Fresnel of normal-incidence reflectance f0 alone, kd held at 0,
+  for each f0 of F0 and each roughness of FITTED: a metal of grey base colour f0 (conductor_fresnel),
+  which for f0 < 1 is also the specular layer of a dielectric of that f0 (base colour 0);
+- rough rows have two solutions of similar error (a narrow Beckmann lobe with alpha ~ 0.5, or a wide
+  one with alpha ~ 0.2 and a large ks), and the search takes the better, so that neighbouring rows may
+  be different solutions (white metal: m 0.22 at roughness 0.5, 0.71 at 0.6): bake/gltf_fit_table.py
+  interpolates only between rows of one solution. Following one solution instead (each row's search
+  started from its neighbour's) kept the narrow lobe to roughness 1, 15 % off the albedo there;
+- below FITTED[0] (GGX alpha 0.0025) the lobe is a mirror at any screen resolution, and narrower
+  than the fit's quadrature resolves (its directional albedo came out 10 % low at roughness 0): those
+  rows keep FITTED[0]'s ks, r0 and alpha, with m scaled by (r / FITTED[0])^2 (Beckmann m ~ GGX alpha);
+- the specular layer's albedo by the reference under uniform light (its directional albedo weighted
+  by cos(theta_o) over the hemisphere), per row (MIRRORS' rows: FITTED[0]'s);
+- the diffuse share of each f0: the reference's directional albedo of base colour 1 minus that of
+  base colour 0 (the diffuse term of fresnel_mix alone), averaged over view angles 0 to 80 degrees.
+
+The report lists, per row, the fit's error and the directional albedo of the fitted lobe by
+core/bsdf.py against the reference's at 0, 45, 60, 70 and 80 degrees. Takes some minutes (about 100
+fits of a few seconds).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from glint.bake.brdf_fit import BrdfData, fit
+from glint.bake.gltf_fit_table import TABLE_FILE, FitTable
+from glint.core import bsdf
+from glint.core.atomic import atomic_path, atomic_write_text
+from glint.core.gltf_brdf import GltfMaterialParams, directional_albedo, evaluate
+
+FITTED = (0.05, 0.075, 0.1, 0.125, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0)
+MIRRORS = (0.0, 0.025)  # rows derived from FITTED[0] (module docstring)
+F0 = (0.02, 0.04, 0.07, 0.12, 0.2, 0.35, 0.5, 0.7, 1.0)
+CHECK_DEGREES = (0, 45, 60, 70, 80)
+# Where r0 is searched: within 15 % of the Fresnel reflectance the reference has at normal incidence,
+# f0. Unbounded, rough rows traded a small r0 for a large ks (white metal, roughness 0.8: ks 15.8,
+# r0 0.09), which matched the albedo, but rows of neighbouring f0 then disagreed (r0 0.39 and 1.0 at
+# f0 0.7 and 1, roughness 0.6): a lobe between them reflected 1.5 at normal incidence.
+R0_RANGE = (0.85, 1.15)  # times f0, at most 1
+# Beckmann m searched within these factors of r^2 (GGX alpha): unbounded, the roughest white metal
+# row went to m 0.11 with alpha 0.75 while its neighbour kept m 0.93 (the same albedo, another shape).
+M_RANGE = (0.5, 2.0)
+DIFFUSE_DEGREES = tuple(range(0, 81, 5))
+HEMISPHERE_NODES = 12
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def ior_for(f0: float) -> float:
+    """The ior whose normal-incidence reflectance ((n - 1) / (n + 1))^2 is f0."""
+    s = np.sqrt(f0)
+    return float((1 + s) / (1 - s))
+
+
+def specular_layer(roughness: float, f0: float) -> GltfMaterialParams:
+    """glTF's specular BRDF with Schlick's f0 alone: a grey metal of base colour f0 (module docstring)."""
+    return GltfMaterialParams(base_color=(f0, f0, f0), metallic=1.0, roughness=roughness)
+
+
+def dielectric(f0: float, base: float) -> GltfMaterialParams:
+    return GltfMaterialParams(base_color=(base, base, base), metallic=0.0, roughness=0.5, ior=ior_for(f0))
+
+
+def fit_row(params: GltfMaterialParams, r0_range: tuple[float, float]) -> tuple[np.ndarray, dict]:
+    """One row: the fitted lobe (ks, m, r0, alpha) and the fit's errors."""
+    data = BrdfData.from_function(lambda wi, wo: evaluate(params, wi, wo))
+    r = params.roughness
+    result = fit(data, lobes=1, method="multistart", diffuse=False, r0_range=r0_range,
+                 m_range=(M_RANGE[0] * r * r, M_RANGE[1] * r * r), ks_max=1.0)
+    lobe = result.lobes[0]
+    row = np.array([float(np.mean(lobe.ks)), lobe.mx, lobe.r0, lobe.alpha])
+    return row, {"error": result.error, "albedo_error": result.albedo_error}
+
+
+def with_mirrors(rows: list[np.ndarray]) -> np.ndarray:
+    """FITTED's rows with MIRRORS' in front (module docstring)."""
+    first = rows[0]
+    mirrors = [np.array([first[0], max(first[1] * (r / FITTED[0]) ** 2, bsdf.M_MIN), first[2], first[3]])
+               for r in MIRRORS]
+    return np.stack(mirrors + rows)
+
+
+def mean_albedo(params: GltfMaterialParams) -> float:
+    """The reference's grey directional albedo averaged over DIFFUSE_DEGREES."""
+    return float(np.mean([np.mean(directional_albedo(params, np.radians(d))) for d in DIFFUSE_DEGREES]))
+
+
+def hemispherical_albedo(params: GltfMaterialParams) -> float:
+    """The reference's grey albedo under uniform light, 2 int A(mu) mu dmu over mu = cos(theta_o) in
+    [0, 1] (Gauss-Legendre, HEMISPHERE_NODES): the share of diffuse light it reflects."""
+    mu, w = np.polynomial.legendre.leggauss(HEMISPHERE_NODES)
+    mu, w = 0.5 * (mu + 1.0), 0.5 * w
+    return float(sum(2.0 * wk * mk * np.mean(directional_albedo(params, np.arccos(mk))) for mk, wk in zip(mu, w)))
+
+
+def diffuse_share(f0: float) -> float:
+    """(f0 = 1 has no diffuse term: an ior of infinity.)"""
+    if f0 >= 1.0:
+        return 0.0
+    return mean_albedo(dielectric(f0, 1.0)) - mean_albedo(dielectric(f0, 0.0))
+
+
+def lobe_check(row: np.ndarray, params: GltfMaterialParams) -> tuple[list[float], list[float]]:
+    """Directional albedo of the fitted lobe (core/bsdf.py) and of the reference at CHECK_DEGREES."""
+    ks, m, r0, alpha = row
+    ours, ref = [], []
+    for degrees in CHECK_DEGREES:
+        t = np.radians(degrees)
+        wo = np.array([np.sin(t), 0.0, np.cos(t)])
+        ours.append(float(ks * bsdf.lobe_albedo(wo, m, m, r0, alpha, "reflect")))
+        ref.append(float(np.mean(directional_albedo(params, t))))
+    return ours, ref
+
+
+def build(progress=print) -> tuple[FitTable, list[str]]:
+    lines = []
+    started = time.perf_counter()
+    total = len(FITTED) * len(F0)
+
+    def one(params, label, r0_range):
+        row, info = fit_row(params, r0_range)
+        ours, ref = lobe_check(row, params)
+        worst = max(abs(a - b) / max(b, 1e-6) for a, b in zip(ours, ref))
+        lines.append(f"| {label} | {row[0]:.4f} | {row[1]:.5f} | {row[2]:.4f} | {row[3]:.3f} | {info['error']:.4f} | "
+                     + " | ".join(f"{a:.3f} / {b:.3f}" for a, b in zip(ours, ref)) + f" | {100 * worst:.1f} % |")
+        progress(f"[{len(lines)}/{total}, {time.perf_counter() - started:.0f} s] {label}: ks {row[0]:.3f} "
+                 f"m {row[1]:.4f} r0 {row[2]:.3f} alpha {row[3]:.3f}, albedo off by at most {100 * worst:.1f} %")
+        return row
+
+    specular = []
+    for f0 in F0:
+        r0_range = (R0_RANGE[0] * f0, min(R0_RANGE[1] * f0, 1.0))
+        specular.append(with_mirrors([one(specular_layer(r, f0), f"f0 {f0}, roughness {r}", r0_range)
+                                      for r in FITTED]))
+    roughness = MIRRORS + FITTED
+    albedo = np.array([[hemispherical_albedo(specular_layer(max(r, FITTED[0]), f0)) for r in roughness]
+                       for f0 in F0])
+    table = FitTable(roughness=np.array(roughness), f0=np.array(F0), specular=np.stack(specular),
+                     specular_albedo=albedo, diffuse=np.array([diffuse_share(f0) for f0 in F0]))
+    return table, lines
+
+
+def report(table: FitTable, lines: list[str], command: str) -> str:
+    head = ("| material | ks | m | r0 | alpha | fit error | " + " | ".join(f"{d} deg fit / ref" for d in CHECK_DEGREES)
+            + " | worst |\n|" + "---|" * (7 + len(CHECK_DEGREES)) + "\n")
+    shares = ", ".join(f"f0 {f0}: {s:.4f}" for f0, s in zip(table.f0, table.diffuse))
+    return (f"# The glTF BRDF fitted by the section 3.3 model\n\nMade by `{command}` (bench/fit_gltf_table.py; "
+            "what the columns mean: its docstring). Directional albedo: the fitted lobe by core/bsdf.py "
+            "`lobe_albedo` against core/gltf_brdf.py `directional_albedo` (grey mean).\n\n"
+            f"Diffuse share (kd = base colour x share): {shares}.\n\n" + head + "\n".join(lines) + "\n")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python3 -m glint.bench.fit_gltf_table", description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, default=ROOT / "bake" / TABLE_FILE)
+    parser.add_argument("--report", type=Path, default=ROOT / "docs" / "bench" / "gltf-fit" / "table.md")
+    args = parser.parse_args(argv)
+    table, lines = build()
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(args.out) as tmp:
+        table.save(tmp)
+    args.report.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(args.report, report(table, lines, "python3 -m glint.bench.fit_gltf_table"))
+    print(f"wrote {args.out} and {args.report}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
