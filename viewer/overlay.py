@@ -80,6 +80,7 @@ class Overlay:
         if not self.visible or self.texture is None:
             return
         w, h = self.texture.size
+        viewport = self.ctx.viewport  # given back afterwards: what is drawn next covers the whole window
         self.ctx.viewport = (MARGIN, window_height - MARGIN - h, w, h)
         self.ctx.enable(moderngl.BLEND)
         # Colour blends by the text's alpha; the frame's alpha (1) stays, so the window stays opaque.
@@ -88,6 +89,7 @@ class Overlay:
         self.blit["opaque"] = False
         self.triangle.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.disable(moderngl.BLEND)
+        self.ctx.viewport = viewport
 
     def release(self) -> None:
         if self.texture is not None:

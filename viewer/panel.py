@@ -38,6 +38,8 @@ GLTF_KEYS = ("base_color", "metallic", "roughness", "transmission")
 NEW_LOBE = Lobe(ks=(0.5, 0.5, 0.5))  # the other fields Lobe's defaults
 ERROR_COLOUR = (1.0, 0.35, 0.3, 1.0)
 PANEL_WIDTH = 340  # pixels
+MARGIN = 8  # pixels between the panel and the window's edges
+MIN_HEIGHT = 120  # pixels: the panel's smallest height (a scroll bar below it)
 
 
 def gltf_guess(entry: Material) -> dict:
@@ -79,7 +81,8 @@ class MaterialPanel:
         self.message = ""  # the last refusal, shown in red until the next successful edit
         self.status = ""   # the last Save's outcome
         self._gltf: dict[int, dict] = {}
-        self.button_centres: dict[str, tuple[float, float]] = {}  # window coordinates, as last drawn
+        self.widgets: dict[str, tuple[float, float, float, float]] = {}  # (x0, y0, x1, y1) per widget, as last drawn
+        self.scroll = (0.0, 0.0)  # the panel's scroll position and its largest, as last drawn (pixels)
         self.rect: tuple[float, float, float, float] | None = None  # the panel's (x0, y0, x1, y1), as last drawn
 
     def contains(self, x: float, y: float) -> bool:
@@ -212,19 +215,39 @@ class MaterialPanel:
         from imgui_bundle import imgui  # only the window with a panel needs it
 
         # at the window's right edge (the overlay's text is at the left), where it fits
-        right = imgui.get_io().display_size.x - PANEL_WIDTH - 8
-        imgui.set_next_window_pos(imgui.ImVec2(max(8.0, right), 8), imgui.Cond_.first_use_ever)
-        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, 520), imgui.Cond_.first_use_ever)
+        display = imgui.get_io().display_size
+        right = display.x - PANEL_WIDTH - MARGIN
+        imgui.set_next_window_pos(imgui.ImVec2(max(MARGIN, right), MARGIN), imgui.Cond_.first_use_ever)
+        # Never taller (or wider) than the window, whatever its size now: what does not fit scrolls
+        # (wheel or scroll bar). A panel of fixed height ran off the bottom of a small window with
+        # no scroll bar, since its contents fitted the (partly invisible) panel.
+        tallest = max(display.y - 2 * MARGIN, MIN_HEIGHT)
+        imgui.set_next_window_size_constraints(imgui.ImVec2(min(PANEL_WIDTH, max(display.x - 2 * MARGIN, 100)), MIN_HEIGHT),
+                                               imgui.ImVec2(max(display.x - 2 * MARGIN, 100), tallest))
+        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, tallest), imgui.Cond_.first_use_ever)
         _, self.visible = imgui.begin("Material", self.visible)
         pos, size = imgui.get_window_pos(), imgui.get_window_size()
         self.rect = (pos.x, pos.y, pos.x + size.x, pos.y + size.y)
+        self.widgets = {}
         self._draw_actions(imgui)
         self._draw_selection(imgui)
         if self.entry is not None:
             if self.message:
                 imgui.text_colored(imgui.ImVec4(*ERROR_COLOUR), self.message)
             self._draw_material(imgui)
+        self.scroll = (imgui.get_scroll_y(), imgui.get_scroll_max_y())
         imgui.end()
+
+    def _where(self, imgui, key: str) -> None:
+        """Record where the last widget was drawn (window coordinates), as `widgets[key]`."""
+        lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+        self.widgets[key] = (lo.x, lo.y, hi.x, hi.y)
+
+    @property
+    def button_centres(self) -> dict[str, tuple[float, float]]:
+        """Undo, Redo, Revert, Save: the centre of each button as last drawn (window coordinates)."""
+        return {k: ((r[0] + r[2]) / 2, (r[1] + r[3]) / 2) for k, r in self.widgets.items()
+                if k in ("Undo", "Redo", "Revert", "Save")}
 
     def _draw_actions(self, imgui) -> None:
         """Undo, Redo, Revert, Save in one row at the top, and the last Save's outcome."""
@@ -235,8 +258,7 @@ class MaterialPanel:
             imgui.begin_disabled(not enabled)
             if imgui.button(label):
                 action()
-            lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
-            self.button_centres[label] = ((lo.x + hi.x) / 2, (lo.y + hi.y) / 2)
+            self._where(imgui, label)
             imgui.end_disabled()
             imgui.same_line()
         imgui.new_line()
@@ -258,7 +280,8 @@ class MaterialPanel:
 
     def _widget(self, imgui, changed: bool, apply, key) -> None:
         """After one widget: apply its change as part of the undo group `key`; a released slider
-        closes the group."""
+        closes the group. Its place is recorded as `widgets[name]` ("kd", "m 0" for lobe 0's m, ...)."""
+        self._where(imgui, key if isinstance(key, str) else f"{key[0]} {key[1]}")
         if changed:
             apply(group=(self.material, key))
         if imgui.is_item_deactivated():
@@ -285,7 +308,7 @@ class MaterialPanel:
             changed, angle = imgui.slider_angle("anisotropy direction", float(m.anisotropy_rotation),
                                                 -180.0, 180.0)
             self._widget(imgui, changed, lambda group: self.set_anisotropy_rotation(angle, group), "rotation")
-        if self.pbr_mapping is not None and imgui.collapsing_header("glTF-style"):
+        if self.pbr_mapping is not None and self._header(imgui, "glTF-style"):
             g = self.gltf()
             changed, base = imgui.color_edit3("base colour", list(g["base_color"]), imgui.ColorEditFlags_.float)
             self._widget(imgui, changed, lambda group: self.set_gltf(group, base_color=base), "base_color")
@@ -293,6 +316,12 @@ class MaterialPanel:
                 changed, value = imgui.slider_float(key, float(g[key]), 0.0, 1.0)
                 self._widget(imgui, changed, lambda group, key=key, value=value: self.set_gltf(group, **{key: value}),
                              key)
+
+    def _header(self, imgui, label: str) -> bool:
+        """A collapsing header, its place recorded (`widgets[label]`); True while open."""
+        is_open = imgui.collapsing_header(label)
+        self._where(imgui, label)
+        return is_open
 
     def _draw_lobe(self, imgui, k: int, lobe: Lobe) -> None:
         kind = lobe.kind
