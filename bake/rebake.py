@@ -39,6 +39,12 @@ so the viewer keeps its frame rate while the bake's own integrator runs:
   passes' lower noise does not show. A probe's size and its sharing stay the bake's (an edit that
   changes them, e.g. a rougher lobe, takes `glint bake`).
 
+- Undo, redo and revert: a state whose re-bake finished in this run (its last pass, and its last
+  pass's probes) is kept (`BakedState`, the newest CACHE_BYTES' worth), and so is the bake's own
+  (its directory's pages, and its probes through `baked_probes` once a refresh replaced them): an
+  edit that returns to one of them gets its pages and probes on the next poll(), and the worker
+  only stops its running pass; nothing is re-baked.
+
 The worker runs at a lower priority (os.nice NICE): on a machine without a GPU (llvmpipe) it
 competes with the renderer for the same cores, and the frame rate matters more than the
 re-bake's speed.
@@ -47,7 +53,9 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
@@ -60,7 +68,7 @@ from glint.bake.material_mapping import OVERRIDE_KEYS, apply_override, override_
 from glint.bake.pipeline import read_atlas
 from glint.bake.settings import BakeSettings
 from glint.bake.texels import rasterize_texels
-from glint.core.bake_dir import read_model
+from glint.core.bake_dir import Bake, read_model
 from glint.core.errors import GlintError
 from glint.core.manifest import Manifest
 from glint.core.scene import Scene
@@ -70,6 +78,7 @@ FIRST_SAMPLES = 8  # paths per texel of the first pass: seconds on the living ro
 PASS_GROWTH = 4  # samples of a pass over the one before: each pass halves the noise
 NICE = 10  # the worker's niceness: the viewer's frames come first
 STOP_SECONDS = 5.0  # close(): how long the worker may take to stop before it is terminated
+CACHE_BYTES = 512 * 2**20  # the re-baked states kept for undo / redo / revert: the newest, as many as fit
 
 
 def pass_samples(samples: int) -> list[int]:
@@ -141,6 +150,24 @@ class ProbeUpdate:
     seconds: float  # since the edit was made
 
 
+@dataclass
+class BakedState:
+    """A set of materials whose re-bake finished in this run (or the bake's own): its last pass's
+    pages and probes, shown again at once when an undo, redo or revert returns to it."""
+
+    update: Update  # the last pass
+    probes: dict[str, list[np.ndarray]]  # {probe file: MIP chain} of the last pass (empty: none re-rendered)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in [*self.update.front, *self.update.back, *(c for cs in self.probes.values() for c in cs)])
+
+
+def state_key(materials: list[dict]) -> str:
+    """The cache's key of a list of material entries: equal entries, equal keys."""
+    return json.dumps(materials, sort_keys=True, separators=(",", ":"))
+
+
 class _Cancelled(Exception):
     pass
 
@@ -189,7 +216,10 @@ def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, ed
         return
     refresher = None  # made at the first edit's probes: a GL context, the diffuse view
     while (request := inbox.next()) is not None:
-        generation, (overrides, materials, made) = request
+        generation, payload = request
+        if payload is None:  # a state the viewer keeps (undo, redo, revert): the request only stopped the pass
+            continue
+        overrides, materials, made = payload
 
         def check(_texels=0, generation=generation):
             if inbox.stale(generation):
@@ -252,11 +282,13 @@ class Rebaker:
     re-bake keeps what the command line changed besides the materials (a sky, the lights);
     `probes`: a picklable factory, probes(bake_dir) -> an object with `render(plans, materials,
     front, back, deliver, check)` and `release()` (glint/cubemap_stage.py ProbeRefresher), for
-    cube maps that follow the edits (module docstring; `poll_probes`); None: they keep the bake's.
+    cube maps that follow the edits (module docstring; `poll_probes`); None: they keep the bake's;
+    `baked_probes(bake_dir)` -> {probe file: MIP chain} of the bake directory's own probes, for a
+    return to the bake's materials after a refresh (glint/cubemap_stage.py `baked_probe_chains`).
     """
 
     def __init__(self, scene: Scene | str | Path, bake_dir: Path, *, schedule: list[int] | None = None,
-                 nice: int = NICE, edits=(), probes=None):
+                 nice: int = NICE, edits=(), probes=None, baked_probes=None):
         self.bake_dir = Path(bake_dir)
         manifest = read_model(self.bake_dir)
         if manifest is None:
@@ -279,6 +311,16 @@ class Rebaker:
         self._pages: Update | None = None  # the newest pass not yet taken by poll()
         self._probes: dict[str, ProbeUpdate] = {}  # probes not yet taken by poll_probes()
         self._probe_pass = -1
+        # States already re-baked in this run (module docstring, "Undo"), the newest last; the
+        # bake's own state is read from its directory when first returned to (`baked_probes`).
+        self._cache: OrderedDict[str, BakedState] = OrderedDict()
+        self._baked_key = state_key(self.baked)
+        self._baked_probes = baked_probes
+        self._key: str | None = None  # the newest edit's state
+        self._final_probes: dict[str, list[np.ndarray]] = {}  # the newest edit's last pass's probes
+        self._probes_replaced = False  # whether any probe was re-rendered in this run
+        self.from_cache = False  # the newest edit's pages came from the cache
+        self.cache_hits = 0
 
     # -- the viewer's side -------------------------------------------------------------------------
     def edit(self, materials: list[dict]) -> None:
@@ -288,7 +330,43 @@ class Rebaker:
         self._edited_at = time.time()
         self.last, self.error, self._pages = None, None, None
         self.probes_done, self.probes_in, self._probes, self._probe_pass = None, 0, {}, -1
-        self.generation = self._worker.request((overrides, [dict(m) for m in materials], self._edited_at))
+        self._key, self._final_probes = state_key(materials), {}
+        cached = self._cached(self._key)
+        self.from_cache = cached is not None
+        if cached is None:
+            self.generation = self._worker.request((overrides, [dict(m) for m in materials], self._edited_at))
+            return
+        # A state re-baked before: its pages and probes at once; the request only stops a running pass.
+        self.generation = self._worker.request(None)
+        self.cache_hits += 1
+        self._pages = self.last = replace(cached.update, generation=self.generation, seconds=0.0)
+        self._probes = {file: ProbeUpdate(file, chain, self.generation, self.last.index, 0.0)
+                        for file, chain in cached.probes.items()}
+        self._probe_pass, self.probes_in = self.last.index, len(self._probes)
+        self.probes_done = (self.last.index, 0.0)
+
+    def _cached(self, key: str) -> BakedState | None:
+        """The state `key` if it was re-baked in this run, or the bake's own (read from its directory)."""
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        if key != self._baked_key:
+            return None
+        bake = Bake(self.bake_dir)  # its pages as the viewer loaded them
+        front = [bake.lightmap(k) for k in range(len(bake.model.lightmaps))]
+        back = [bake.lightmap(k, back=True) for k in range(len(bake.back_pages))]
+        n = len(self.schedule)
+        # the bake's cube maps only where a refresh replaced them (and a reader was given)
+        probes = self._baked_probes(self.bake_dir) if self._probes_replaced and self._baked_probes else {}
+        state = BakedState(Update(front, back, 0, n - 1, n, self.schedule[-1], 0.0), probes)
+        self._keep(key, state)
+        return state
+
+    def _keep(self, key: str, state: BakedState) -> None:
+        self._cache[key] = state
+        self._cache.move_to_end(key)
+        while len(self._cache) > 1 and sum(s.nbytes for s in self._cache.values()) > CACHE_BYTES:
+            self._cache.popitem(last=False)
 
     def poll(self) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
         """Never blocks: None, or (front, back) pages of the newest pass of the newest edit that
@@ -324,8 +402,13 @@ class Rebaker:
                     self._probe_pass, self.probes_in = payload.index, 0
                 self._probes[payload.file] = payload
                 self.probes_in += 1
+                self._probes_replaced = True
+                if payload.index == len(self.schedule) - 1:
+                    self._final_probes[payload.file] = payload.chain
             elif kind == "probes":
                 self.probes_done = payload
+        if self.done and not self.from_cache and self.error is None and self._key not in self._cache:
+            self._keep(self._key, BakedState(self.last, dict(self._final_probes)))
 
     @property
     def done(self) -> bool:
@@ -352,6 +435,8 @@ class Rebaker:
             return f"re-bake failed: {self.error}"
         if self.generation == 0:
             return None
+        if self.from_cache:
+            return "light maps and cube maps as baked before for these materials (no re-bake)"
         n = len(self.schedule)
         if self.last is not None and self.last.final:
             line = f"light maps re-baked: {self.last.samples} paths/texel in {self.last.seconds:.1f} s"

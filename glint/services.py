@@ -62,13 +62,13 @@ def background_rebake(manifest: Manifest, bake_dir: Path, edits=()):
     bake whose scene file is gone (nothing to re-bake from: edits then change only what kd shows).
     `glint view`'s, and bench/edit_screenshots.py's (a tool: it may not import the command)."""
     from glint.bake.rebake import Rebaker
-    from glint.cubemap_stage import ProbeRefresher  # the renderer: only where a re-bake runs
+    from glint.cubemap_stage import ProbeRefresher, baked_probe_chains  # the renderer: only where a re-bake runs
 
     source = manifest.scene.source
     if not source or not Path(source).is_file():
         return None
     # the worker plans the bake's probes (none: nothing to refresh) and renders them after its passes
-    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher)
+    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher, baked_probes=baked_probe_chains)
 
 
 def fidelity_line(manifest: Manifest) -> str | None:
