@@ -79,6 +79,8 @@ PASS_GROWTH = 4  # samples of a pass over the one before: each pass halves the n
 NICE = 10  # the worker's niceness: the viewer's frames come first
 STOP_SECONDS = 5.0  # close(): how long the worker may take to stop before it is terminated
 CACHE_BYTES = 512 * 2**20  # the re-baked states kept for undo / redo / revert: the newest, as many as fit
+SMOOTH_TEXELS = 3.0  # the first pass's change is smoothed with a Gaussian of this sigma, within each object
+FIRST_PASSES = 4  # first passes the worker keeps per state, to difference the next edits' against
 
 
 def pass_samples(samples: int) -> list[int]:
@@ -133,6 +135,10 @@ class Update:
     passes: int
     samples: int  # paths per texel of this pass
     seconds: float  # since the edit was made
+    # the first pass's change against the first pass of the state the window last showed converged
+    # (`base`): smoothed (front, back) RGB differences, added to that state's pages (module docstring)
+    difference: tuple[list[np.ndarray], list[np.ndarray]] | None = None
+    base: str | None = None  # state_key of that state
 
     @property
     def final(self) -> bool:
@@ -181,6 +187,31 @@ def bake_probes(scene: Scene, manifest: Manifest, settings: BakeSettings) -> lis
     return [plan for plan in plans if hashes.get(str(plan.index)) == plan.hash]
 
 
+def smoothed_difference(new: list[np.ndarray], old: list[np.ndarray], objects: list[np.ndarray],
+                        sigma: float = SMOOTH_TEXELS) -> list[np.ndarray]:
+    """(H, W, 3) float32 per page: new - old (RGB of (H, W, 4) pages), smoothed by a Gaussian of
+    `sigma` texels within each object's texels (normalised convolution: a chart never takes the
+    change of the object beside it in the atlas); 0 where no object is."""
+    from scipy import ndimage
+
+    out = []
+    for a, b, ids in zip(new, old, objects):
+        diff = (a[..., :3] - b[..., :3]).astype(np.float32)
+        smooth = np.zeros_like(diff)
+        pad = int(np.ceil(3 * sigma))
+        for obj in np.unique(ids[ids >= 0]):
+            rows, cols = np.nonzero(ids == obj)
+            y0, y1 = max(rows.min() - pad, 0), min(rows.max() + pad + 1, ids.shape[0])
+            x0, x1 = max(cols.min() - pad, 0), min(cols.max() + pad + 1, ids.shape[1])
+            mask = (ids[y0:y1, x0:x1] == obj).astype(np.float32)
+            weight = ndimage.gaussian_filter(mask, sigma, mode="constant")
+            for c in range(3):
+                blurred = ndimage.gaussian_filter(diff[y0:y1, x0:x1, c] * mask, sigma, mode="constant")
+                smooth[y0:y1, x0:x1, c] += np.where(mask > 0, blurred / np.maximum(weight, 1e-6), 0.0)
+        out.append(smooth)
+    return out
+
+
 def _prepare(source, bake_dir: Path, edits=()):
     """In the worker: the scene (a path loaded with the run's `--set` edits), the bake's settings
     and manifest, and its texel pages."""
@@ -201,7 +232,8 @@ def _prepare(source, bake_dir: Path, edits=()):
     return scene, settings, manifest, pages
 
 
-def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, edits=(), probes=None) -> None:
+def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, edits=(), probes=None,
+            baked_key: str | None = None) -> None:
     """The worker process (parallel/background.py): prepare once, then one progressive re-bake per
     edit (module docstring)."""
     try:
@@ -215,11 +247,30 @@ def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, ed
         inbox.send(("error", 0, _one_line(e)))
         return
     refresher = None  # made at the first edit's probes: a GL context, the diffuse view
+    first_passes: OrderedDict[str, tuple[list, list]] = OrderedDict()  # state key -> its first pass's pages
+    objects = [page.object for page in pages]
+
+    def first_pass(key: str, overrides: dict, check) -> tuple[list, list]:
+        if key not in first_passes:
+            first_passes[key] = bake_lightmaps(edited_scene(scene, overrides), pages,
+                                               replace(settings, samples=schedule[0]), progress=check).rgba()
+            while len(first_passes) > FIRST_PASSES:
+                first_passes.popitem(last=False)
+        first_passes.move_to_end(key)
+        return first_passes[key]
+
+    if baked_key is not None and len(schedule) > 1:
+        def before_any_edit(_texels=0):
+            if inbox.stale(0):  # an edit came: it goes first (the bake's first pass is made with it)
+                raise _Cancelled
+
+        with contextlib.suppress(_Cancelled):  # while the user looks around, before the first edit
+            first_pass(baked_key, {}, before_any_edit)
     while (request := inbox.next()) is not None:
         generation, payload = request
         if payload is None:  # a state the viewer keeps (undo, redo, revert): the request only stopped the pass
             continue
-        overrides, materials, made = payload
+        overrides, materials, made, key, base = payload
 
         def check(_texels=0, generation=generation):
             if inbox.stale(generation):
@@ -228,10 +279,21 @@ def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, ed
         try:
             edited = edited_scene(scene, overrides)
             for k, samples in enumerate(schedule):
-                result = bake_lightmaps(edited, pages, replace(settings, samples=samples), progress=check)
-                front, back = result.rgba()
+                if k == 0 and len(schedule) > 1:
+                    front, back = first_pass(key, overrides, check)
+                else:
+                    front, back = bake_lightmaps(edited, pages, replace(settings, samples=samples),
+                                                 progress=check).rgba()
+                difference = None
+                if k == 0 and len(schedule) > 1 and base is not None:
+                    # the same paths (the bake's seed) through the materials before: their difference
+                    # is the edit's change with most of the pass's noise cancelled
+                    base_front, base_back = first_pass(base[0], base[1], check)
+                    difference = (smoothed_difference(front, base_front, objects),
+                                  smoothed_difference(back, base_back, objects))
                 inbox.send(("pass", generation, Update(front, back, generation, k, len(schedule), samples,
-                                                       time.time() - made)))
+                                                       time.time() - made, difference,
+                                                       None if base is None else base[0])))
                 check()
                 if plans and refresher is not False and k in (0, len(schedule) - 1):
                     refresher = _refresh_probes(probes, refresher, bake_dir, plans, materials, front, back,
@@ -296,7 +358,8 @@ class Rebaker:
                              "run `glint bake`")
         self.baked = [m.to_json() for m in manifest.materials]  # as the edits come: material entries (JSON)
         self.schedule = list(schedule or pass_samples(bake_settings(manifest).samples))
-        self._worker = BackgroundWorker(_worker, (scene, self.bake_dir, self.schedule, tuple(edits), probes),
+        self._worker = BackgroundWorker(_worker, (scene, self.bake_dir, self.schedule, tuple(edits), probes,
+                                                  state_key(self.baked)),
                                         name="glint-rebake", nice=nice, stop_seconds=STOP_SECONDS)
         self.generation = 0
         self.ready: dict | None = None  # the worker's set-up: seconds, schedule, texels, probes
@@ -320,6 +383,8 @@ class Rebaker:
         self._final_probes: dict[str, list[np.ndarray]] = {}  # the newest edit's last pass's probes
         self._probes_replaced = False  # whether any probe was re-rendered in this run
         self.from_cache = False  # the newest edit's pages came from the cache
+        self._base = self._baked_key  # the state whose last pass the window shows (or last showed) converged
+        self._overrides: dict[str, dict] = {self._baked_key: {}}  # state key -> its overrides
         self.cache_hits = 0
 
     # -- the viewer's side -------------------------------------------------------------------------
@@ -334,12 +399,17 @@ class Rebaker:
         cached = self._cached(self._key)
         self.from_cache = cached is not None
         if cached is None:
-            self.generation = self._worker.request((overrides, [dict(m) for m in materials], self._edited_at))
+            self._overrides[self._key] = overrides
+            base = (self._base, self._overrides[self._base]) if self._base in self._overrides else None
+            self.generation = self._worker.request((overrides, [dict(m) for m in materials], self._edited_at,
+                                                    self._key, base))
             return
         # A state re-baked before: its pages and probes at once; the request only stops a running pass.
         self.generation = self._worker.request(None)
         self.cache_hits += 1
-        self._pages = self.last = replace(cached.update, generation=self.generation, seconds=0.0)
+        self._pages = self.last = replace(cached.update, generation=self.generation, seconds=0.0,
+                                          difference=None, base=None)
+        self._base = self._key
         self._probes = {file: ProbeUpdate(file, chain, self.generation, self.last.index, 0.0)
                         for file, chain in cached.probes.items()}
         self._probe_pass, self.probes_in = self.last.index, len(self._probes)
@@ -361,6 +431,23 @@ class Rebaker:
         state = BakedState(Update(front, back, 0, n - 1, n, self.schedule[-1], 0.0), probes)
         self._keep(key, state)
         return state
+
+    def _shown(self, update: Update) -> Update:
+        """What the window shows of a pass: the last pass as it is; the first pass, where the
+        worker sent its change against the base state's first pass, as that change (smoothed)
+        added to the base state's converged pages (module docstring); else the pass itself."""
+        base = self._cache.get(update.base) if update.base is not None else None
+        if base is None and update.base == self._baked_key:
+            base = self._cached(self._baked_key)
+        if update.final or update.difference is None or base is None:
+            return update
+
+        def add(pages, differences):
+            return [np.concatenate([np.maximum(p[..., :3] + d, 0.0), p[..., 3:]], axis=-1).astype(np.float32)
+                    for p, d in zip(pages, differences)]
+
+        return replace(update, front=add(base.update.front, update.difference[0]),
+                       back=add(base.update.back, update.difference[1]))
 
     def _keep(self, key: str, state: BakedState) -> None:
         self._cache[key] = state
@@ -396,7 +483,10 @@ class Rebaker:
             elif generation != self.generation:
                 self.dropped += kind == "pass"
             elif kind == "pass":
-                self._pages = self.last = payload
+                self.last = payload
+                self._pages = self._shown(payload)
+                if payload.final:
+                    self._base = self._key
             elif kind == "probe":
                 if payload.index != self._probe_pass:
                     self._probe_pass, self.probes_in = payload.index, 0
