@@ -63,6 +63,21 @@ def gltf_guess(entry: Material) -> dict:
             "transmission": min(max(transmission, 0.0), 1.0)}
 
 
+def _differs(a, b) -> bool:
+    """Whether two numbers or colours differ beyond float32 rounding (what the sliders hold)."""
+    a, b = (list(v) if isinstance(v, (list, tuple)) else [v] for v in (a, b))
+    return len(a) != len(b) or any(abs(float(x) - float(y)) > 1e-6 * max(1.0, abs(float(x))) for x, y in zip(a, b))
+
+
+def _fmt(value) -> str:
+    """A number (or colour) as the panel's notes show it: 3 significant digits."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(f"{float(v):.3g}" for v in value) + "]"
+    return f"{float(value):.3g}"
+
+
 class MaterialPanel:
     def __init__(self, edits: MaterialEdits, objects: list, *,
                  pbr_mapping: Callable[..., tuple[list, list]] | None = None,
@@ -97,6 +112,7 @@ class MaterialPanel:
             self.picked = None
             return
         self.picked = int(index)
+        self.status = ""  # the last Save's outcome belongs to what was picked before
         self.select_material(self.objects[index][1])
 
     def select_material(self, index: int) -> None:
@@ -162,6 +178,31 @@ class MaterialPanel:
         if self.material not in self._gltf:
             self._gltf[self.material] = gltf_guess(self.entry)
         return self._gltf[self.material]
+
+    def gltf_changes(self) -> list[str]:
+        """What moving a glTF-style control would replace besides the value moved: kd and the lobes
+        become the mapping's of the glTF values shown, which need not be the material's (a lobe's r0
+        or alpha that no glTF value holds). One line per changed value, e.g. "lobe 0 r0: 0.05 -> 0.04";
+        empty when the mapping gives the material as it is."""
+        if self.pbr_mapping is None or self.entry is None:
+            return []
+        try:
+            kd, lobes = self.pbr_mapping(**self.gltf())
+        except GlintError:
+            return []
+        new = [lobe_from_json(lobe) for lobe in lobes]
+        old = list(self.entry.lobes)
+        out = []
+        if _differs(self.entry.kd[:3], kd[:3]):
+            out.append(f"kd: {_fmt(self.entry.kd[:3])} -> {_fmt(kd[:3])}")
+        if len(new) != len(old):
+            out.append(f"lobes: {len(old)} -> {len(new)} ({', '.join(lb.kind for lb in new) or 'none'})")
+        for k, (a, b) in enumerate(zip(old, new)):
+            for field in ("kind", "ks", "mx", "my", "r0", "alpha"):
+                x, y = getattr(a, field), getattr(b, field)
+                if (x != y) if field == "kind" else _differs(x, y):
+                    out.append(f"lobe {k} {field}: {_fmt(x)} -> {_fmt(y)}")
+        return out
 
     def set_gltf(self, group=None, **values) -> bool:
         """Change glTF-style values (GLTF_KEYS) and replace kd and the lobes by the bake's mapping of them
@@ -263,7 +304,7 @@ class MaterialPanel:
             imgui.same_line()
         imgui.new_line()
         if self.status:
-            imgui.text(self.status)
+            imgui.text_wrapped(self.status)  # whole, on as many lines as it takes
 
     def _draw_selection(self, imgui) -> None:
         picked = self.objects[self.picked][0] if self.picked is not None else "none (click an object, or M over it)"
@@ -309,6 +350,12 @@ class MaterialPanel:
                                                 -180.0, 180.0)
             self._widget(imgui, changed, lambda group: self.set_anisotropy_rotation(angle, group), "rotation")
         if self.pbr_mapping is not None and self._header(imgui, "glTF-style"):
+            changes = self.gltf_changes()
+            if changes:  # said before the first move replaces them, not after
+                imgui.text_wrapped("Moving these sets kd and the lobes by the glTF rule, replacing "
+                                   + "; ".join(changes))
+            else:
+                imgui.text_wrapped("These set kd and the lobes by the glTF rule.")
             g = self.gltf()
             changed, base = imgui.color_edit3("base colour", list(g["base_color"]), imgui.ColorEditFlags_.float)
             self._widget(imgui, changed, lambda group: self.set_gltf(group, base_color=base), "base_color")
