@@ -39,6 +39,14 @@ so the viewer keeps its frame rate while the bake's own integrator runs:
   passes' lower noise does not show. A probe's size and its sharing stay the bake's (an edit that
   changes them, e.g. a rougher lobe, takes `glint bake`).
 
+- The first pass shown (`poll()`; `Update.front` stays the raw pass): an 8-path pass is far
+  noisier than the light maps it replaces (living room, draft: 5.7 % relative RMS error against
+  the converged re-bake, where the light before a sofa edit is 0.7 % off). The worker also bakes
+  the first pass of the state the window last showed converged (the bake's own while the user
+  looks around before the first edit; later ones are kept, FIRST_PASSES), on the same paths (the
+  bake's seed): the difference of the two is the edit's change with most of the noise cancelled.
+  Smoothed within each object (`smoothed_difference`, SMOOTH_TEXELS) it is added to that state's
+  converged pages (0.5 % there; docs/VIEWER.md). Later passes are shown as they come.
 - Undo, redo and revert: a state whose re-bake finished in this run (its last pass, and its last
   pass's probes) is kept (`BakedState`, the newest CACHE_BYTES' worth), and so is the bake's own
   (its directory's pages, and its probes through `baked_probes` once a refresh replaced them): an

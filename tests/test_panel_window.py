@@ -1,7 +1,9 @@
 """The material panel as a user meets it, in a window of moderngl-window's headless backend (EGL,
 llvmpipe here) of a real window's size, with the overlay ON (its default): pick with a click, the
 panel's pixels where its widgets are, a panel taller than the window scrolls, Ctrl+click (and
-Enter on a focused field) to type an exact value, a double click whatever the frame rate.
+Enter on a focused field) to type an exact value, a double click whatever the frame rate; and the
+whole round on a room baked for real with its background re-bake: edit, undo to a baked state
+(from the cache, no new re-bake), redo, Save.
 
 The scene is tests/test_panel.py's floor under constant light; the expected values come from the
 user's actions (a typed "0.25" must become m = 0.25), never from the panel's code.
@@ -246,3 +248,77 @@ def test_ctrl_click_enter_and_double_click_type_exact_values(ctx, tmp_path):
     finally:
         viewer.release()
         wnd.destroy()
+
+
+def test_a_user_edits_undoes_to_a_baked_state_and_saves(ctx, tmp_path):
+    """The whole round as a user makes it, on a small room baked for real with its background
+    re-bake as the window's light-map source: click the wall, Ctrl+click kd's red field and type
+    0.5, Enter; the re-bake's passes arrive and are swapped in; Ctrl+Z (undo to the bake's state)
+    brings the bake's light maps back on the next frame from the cache (no new re-bake: no pass
+    arrives afterwards); Ctrl+Y (redo: the edited state, baked already) likewise; Save (its button)
+    writes the sidecar with only kd, and picking the floor clears Save's message.
+
+    Deliberate bug this catches (tried): the Rebaker without its cache -> after the undo the
+    next frame swaps nothing in (the worker's new first pass comes seconds later)."""
+    from test_rebake import bake_room
+
+    from glint.bake.rebake import Rebaker
+    from glint.core.manifest import Camera
+    from glint.view import sidecar_saver
+
+    room = bake_room(tmp_path)
+    scene = room.path.parent / "room.glb"
+    camera = Camera(name="in", eye=[0.0, 1.0, 0.8], forward=[0.0, 0.0, -1.0], up=[0, 1, 0], yfov=1.0,
+                    znear=0.01, zfar=100.0)
+    baked = [dict(m) for m in room.manifest["materials"]]
+    swapped = []
+    with Rebaker(scene, room.path, schedule=[8, 32]) as rebaker:
+        wnd, viewer = keyed_window(TYPING, room, on_edit=rebaker.edit, lightmap_source=rebaker,
+                                   on_save=sidecar_saver(str(scene), scene, baked))
+        viewer.controls = WalkControls([camera], [], HOME)
+        replace = viewer.renderer.replace_lightmaps
+        viewer.renderer.replace_lightmaps = lambda front, back: (swapped.append(front), replace(front, back))
+        try:
+            frames(wnd, 2)
+            click(wnd, TYPING[0] // 4, TYPING[1] // 2)
+            wall = viewer.panel.entry
+            assert wall is not None and wall.name == "Wall"
+            picture_frozen(viewer)
+            frames(wnd)
+            x0, y0, x1, y1 = viewer.panel.widgets["kd"]
+            wnd.key_event_func("LEFT_CTRL", "press", Modifiers())
+            click(wnd, x0 + 12, (y0 + y1) / 2)  # the red field, leftmost of the three
+            ctrl = Modifiers()
+            ctrl.ctrl = True
+            wnd.key_event_func("LEFT_CTRL", "release", ctrl)
+            frames(wnd)
+            type_text(wnd, "0.5")
+            key(wnd, "ENTER")
+            assert viewer.edits.materials[viewer.panel.material].kd[0] == 0.5
+            deadline = time.monotonic() + 120
+            while not (rebaker.done and rebaker.last.final):
+                frames(wnd)
+                assert rebaker.error is None and time.monotonic() < deadline
+            frames(wnd)
+            n = len(swapped)
+            assert n >= 2  # the first pass and the last were swapped in
+
+            key(wnd, "Z", ctrl=True)  # undo: the bake's state
+            assert viewer.edits.materials == viewer.edits.baked and rebaker.from_cache
+            assert len(swapped) == n + 1
+            np.testing.assert_array_equal(swapped[-1][0], room.lightmap(0))
+            key(wnd, "Y", ctrl=True)  # redo: the edited state, re-baked before
+            assert len(swapped) == n + 2 and rebaker.from_cache
+            time.sleep(0.5)
+            frames(wnd)
+            assert len(swapped) == n + 2  # no re-bake started: nothing more arrives
+
+            click(wnd, *viewer.panel.button_centres["Save"])
+            assert viewer.panel.status.startswith("saved"), viewer.panel.status
+            text = (scene.parent / "room.glint.toml").read_text()
+            assert 'kd = [0.5,' in text and "emission" not in text and "lobes" not in text
+            viewer.pick(TYPING[0] // 4, TYPING[1] - 10)  # another object: the message goes
+            assert viewer.panel.status == ""
+        finally:
+            viewer.release()
+            wnd.destroy()
