@@ -124,7 +124,8 @@ def cmd_view(args) -> int:
     except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
         raise no_window(args.scene, f"{type(e).__name__}: {one_line(e)}") from e
     save = sidecar_saver(args.scene, resolve(args.scene), [m.to_json() for m in manifest.materials], args.edits)
-    rebaker = background_rebake(bake.model, report.bake_dir, args.edits)  # the worker loads the scene as edited
+    # the worker loads the scene as edited, from where this run found it
+    rebaker = background_rebake(bake.model, report.bake_dir, args.edits, scene_path=resolve(args.scene))
     try:
         viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
                               pbr_mapping=pbr_mapping, on_save=save, lightmap_source=rebaker, exposure=exposure,

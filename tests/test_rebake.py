@@ -309,3 +309,23 @@ def test_the_first_pass_shown_is_closer_than_the_light_before(room, material_nam
     e_before, e_raw, e_shown = (relative_rms(p, last.front) for p in (before, first.front, shown[0]))
     assert np.isfinite(shown[0][0]).all() and (shown[0][0] >= 0).all()
     assert e_shown < e_before and e_shown < e_raw
+
+
+def test_background_rebake_finds_the_scene_from_another_working_directory(room, tmp_path, monkeypatch):
+    """The manifest keeps the scene path as typed ("room.glb", relative to where the bake ran);
+    `glint view` started elsewhere hands the path it found (glint/view.py), and the re-bake starts.
+    Deliberate bug this catches (tried): background_rebake reading only the manifest's path -> None
+    (no re-bake: edits never reached the walls), and no message."""
+    from dataclasses import replace
+
+    from glint.services import background_rebake
+
+    manifest = room.model
+    typed = replace(manifest, scene=replace(manifest.scene, source="room.glb"))
+    monkeypatch.chdir(tmp_path)  # where no room.glb is
+    assert background_rebake(typed, room.path) is None  # the manifest's path alone leads nowhere
+    rebaker = background_rebake(typed, room.path, scene_path=room.path.parent / "room.glb")
+    try:
+        assert rebaker is not None
+    finally:
+        rebaker.close()
