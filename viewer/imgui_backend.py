@@ -82,10 +82,13 @@ class ImguiRenderer(ModernglWindowRenderer):
         """Create, update (the whole image again: the font atlas is small) or destroy what ImGui asks."""
         status = imgui.ImTextureStatus
         for tex in imgui.get_platform_io().textures:
-            if tex.status in (status.want_create, status.want_updates):
+            # A texture this renderer never made (its id from a renderer released before, in an
+            # earlier window of the same process: the atlas outlives it) is made here.
+            foreign = tex.status in (status.ok, status.want_updates) and tex.tex_id not in self._textures
+            if tex.status in (status.want_create, status.want_updates) or foreign:
                 pixels = tex.get_pixels_array()
                 what = f"upload ImGui's texture ({tex.width} x {tex.height})"
-                if tex.status == status.want_create:
+                if tex.status == status.want_create or foreign:
                     check_texture_size(self.ctx, tex.width, tex.height, "ImGui's font atlas", fix="use a smaller font")
                     with self._gl.checked(what):
                         texture = self.ctx.texture((tex.width, tex.height), 4, pixels.tobytes())
