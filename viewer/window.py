@@ -34,6 +34,7 @@ from moderngl_window.context.base import BaseWindow
 from PIL import Image
 
 from glint.core.errors import warn
+from glint.viewer.collision import Collider
 from glint.viewer.controls import WalkControls
 from glint.viewer.gl import GL_REQUIRED, check_context
 from glint.viewer.gl_bindings import BLIT_UNIT
@@ -125,6 +126,9 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.triangle = self.ctx.vertex_array(self.blit, [])
         self.overlay = Overlay(self.ctx, self.blit, self.triangle)
         self.keys = key_table(self.wnd.keys)
+        if getattr(bake, "meshes", None) is not None and self.controls.collide is None:
+            # walking stops short of surfaces: a step through a wall showed the black outside
+            self.controls.collide = Collider.of_meshes(bake.meshes).move
         # Esc and fullscreen go through the controls like every other key, not the backend's defaults.
         self.wnd.exit_key = None
         self.wnd.fullscreen_key = None
