@@ -272,7 +272,7 @@ def test_a_user_edits_undoes_to_a_baked_state_and_saves(ctx, tmp_path):
                     znear=0.01, zfar=100.0)
     baked = [dict(m) for m in room.manifest["materials"]]
     swapped = []
-    with Rebaker(scene, room.path, schedule=[8, 32]) as rebaker:
+    with Rebaker(scene, room.path, schedule=[8]) as rebaker:  # one pass: the round, not the passes, is tested here
         wnd, viewer = keyed_window(TYPING, room, on_edit=rebaker.edit, lightmap_source=rebaker,
                                    on_save=sidecar_saver(str(scene), scene, baked))
         viewer.controls = WalkControls([camera], [], HOME)
@@ -301,7 +301,7 @@ def test_a_user_edits_undoes_to_a_baked_state_and_saves(ctx, tmp_path):
                 assert rebaker.error is None and time.monotonic() < deadline
             frames(wnd)
             n = len(swapped)
-            assert n >= 2  # the first pass and the last were swapped in
+            assert n >= 1  # the re-bake's pass was swapped in
 
             key(wnd, "Z", ctrl=True)  # undo: the bake's state
             assert viewer.edits.materials == viewer.edits.baked and rebaker.from_cache
@@ -309,7 +309,7 @@ def test_a_user_edits_undoes_to_a_baked_state_and_saves(ctx, tmp_path):
             np.testing.assert_array_equal(swapped[-1][0], room.lightmap(0))
             key(wnd, "Y", ctrl=True)  # redo: the edited state, re-baked before
             assert len(swapped) == n + 2 and rebaker.from_cache
-            time.sleep(0.5)
+            time.sleep(1.0)  # longer than this room's 8-path pass, had one started
             frames(wnd)
             assert len(swapped) == n + 2  # no re-bake started: nothing more arrives
 
