@@ -427,7 +427,11 @@ class Rebaker:
         """The state `key` if it was re-baked in this run, or the bake's own (read from its directory)."""
         if key in self._cache:
             self._cache.move_to_end(key)
-            return self._cache[key]
+            state = self._cache[key]
+            if key == self._baked_key and not state.probes and self._probes_replaced and self._baked_probes:
+                # kept before any refresh (as the first pass's base): the bake's probes are needed now
+                state.probes = self._baked_probes(self.bake_dir)
+            return state
         if key != self._baked_key:
             return None
         bake = Bake(self.bake_dir)  # its pages as the viewer loaded them
