@@ -9,8 +9,10 @@ cameras of the scene, paths and tours go where they say.
 
 The triangles are the bake's meshes (core/bake_dir.py, world space), on the CPU: each step tests
 the triangles whose bounding boxes the step's box (grown by RADIUS) meets, with the Moller-Trumbore
-segment test on the triangle pushed out by RADIUS along its normal (both sides): a capsule test
-that is exact for faces and conservative at edges.
+segment test on the triangle pushed out by RADIUS along its normal (towards the walker): exact
+against a face; a face's edges are not rounded, so past the free edge of a lone panel (a door
+leaf, a table top) the walker can come closer than RADIUS, and a step longer than RADIUS at a
+grazing angle could slip past such an edge (walking steps are centimetres: speed x frame time).
 
     collider = Collider.of_meshes(bake.meshes)
     controls.collide = collider.move
