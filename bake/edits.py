@@ -133,17 +133,25 @@ def edited_sidecar(scene_path: Path, assignments: list) -> tuple[Sidecar, tuple[
     return side, tuple(format_assignment(item.keys, item.value) for item in items)
 
 
-def material_assignments(name: str, entry: dict) -> list[tuple[tuple[str, ...], object]]:
+def material_assignments(name: str, entry: dict, original: dict | None = None) -> list[tuple[tuple[str, ...], object]]:
     """A bake-manifest material entry (bake/pipeline.py describe, the panel's Save), read by the model
     (core/manifest.py `Material.from_json`) -> the assignments of [materials."name"] kd, emission and
     lobes (their sidecar keys: not `mr`, which the texture decides) that make the loader give that
-    material again. Colours are float32 in the bake: they are written in float32's shortest form
-    (0.7, not 0.699999988079071), which reads back to the same float32."""
+    material again; with `original` (the entry as baked) only the keys whose values differ from it.
+    Numbers are written in float32's shortest form (0.7, not 0.699999988079071; 0.04, not
+    0.04000000000000001), which reads back to the same float32: colours are float32 in the bake,
+    and the panel's sliders give float32 values."""
+    values = _sidecar_values(entry)
+    before = _sidecar_values(original) if original is not None else {}
+    return [(("materials", name, key), values[key]) for key in OVERRIDE_KEYS if values[key] != before.get(key)]
+
+
+def _sidecar_values(entry: dict) -> dict:
+    """kd, emission and lobes of a manifest material entry as the sidecar writes them."""
     material = Material.from_json(entry)
-    lobes = [{"kind": str(lobe.kind), "ks": _colour(lobe.ks), "mx": float(lobe.mx), "my": float(lobe.my),
-              "r0": float(lobe.r0), "alpha": float(lobe.alpha)} for lobe in material.lobes]
-    values = {"kd": _colour(material.kd), "emission": _colour(material.emission), "lobes": lobes}
-    return [(("materials", name, key), values[key]) for key in OVERRIDE_KEYS]
+    lobes = [{"kind": str(lobe.kind), "ks": _colour(lobe.ks), "mx": _number(lobe.mx), "my": _number(lobe.my),
+              "r0": _number(lobe.r0), "alpha": _number(lobe.alpha)} for lobe in material.lobes]
+    return {"kd": _colour(material.kd), "emission": _colour(material.emission), "lobes": lobes}
 
 
 def save_sidecar(scene_path: Path, assignments: list) -> Path:
@@ -252,9 +260,14 @@ def _toml_item(value):
     return tomlkit.item(value)
 
 
+def _number(value) -> float:
+    """float32's shortest decimal form of a number (reads back to the same float32)."""
+    return float(np.format_float_positional(np.float32(value), unique=True, trim="0"))
+
+
 def _colour(value) -> list[float]:
     """RGB as float32's shortest decimal form (reads back to the same float32)."""
-    return [float(np.format_float_positional(np.float32(v), unique=True, trim="0")) for v in value]
+    return [_number(v) for v in value]
 
 
 def _unprefixed(message, path: Path) -> str:

@@ -39,6 +39,20 @@ so the viewer keeps its frame rate while the bake's own integrator runs:
   passes' lower noise does not show. A probe's size and its sharing stay the bake's (an edit that
   changes them, e.g. a rougher lobe, takes `glint bake`).
 
+- The first pass shown (`poll()`; `Update.front` stays the raw pass): an 8-path pass is far
+  noisier than the light maps it replaces (living room, draft: 5.7 % relative RMS error against
+  the converged re-bake, where the light before a sofa edit is 0.7 % off). The worker also bakes
+  the first pass of the state the window last showed converged (the bake's own while the user
+  looks around before the first edit; later ones are kept, FIRST_PASSES), on the same paths (the
+  bake's seed): the difference of the two is the edit's change with most of the noise cancelled.
+  Smoothed within each object (`smoothed_difference`, SMOOTH_TEXELS) it is added to that state's
+  converged pages (0.5 % there; docs/VIEWER.md). Later passes are shown as they come.
+- Undo, redo and revert: a state whose re-bake finished in this run (its last pass, and its last
+  pass's probes) is kept (`BakedState`, the newest CACHE_BYTES' worth), and so is the bake's own
+  (its directory's pages, and its probes through `baked_probes` once a refresh replaced them): an
+  edit that returns to one of them gets its pages and probes on the next poll(), and the worker
+  only stops its running pass; nothing is re-baked.
+
 The worker runs at a lower priority (os.nice NICE): on a machine without a GPU (llvmpipe) it
 competes with the renderer for the same cores, and the frame rate matters more than the
 re-bake's speed.
@@ -47,7 +61,9 @@ from __future__ import annotations
 
 import contextlib
 import io
+import json
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
@@ -60,7 +76,7 @@ from glint.bake.material_mapping import OVERRIDE_KEYS, apply_override, override_
 from glint.bake.pipeline import read_atlas
 from glint.bake.settings import BakeSettings
 from glint.bake.texels import rasterize_texels
-from glint.core.bake_dir import read_model
+from glint.core.bake_dir import Bake, read_model
 from glint.core.errors import GlintError
 from glint.core.manifest import Manifest
 from glint.core.scene import Scene
@@ -70,6 +86,9 @@ FIRST_SAMPLES = 8  # paths per texel of the first pass: seconds on the living ro
 PASS_GROWTH = 4  # samples of a pass over the one before: each pass halves the noise
 NICE = 10  # the worker's niceness: the viewer's frames come first
 STOP_SECONDS = 5.0  # close(): how long the worker may take to stop before it is terminated
+CACHE_BYTES = 512 * 2**20  # the re-baked states kept for undo / redo / revert: the newest, as many as fit
+SMOOTH_TEXELS = 3.0  # the first pass's change is smoothed with a Gaussian of this sigma, within each object
+FIRST_PASSES = 4  # first passes the worker keeps per state, to difference the next edits' against
 
 
 def pass_samples(samples: int) -> list[int]:
@@ -124,6 +143,10 @@ class Update:
     passes: int
     samples: int  # paths per texel of this pass
     seconds: float  # since the edit was made
+    # the first pass's change against the first pass of the state the window last showed converged
+    # (`base`): smoothed (front, back) RGB differences, added to that state's pages (module docstring)
+    difference: tuple[list[np.ndarray], list[np.ndarray]] | None = None
+    base: str | None = None  # state_key of that state
 
     @property
     def final(self) -> bool:
@@ -141,6 +164,24 @@ class ProbeUpdate:
     seconds: float  # since the edit was made
 
 
+@dataclass
+class BakedState:
+    """A set of materials whose re-bake finished in this run (or the bake's own): its last pass's
+    pages and probes, shown again at once when an undo, redo or revert returns to it."""
+
+    update: Update  # the last pass
+    probes: dict[str, list[np.ndarray]]  # {probe file: MIP chain} of the last pass (empty: none re-rendered)
+
+    @property
+    def nbytes(self) -> int:
+        return sum(a.nbytes for a in [*self.update.front, *self.update.back, *(c for cs in self.probes.values() for c in cs)])
+
+
+def state_key(materials: list[dict]) -> str:
+    """The cache's key of a list of material entries: equal entries, equal keys."""
+    return json.dumps(materials, sort_keys=True, separators=(",", ":"))
+
+
 class _Cancelled(Exception):
     pass
 
@@ -152,6 +193,31 @@ def bake_probes(scene: Scene, manifest: Manifest, settings: BakeSettings) -> lis
     hashes = manifest.stages.get("cubemaps", {})
     plans = plan_cubemaps(scene, manifest.stages["lightmaps"], ProbeRules.of(settings)) if hashes else []
     return [plan for plan in plans if hashes.get(str(plan.index)) == plan.hash]
+
+
+def smoothed_difference(new: list[np.ndarray], old: list[np.ndarray], objects: list[np.ndarray],
+                        sigma: float = SMOOTH_TEXELS) -> list[np.ndarray]:
+    """(H, W, 3) float32 per page: new - old (RGB of (H, W, 4) pages), smoothed by a Gaussian of
+    `sigma` texels within each object's texels (normalised convolution: a chart never takes the
+    change of the object beside it in the atlas); 0 where no object is."""
+    from scipy import ndimage
+
+    out = []
+    for a, b, ids in zip(new, old, objects):
+        diff = (a[..., :3] - b[..., :3]).astype(np.float32)
+        smooth = np.zeros_like(diff)
+        pad = int(np.ceil(3 * sigma))
+        for obj in np.unique(ids[ids >= 0]):
+            rows, cols = np.nonzero(ids == obj)
+            y0, y1 = max(rows.min() - pad, 0), min(rows.max() + pad + 1, ids.shape[0])
+            x0, x1 = max(cols.min() - pad, 0), min(cols.max() + pad + 1, ids.shape[1])
+            mask = (ids[y0:y1, x0:x1] == obj).astype(np.float32)
+            weight = ndimage.gaussian_filter(mask, sigma, mode="constant")
+            for c in range(3):
+                blurred = ndimage.gaussian_filter(diff[y0:y1, x0:x1, c] * mask, sigma, mode="constant")
+                smooth[y0:y1, x0:x1, c] += np.where(mask > 0, blurred / np.maximum(weight, 1e-6), 0.0)
+        out.append(smooth)
+    return out
 
 
 def _prepare(source, bake_dir: Path, edits=()):
@@ -174,7 +240,8 @@ def _prepare(source, bake_dir: Path, edits=()):
     return scene, settings, manifest, pages
 
 
-def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, edits=(), probes=None) -> None:
+def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, edits=(), probes=None,
+            baked_key: str | None = None) -> None:
     """The worker process (parallel/background.py): prepare once, then one progressive re-bake per
     edit (module docstring)."""
     try:
@@ -188,8 +255,30 @@ def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, ed
         inbox.send(("error", 0, _one_line(e)))
         return
     refresher = None  # made at the first edit's probes: a GL context, the diffuse view
+    first_passes: OrderedDict[str, tuple[list, list]] = OrderedDict()  # state key -> its first pass's pages
+    objects = [page.object for page in pages]
+
+    def first_pass(key: str, overrides: dict, check) -> tuple[list, list]:
+        if key not in first_passes:
+            first_passes[key] = bake_lightmaps(edited_scene(scene, overrides), pages,
+                                               replace(settings, samples=schedule[0]), progress=check).rgba()
+            while len(first_passes) > FIRST_PASSES:
+                first_passes.popitem(last=False)
+        first_passes.move_to_end(key)
+        return first_passes[key]
+
+    if baked_key is not None and len(schedule) > 1:
+        def before_any_edit(_texels=0):
+            if inbox.stale(0):  # an edit came: it goes first (the bake's first pass is made with it)
+                raise _Cancelled
+
+        with contextlib.suppress(_Cancelled):  # while the user looks around, before the first edit
+            first_pass(baked_key, {}, before_any_edit)
     while (request := inbox.next()) is not None:
-        generation, (overrides, materials, made) = request
+        generation, payload = request
+        if payload is None:  # a state the viewer keeps (undo, redo, revert): the request only stopped the pass
+            continue
+        overrides, materials, made, key, base = payload
 
         def check(_texels=0, generation=generation):
             if inbox.stale(generation):
@@ -198,10 +287,21 @@ def _worker(inbox: Inbox, source, bake_dir: Path, schedule: list[int] | None, ed
         try:
             edited = edited_scene(scene, overrides)
             for k, samples in enumerate(schedule):
-                result = bake_lightmaps(edited, pages, replace(settings, samples=samples), progress=check)
-                front, back = result.rgba()
+                if k == 0 and len(schedule) > 1:
+                    front, back = first_pass(key, overrides, check)
+                else:
+                    front, back = bake_lightmaps(edited, pages, replace(settings, samples=samples),
+                                                 progress=check).rgba()
+                difference = None
+                if k == 0 and len(schedule) > 1 and base is not None:
+                    # the same paths (the bake's seed) through the materials before: their difference
+                    # is the edit's change with most of the pass's noise cancelled
+                    base_front, base_back = first_pass(base[0], base[1], check)
+                    difference = (smoothed_difference(front, base_front, objects),
+                                  smoothed_difference(back, base_back, objects))
                 inbox.send(("pass", generation, Update(front, back, generation, k, len(schedule), samples,
-                                                       time.time() - made)))
+                                                       time.time() - made, difference,
+                                                       None if base is None else base[0])))
                 check()
                 if plans and refresher is not False and k in (0, len(schedule) - 1):
                     refresher = _refresh_probes(probes, refresher, bake_dir, plans, materials, front, back,
@@ -252,11 +352,13 @@ class Rebaker:
     re-bake keeps what the command line changed besides the materials (a sky, the lights);
     `probes`: a picklable factory, probes(bake_dir) -> an object with `render(plans, materials,
     front, back, deliver, check)` and `release()` (glint/cubemap_stage.py ProbeRefresher), for
-    cube maps that follow the edits (module docstring; `poll_probes`); None: they keep the bake's.
+    cube maps that follow the edits (module docstring; `poll_probes`); None: they keep the bake's;
+    `baked_probes(bake_dir)` -> {probe file: MIP chain} of the bake directory's own probes, for a
+    return to the bake's materials after a refresh (glint/cubemap_stage.py `baked_probe_chains`).
     """
 
     def __init__(self, scene: Scene | str | Path, bake_dir: Path, *, schedule: list[int] | None = None,
-                 nice: int = NICE, edits=(), probes=None):
+                 nice: int = NICE, edits=(), probes=None, baked_probes=None):
         self.bake_dir = Path(bake_dir)
         manifest = read_model(self.bake_dir)
         if manifest is None:
@@ -264,7 +366,8 @@ class Rebaker:
                              "run `glint bake`")
         self.baked = [m.to_json() for m in manifest.materials]  # as the edits come: material entries (JSON)
         self.schedule = list(schedule or pass_samples(bake_settings(manifest).samples))
-        self._worker = BackgroundWorker(_worker, (scene, self.bake_dir, self.schedule, tuple(edits), probes),
+        self._worker = BackgroundWorker(_worker, (scene, self.bake_dir, self.schedule, tuple(edits), probes,
+                                                  state_key(self.baked)),
                                         name="glint-rebake", nice=nice, stop_seconds=STOP_SECONDS)
         self.generation = 0
         self.ready: dict | None = None  # the worker's set-up: seconds, schedule, texels, probes
@@ -279,6 +382,18 @@ class Rebaker:
         self._pages: Update | None = None  # the newest pass not yet taken by poll()
         self._probes: dict[str, ProbeUpdate] = {}  # probes not yet taken by poll_probes()
         self._probe_pass = -1
+        # States already re-baked in this run (module docstring, "Undo"), the newest last; the
+        # bake's own state is read from its directory when first returned to (`baked_probes`).
+        self._cache: OrderedDict[str, BakedState] = OrderedDict()
+        self._baked_key = state_key(self.baked)
+        self._baked_probes = baked_probes
+        self._key: str | None = None  # the newest edit's state
+        self._final_probes: dict[str, list[np.ndarray]] = {}  # the newest edit's last pass's probes
+        self._probes_replaced = False  # whether any probe was re-rendered in this run
+        self.from_cache = False  # the newest edit's pages came from the cache
+        self._base = self._baked_key  # the state whose last pass the window shows (or last showed) converged
+        self._overrides: dict[str, dict] = {self._baked_key: {}}  # state key -> its overrides
+        self.cache_hits = 0
 
     # -- the viewer's side -------------------------------------------------------------------------
     def edit(self, materials: list[dict]) -> None:
@@ -288,7 +403,69 @@ class Rebaker:
         self._edited_at = time.time()
         self.last, self.error, self._pages = None, None, None
         self.probes_done, self.probes_in, self._probes, self._probe_pass = None, 0, {}, -1
-        self.generation = self._worker.request((overrides, [dict(m) for m in materials], self._edited_at))
+        self._key, self._final_probes = state_key(materials), {}
+        cached = self._cached(self._key)
+        self.from_cache = cached is not None
+        if cached is None:
+            self._overrides[self._key] = overrides
+            base = (self._base, self._overrides[self._base]) if self._base in self._overrides else None
+            self.generation = self._worker.request((overrides, [dict(m) for m in materials], self._edited_at,
+                                                    self._key, base))
+            return
+        # A state re-baked before: its pages and probes at once; the request only stops a running pass.
+        self.generation = self._worker.request(None)
+        self.cache_hits += 1
+        self._pages = self.last = replace(cached.update, generation=self.generation, seconds=0.0,
+                                          difference=None, base=None)
+        self._base = self._key
+        self._probes = {file: ProbeUpdate(file, chain, self.generation, self.last.index, 0.0)
+                        for file, chain in cached.probes.items()}
+        self._probe_pass, self.probes_in = self.last.index, len(self._probes)
+        self.probes_done = (self.last.index, 0.0)
+
+    def _cached(self, key: str) -> BakedState | None:
+        """The state `key` if it was re-baked in this run, or the bake's own (read from its directory)."""
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            state = self._cache[key]
+            if key == self._baked_key and not state.probes and self._probes_replaced and self._baked_probes:
+                # kept before any refresh (as the first pass's base): the bake's probes are needed now
+                state.probes = self._baked_probes(self.bake_dir)
+            return state
+        if key != self._baked_key:
+            return None
+        bake = Bake(self.bake_dir)  # its pages as the viewer loaded them
+        front = [bake.lightmap(k) for k in range(len(bake.model.lightmaps))]
+        back = [bake.lightmap(k, back=True) for k in range(len(bake.back_pages))]
+        n = len(self.schedule)
+        # the bake's cube maps only where a refresh replaced them (and a reader was given)
+        probes = self._baked_probes(self.bake_dir) if self._probes_replaced and self._baked_probes else {}
+        state = BakedState(Update(front, back, 0, n - 1, n, self.schedule[-1], 0.0), probes)
+        self._keep(key, state)
+        return state
+
+    def _shown(self, update: Update) -> Update:
+        """What the window shows of a pass: the last pass as it is; the first pass, where the
+        worker sent its change against the base state's first pass, as that change (smoothed)
+        added to the base state's converged pages (module docstring); else the pass itself."""
+        base = self._cache.get(update.base) if update.base is not None else None
+        if base is None and update.base == self._baked_key:
+            base = self._cached(self._baked_key)
+        if update.final or update.difference is None or base is None:
+            return update
+
+        def add(pages, differences):
+            return [np.concatenate([np.maximum(p[..., :3] + d, 0.0), p[..., 3:]], axis=-1).astype(np.float32)
+                    for p, d in zip(pages, differences)]
+
+        return replace(update, front=add(base.update.front, update.difference[0]),
+                       back=add(base.update.back, update.difference[1]))
+
+    def _keep(self, key: str, state: BakedState) -> None:
+        self._cache[key] = state
+        self._cache.move_to_end(key)
+        while len(self._cache) > 1 and sum(s.nbytes for s in self._cache.values()) > CACHE_BYTES:
+            self._cache.popitem(last=False)
 
     def poll(self) -> tuple[list[np.ndarray], list[np.ndarray]] | None:
         """Never blocks: None, or (front, back) pages of the newest pass of the newest edit that
@@ -318,14 +495,22 @@ class Rebaker:
             elif generation != self.generation:
                 self.dropped += kind == "pass"
             elif kind == "pass":
-                self._pages = self.last = payload
+                self.last = payload
+                self._pages = self._shown(payload)
+                if payload.final:
+                    self._base = self._key
             elif kind == "probe":
                 if payload.index != self._probe_pass:
                     self._probe_pass, self.probes_in = payload.index, 0
                 self._probes[payload.file] = payload
                 self.probes_in += 1
+                self._probes_replaced = True
+                if payload.index == len(self.schedule) - 1:
+                    self._final_probes[payload.file] = payload.chain
             elif kind == "probes":
                 self.probes_done = payload
+        if self.done and not self.from_cache and self.error is None and self._key not in self._cache:
+            self._keep(self._key, BakedState(self.last, dict(self._final_probes)))
 
     @property
     def done(self) -> bool:
@@ -352,6 +537,8 @@ class Rebaker:
             return f"re-bake failed: {self.error}"
         if self.generation == 0:
             return None
+        if self.from_cache:
+            return "light maps and cube maps as baked before for these materials (no re-bake)"
         n = len(self.schedule)
         if self.last is not None and self.last.final:
             line = f"light maps re-baked: {self.last.samples} paths/texel in {self.last.seconds:.1f} s"

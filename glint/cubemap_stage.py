@@ -66,7 +66,7 @@ from glint.core.image_io import write_image
 from glint.core.manifest import Manifest, Material
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
-from glint.viewer.cubemaps import finite_radiance, mip_chain
+from glint.viewer.cubemaps import finite_radiance, mip_chain, read_cubemap
 from glint.viewer.gl import GL, describe, software_renderer
 from glint.viewer.renderer import Renderer
 
@@ -173,6 +173,14 @@ def _render_groups(ctx, bake_dir, groups: list[list[CubeMapPlan]], progress, ren
     finally:
         if own:
             renderer.release()
+
+
+def baked_probe_chains(bake_dir: Path) -> dict[str, list[np.ndarray]]:
+    """The bake directory's own probes, {file: MIP chain} (half float where it fits), as a re-bake
+    delivers them: what bake/rebake.py's Rebaker shows again when the materials return to the
+    bake's after a refresh replaced its probes (glint/services.py `background_rebake` hands it)."""
+    files = sorted({o.cubemap.file for o in Bake(bake_dir).model.objects if o.cubemap is not None})
+    return {file: mip_chain(read_cubemap(Path(bake_dir) / file), half=True) for file in files}
 
 
 class ProbeRefresher:

@@ -56,19 +56,22 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
                                    announce=announce, seed=seed)
 
 
-def background_rebake(manifest: Manifest, bake_dir: Path, edits=()):
+def background_rebake(manifest: Manifest, bake_dir: Path, edits=(), scene_path: Path | None = None):
     """The re-bake of the light maps and cube maps after material edits (glint.bake.rebake.Rebaker:
     a worker process, started now so that it has loaded the scene by the first edit); None for a
     bake whose scene file is gone (nothing to re-bake from: edits then change only what kd shows).
+    `scene_path`: the scene file as this run found it (default: the manifest's, as typed then).
     `glint view`'s, and bench/edit_screenshots.py's (a tool: it may not import the command)."""
     from glint.bake.rebake import Rebaker
-    from glint.cubemap_stage import ProbeRefresher  # the renderer: only where a re-bake runs
+    from glint.cubemap_stage import ProbeRefresher, baked_probe_chains  # the renderer: only where a re-bake runs
 
-    source = manifest.scene.source
+    # the scene as the command found it: the manifest keeps the path as typed (information only),
+    # relative to wherever the bake was started, which need not be this run's working directory
+    source = scene_path if scene_path is not None else manifest.scene.source
     if not source or not Path(source).is_file():
         return None
     # the worker plans the bake's probes (none: nothing to refresh) and renders them after its passes
-    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher)
+    return Rebaker(Path(source), bake_dir, edits=edits, probes=ProbeRefresher, baked_probes=baked_probe_chains)
 
 
 def fidelity_line(manifest: Manifest) -> str | None:

@@ -83,8 +83,9 @@ def sidecar_saver(scene_arg: str, scene_path: Path, original: list[dict], edits=
     and `glint capture` reproduce the window. A built-in scene's file is part of glint, not the
     user's: there Save refuses, and prints the `--set` options that reproduce the edits."""
     def save(materials: list[dict]) -> None:
-        changed = [m for m, o in zip(materials, original) if m != o]
-        assignments = list(edits) + [a for m in changed for a in material_assignments(m["name"], m)]
+        changed = [(m, o) for m, o in zip(materials, original) if m != o]
+        # only the keys the panel changed (material_assignments against the bake's entry)
+        assignments = list(edits) + [a for m, o in changed for a in material_assignments(m["name"], m, o)]
         if scene_arg in BUILTIN:
             texts = (format_assignment(*(parse_assignment(a) if isinstance(a, str) else a)) for a in assignments)
             options = " ".join(f"--set {shlex.quote(t)}" for t in texts)
@@ -123,7 +124,8 @@ def cmd_view(args) -> int:
     except Exception as e:  # pyglet/GLFW raise many kinds (no display, no GL 4.3 config, ...)
         raise no_window(args.scene, f"{type(e).__name__}: {one_line(e)}") from e
     save = sidecar_saver(args.scene, resolve(args.scene), [m.to_json() for m in manifest.materials], args.edits)
-    rebaker = background_rebake(bake.model, report.bake_dir, args.edits)  # the worker loads the scene as edited
+    # the worker loads the scene as edited, from where this run found it
+    rebaker = background_rebake(bake.model, report.bake_dir, args.edits, scene_path=resolve(args.scene))
     try:
         viewer = ViewerWindow(ctx=window.ctx, wnd=window, bake=bake, controls=controls, name=name,
                               pbr_mapping=pbr_mapping, on_save=save, lightmap_source=rebaker, exposure=exposure,

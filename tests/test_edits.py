@@ -259,3 +259,31 @@ def test_role_edit_reuses_the_light_maps_by_hard_link(tmp_path):
         assert os.stat(base / name).st_ino == os.stat(edit_dir / name).st_ino
     assert main(["bake", str(scene), *BAKE_ARGS, "--set", edit]) == 0  # the edited bake is now up to date
     assert read_manifest(edit_dir)["statistics"] == manifest["statistics"]
+
+
+def test_saved_and_printed_edits_name_only_what_changed_rounded(capsys):
+    """The panel's Save: a built-in scene's printed `--set` options (and a user scene's sidecar
+    assignments) name only the keys the panel changed, each number in float32's shortest form
+    that reads back to the same float32: a slider's m of float32(0.008836) is written 0.008836,
+    not 0.008835999394893657; r0 = 0.04000000000000001 is 0.04. Deliberate bugs this catches
+    (tried): every key written (the printed options held `emission` and `lobes = []` for a kd
+    edit); lobe numbers written as float() (0.008835999394893657 printed)."""
+    from glint.view import sidecar_saver
+
+    baked = [{"name": "Sofa", "kd": [0.5, 0.5, 0.5], "emission": [0.0, 0.0, 0.0], "lobes": []},
+             {"name": "Floor", "kd": [0.3, 0.3, 0.3], "emission": [0.0, 0.0, 0.0],
+              "lobes": [{"kind": "reflect", "ks": [1.0, 1.0, 1.0], "mx": 0.1, "my": 0.1, "r0": 0.05, "alpha": 0.2}]}]
+    m = float(np.float32(0.008836))
+    edited = [{**baked[0], "kd": [float(np.float32(0.6)), 0.12, 0.08]},
+              {**baked[1], "lobes": [{**baked[1]["lobes"][0], "mx": m, "my": m, "r0": 0.04000000000000001}]}]
+    assert [k for k, _ in material_assignments("Sofa", edited[0], baked[0])] == [("materials", "Sofa", "kd")]
+    (keys, lobes), = material_assignments("Floor", edited[1], baked[1])
+    assert keys == ("materials", "Floor", "lobes")
+    assert lobes[0]["mx"] == 0.008836 and lobes[0]["r0"] == 0.04 and np.float32(lobes[0]["mx"]) == np.float32(m)
+    with pytest.raises(GlintError, match="built in and not saved"):
+        sidecar_saver("living-room", Path("unused.glb"), baked)(edited)
+    printed = capsys.readouterr().out
+    assert "--set 'materials.Sofa.kd = [0.6, 0.12, 0.08]'" in printed
+    assert "--set 'materials.Floor.lobes = [{kind = \"reflect\", ks = [1.0, 1.0, 1.0], mx = 0.008836, " \
+        "my = 0.008836, r0 = 0.04, alpha = 0.2}]'" in printed
+    assert "emission" not in printed and printed.count("--set") == 2

@@ -352,3 +352,30 @@ def test_saved_panel_edits_capture_as_the_window_shows(tmp_path):
     rel = np.abs(saved[lit] / shown[lit] - 1)
     assert np.median(rel) < 1e-5 and np.percentile(rel, 99) < 1e-3 and rel.max() < 0.15
     assert np.median(np.abs(plain[lit] / shown[lit] - 1)) > 0.1
+
+
+def test_gltf_controls_say_what_they_replace_before_they_do():
+    """A lobe whose r0 (0.05) and alpha (0.2) no glTF value holds: before any glTF-style control
+    moves, the panel says which values the mapping will replace, and moving roughness to the value
+    it shows replaces exactly those (the announced new values are the ones applied). A material the
+    mapping reproduces gets no such line. Deliberate bug this catches (tried): gltf_changes
+    comparing the mapping's lobes with themselves -> nothing announced, r0 and alpha replaced
+    silently (the issue's 0.05 -> 0.04, 0.2 -> 0)."""
+    from glint.view import pbr_mapping
+    from glint.viewer.panel import MaterialPanel
+
+    shown = {}
+    entry = material("Floor", kd=(0.3, 0.3, 0.3), lobes=[lobe(m=(0.09, 0.09), r0=0.05, alpha=0.2)])
+    edits = MaterialEdits([entry], lambda i, e: shown.__setitem__(i, e))
+    panel = MaterialPanel(edits, [("floor", 0)], pbr_mapping=pbr_mapping)
+    panel.select_object(0)
+    announced = panel.gltf_changes()
+    assert any(line.startswith("lobe 0 r0: 0.05 -> ") for line in announced), announced
+    assert any(line.startswith("lobe 0 alpha: 0.2 -> ") for line in announced), announced
+    assert panel.set_gltf(roughness=panel.gltf()["roughness"])
+    after = edits.materials[0].lobes
+    for line in announced:
+        if line.startswith("lobe 0 "):
+            field, values = line[len("lobe 0 "):].split(": ")
+            assert f"{float(getattr(after[0], field)):.3g}" == values.split(" -> ")[1]
+    assert panel.gltf_changes() == []  # now the mapping's own material: nothing more to replace

@@ -69,7 +69,10 @@ def test_refreshed_probes_are_the_bake_of_the_edited_sidecar(boxes, tmp_path):
     next(m for m in materials if m["name"] == "Paint")["kd"] = BLUE_PAINT
     files = probe_files(boxes)
     assert files and files == probe_files(expected)
-    with Rebaker(boxes.path.parent / "boxes.glb", boxes.path, probes=ProbeRefresher) as rebaker:
+    from glint.cubemap_stage import baked_probe_chains
+
+    with Rebaker(boxes.path.parent / "boxes.glb", boxes.path, probes=ProbeRefresher,
+                 baked_probes=baked_probe_chains) as rebaker:
         rebaker.edit(materials)
         rebaker.wait(120)
         probes = {}
@@ -78,6 +81,20 @@ def test_refreshed_probes_are_the_bake_of_the_edited_sidecar(boxes, tmp_path):
         probes.update(rebaker.poll_probes() or {})
         assert rebaker.probe_error is None and rebaker.error is None
         assert "cube maps in" in rebaker.status
+        # Revert, then redo: the bake's probes (its files) and the edited ones come back at once
+        # from the cache (issue 26; bake/rebake.py). Bug this caught: the bake's state, kept as
+        # the first pass's base before any refresh, came back without its probes (None).
+        rebaker.edit([dict(m) for m in boxes.manifest["materials"]])
+        back = rebaker.poll_probes()
+        assert rebaker.from_cache and back is not None and sorted(back) == files
+        for file in files:
+            np.testing.assert_array_equal(back[file][0][..., :3].astype(np.float32),
+                                          read_cubemap(boxes.path / file)[..., :3])
+        rebaker.edit(materials)
+        again = rebaker.poll_probes()
+        assert rebaker.from_cache and sorted(again) == files
+        for file in files:
+            np.testing.assert_array_equal(again[file][0], probes[file][0])
     assert sorted(probes) == files
     for file in files:
         chain = probes[file]

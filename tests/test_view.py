@@ -206,6 +206,8 @@ def test_overlay_lines():
     assert any(line.startswith("shading") and line.endswith("2.25 ms") for line in lines)
     assert any(line.startswith("GPU total") and line.endswith("3.75 ms") for line in lines)
     assert "from north" in lines
+    # the panel is found from the overlay: its last line names the click, M and F2
+    assert "click or M" in lines[-1] and "F2 panel" in lines[-1]
 
 
 def test_screenshot_names_are_unique(tmp_path):

@@ -97,6 +97,9 @@ class WalkControls:
         self.running = False  # Shift held
         self.playing = False
         self.path_time = 0.0
+        # collide(eye, target) -> where a walking step ends (viewer/collision.py Collider.move, set
+        # by the window from the bake's meshes); None: walking goes through surfaces
+        self.collide = None
         if start is not None:
             names = [c.name for c in self.cameras]
             self.select_camera(names.index(start))  # the command line checked the name
@@ -214,5 +217,6 @@ class WalkControls:
             direction = move[0] * ahead + move[1] * right + move[2] * np.array([0.0, 1.0, 0.0])
             norm = np.linalg.norm(direction)
             if norm > 0:  # opposite keys cancel
-                self.pose.eye = self.pose.eye + direction / norm * self.current_speed * dt
+                target = self.pose.eye + direction / norm * self.current_speed * dt
+                self.pose.eye = target if self.collide is None else np.asarray(self.collide(self.pose.eye, target))
         return self.pose.camera()

@@ -16,7 +16,8 @@ from glint.viewer.gl_bindings import BLIT_UNIT
 UPDATE_INTERVAL = 0.25  # s
 MARGIN = 8  # px from the window's edges
 PADDING = 6  # px around the text
-HELP = "WASD/arrows walk  drag look  Q/E down/up  Shift run  +/- speed  Tab/1-9 cameras  P tour  F12 shot  F1 hide"
+HELP = ("WASD/arrows walk  drag look  Q/E down/up  Shift run  +/- speed  Tab/1-9 cameras  P tour  F12 shot  F1 hide\n"
+        "click or M: edit the material under the cursor  F2 panel  Ctrl+Z/Y undo/redo  Ctrl+click a field: type a value")
 
 
 def overlay_lines(fps: float, gpu_ms: dict[str, float], status: str, extra=()) -> list[str]:
@@ -29,7 +30,7 @@ def overlay_lines(fps: float, gpu_ms: dict[str, float], status: str, extra=()) -
         width = max(map(len, [*passes, "GPU total"]))
         lines += [f"{name:<{width}}  {ms:7.2f} ms" for name, ms in passes.items()]
         lines.append(f"{'GPU total':<{width}}  {total:7.2f} ms")
-    lines += [*extra, status, HELP]
+    lines += [*extra, status, *HELP.split("\n")]
     return lines
 
 
@@ -80,6 +81,7 @@ class Overlay:
         if not self.visible or self.texture is None:
             return
         w, h = self.texture.size
+        viewport = self.ctx.viewport  # given back afterwards: what is drawn next covers the whole window
         self.ctx.viewport = (MARGIN, window_height - MARGIN - h, w, h)
         self.ctx.enable(moderngl.BLEND)
         # Colour blends by the text's alpha; the frame's alpha (1) stays, so the window stays opaque.
@@ -88,6 +90,7 @@ class Overlay:
         self.blit["opaque"] = False
         self.triangle.render(moderngl.TRIANGLES, vertices=3)
         self.ctx.disable(moderngl.BLEND)
+        self.ctx.viewport = viewport
 
     def release(self) -> None:
         if self.texture is not None:

@@ -38,6 +38,8 @@ GLTF_KEYS = ("base_color", "metallic", "roughness", "transmission")
 NEW_LOBE = Lobe(ks=(0.5, 0.5, 0.5))  # the other fields Lobe's defaults
 ERROR_COLOUR = (1.0, 0.35, 0.3, 1.0)
 PANEL_WIDTH = 340  # pixels
+MARGIN = 8  # pixels between the panel and the window's edges
+MIN_HEIGHT = 120  # pixels: the panel's smallest height (a scroll bar below it)
 
 
 def gltf_guess(entry: Material) -> dict:
@@ -61,6 +63,21 @@ def gltf_guess(entry: Material) -> dict:
             "transmission": min(max(transmission, 0.0), 1.0)}
 
 
+def _differs(a, b) -> bool:
+    """Whether two numbers or colours differ beyond float32 rounding (what the sliders hold)."""
+    a, b = (list(v) if isinstance(v, (list, tuple)) else [v] for v in (a, b))
+    return len(a) != len(b) or any(abs(float(x) - float(y)) > 1e-6 * max(1.0, abs(float(x))) for x, y in zip(a, b))
+
+
+def _fmt(value) -> str:
+    """A number (or colour) as the panel's notes show it: 3 significant digits."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(f"{float(v):.3g}" for v in value) + "]"
+    return f"{float(value):.3g}"
+
+
 class MaterialPanel:
     def __init__(self, edits: MaterialEdits, objects: list, *,
                  pbr_mapping: Callable[..., tuple[list, list]] | None = None,
@@ -79,7 +96,8 @@ class MaterialPanel:
         self.message = ""  # the last refusal, shown in red until the next successful edit
         self.status = ""   # the last Save's outcome
         self._gltf: dict[int, dict] = {}
-        self.button_centres: dict[str, tuple[float, float]] = {}  # window coordinates, as last drawn
+        self.widgets: dict[str, tuple[float, float, float, float]] = {}  # (x0, y0, x1, y1) per widget, as last drawn
+        self.scroll = (0.0, 0.0)  # the panel's scroll position and its largest, as last drawn (pixels)
         self.rect: tuple[float, float, float, float] | None = None  # the panel's (x0, y0, x1, y1), as last drawn
 
     def contains(self, x: float, y: float) -> bool:
@@ -94,6 +112,7 @@ class MaterialPanel:
             self.picked = None
             return
         self.picked = int(index)
+        self.status = ""  # the last Save's outcome belongs to what was picked before
         self.select_material(self.objects[index][1])
 
     def select_material(self, index: int) -> None:
@@ -160,6 +179,31 @@ class MaterialPanel:
             self._gltf[self.material] = gltf_guess(self.entry)
         return self._gltf[self.material]
 
+    def gltf_changes(self) -> list[str]:
+        """What moving a glTF-style control would replace besides the value moved: kd and the lobes
+        become the mapping's of the glTF values shown, which need not be the material's (a lobe's r0
+        or alpha that no glTF value holds). One line per changed value, e.g. "lobe 0 r0: 0.05 -> 0.04";
+        empty when the mapping gives the material as it is."""
+        if self.pbr_mapping is None or self.entry is None:
+            return []
+        try:
+            kd, lobes = self.pbr_mapping(**self.gltf())
+        except GlintError:
+            return []
+        new = [lobe_from_json(lobe) for lobe in lobes]
+        old = list(self.entry.lobes)
+        out = []
+        if _differs(self.entry.kd[:3], kd[:3]):
+            out.append(f"kd: {_fmt(self.entry.kd[:3])} -> {_fmt(kd[:3])}")
+        if len(new) != len(old):
+            out.append(f"lobes: {len(old)} -> {len(new)} ({', '.join(lb.kind for lb in new) or 'none'})")
+        for k, (a, b) in enumerate(zip(old, new)):
+            for field in ("kind", "ks", "mx", "my", "r0", "alpha"):
+                x, y = getattr(a, field), getattr(b, field)
+                if (x != y) if field == "kind" else _differs(x, y):
+                    out.append(f"lobe {k} {field}: {_fmt(x)} -> {_fmt(y)}")
+        return out
+
     def set_gltf(self, group=None, **values) -> bool:
         """Change glTF-style values (GLTF_KEYS) and replace kd and the lobes by the bake's mapping of them
         (its lobes handed over as manifest dicts, read by the model's `lobe_from_json`)."""
@@ -212,19 +256,39 @@ class MaterialPanel:
         from imgui_bundle import imgui  # only the window with a panel needs it
 
         # at the window's right edge (the overlay's text is at the left), where it fits
-        right = imgui.get_io().display_size.x - PANEL_WIDTH - 8
-        imgui.set_next_window_pos(imgui.ImVec2(max(8.0, right), 8), imgui.Cond_.first_use_ever)
-        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, 520), imgui.Cond_.first_use_ever)
+        display = imgui.get_io().display_size
+        right = display.x - PANEL_WIDTH - MARGIN
+        imgui.set_next_window_pos(imgui.ImVec2(max(MARGIN, right), MARGIN), imgui.Cond_.first_use_ever)
+        # Never taller (or wider) than the window, whatever its size now: what does not fit scrolls
+        # (wheel or scroll bar). A panel of fixed height ran off the bottom of a small window with
+        # no scroll bar, since its contents fitted the (partly invisible) panel.
+        tallest = max(display.y - 2 * MARGIN, MIN_HEIGHT)
+        imgui.set_next_window_size_constraints(imgui.ImVec2(min(PANEL_WIDTH, max(display.x - 2 * MARGIN, 100)), MIN_HEIGHT),
+                                               imgui.ImVec2(max(display.x - 2 * MARGIN, 100), tallest))
+        imgui.set_next_window_size(imgui.ImVec2(PANEL_WIDTH, tallest), imgui.Cond_.first_use_ever)
         _, self.visible = imgui.begin("Material", self.visible)
         pos, size = imgui.get_window_pos(), imgui.get_window_size()
         self.rect = (pos.x, pos.y, pos.x + size.x, pos.y + size.y)
+        self.widgets = {}
         self._draw_actions(imgui)
         self._draw_selection(imgui)
         if self.entry is not None:
             if self.message:
                 imgui.text_colored(imgui.ImVec4(*ERROR_COLOUR), self.message)
             self._draw_material(imgui)
+        self.scroll = (imgui.get_scroll_y(), imgui.get_scroll_max_y())
         imgui.end()
+
+    def _where(self, imgui, key: str) -> None:
+        """Record where the last widget was drawn (window coordinates), as `widgets[key]`."""
+        lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+        self.widgets[key] = (lo.x, lo.y, hi.x, hi.y)
+
+    @property
+    def button_centres(self) -> dict[str, tuple[float, float]]:
+        """Undo, Redo, Revert, Save: the centre of each button as last drawn (window coordinates)."""
+        return {k: ((r[0] + r[2]) / 2, (r[1] + r[3]) / 2) for k, r in self.widgets.items()
+                if k in ("Undo", "Redo", "Revert", "Save")}
 
     def _draw_actions(self, imgui) -> None:
         """Undo, Redo, Revert, Save in one row at the top, and the last Save's outcome."""
@@ -235,13 +299,12 @@ class MaterialPanel:
             imgui.begin_disabled(not enabled)
             if imgui.button(label):
                 action()
-            lo, hi = imgui.get_item_rect_min(), imgui.get_item_rect_max()
-            self.button_centres[label] = ((lo.x + hi.x) / 2, (lo.y + hi.y) / 2)
+            self._where(imgui, label)
             imgui.end_disabled()
             imgui.same_line()
         imgui.new_line()
         if self.status:
-            imgui.text(self.status)
+            imgui.text_wrapped(self.status)  # whole, on as many lines as it takes
 
     def _draw_selection(self, imgui) -> None:
         picked = self.objects[self.picked][0] if self.picked is not None else "none (click an object, or M over it)"
@@ -258,7 +321,8 @@ class MaterialPanel:
 
     def _widget(self, imgui, changed: bool, apply, key) -> None:
         """After one widget: apply its change as part of the undo group `key`; a released slider
-        closes the group."""
+        closes the group. Its place is recorded as `widgets[name]` ("kd", "m 0" for lobe 0's m, ...)."""
+        self._where(imgui, key if isinstance(key, str) else f"{key[0]} {key[1]}")
         if changed:
             apply(group=(self.material, key))
         if imgui.is_item_deactivated():
@@ -285,7 +349,13 @@ class MaterialPanel:
             changed, angle = imgui.slider_angle("anisotropy direction", float(m.anisotropy_rotation),
                                                 -180.0, 180.0)
             self._widget(imgui, changed, lambda group: self.set_anisotropy_rotation(angle, group), "rotation")
-        if self.pbr_mapping is not None and imgui.collapsing_header("glTF-style"):
+        if self.pbr_mapping is not None and self._header(imgui, "glTF-style"):
+            changes = self.gltf_changes()
+            if changes:  # said before the first move replaces them, not after
+                imgui.text_wrapped("Moving these sets kd and the lobes by the glTF rule, replacing "
+                                   + "; ".join(changes))
+            else:
+                imgui.text_wrapped("These set kd and the lobes by the glTF rule.")
             g = self.gltf()
             changed, base = imgui.color_edit3("base colour", list(g["base_color"]), imgui.ColorEditFlags_.float)
             self._widget(imgui, changed, lambda group: self.set_gltf(group, base_color=base), "base_color")
@@ -293,6 +363,12 @@ class MaterialPanel:
                 changed, value = imgui.slider_float(key, float(g[key]), 0.0, 1.0)
                 self._widget(imgui, changed, lambda group, key=key, value=value: self.set_gltf(group, **{key: value}),
                              key)
+
+    def _header(self, imgui, label: str) -> bool:
+        """A collapsing header, its place recorded (`widgets[label]`); True while open."""
+        is_open = imgui.collapsing_header(label)
+        self._where(imgui, label)
+        return is_open
 
     def _draw_lobe(self, imgui, k: int, lobe: Lobe) -> None:
         kind = lobe.kind

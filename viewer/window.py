@@ -34,6 +34,7 @@ from moderngl_window.context.base import BaseWindow
 from PIL import Image
 
 from glint.core.errors import warn
+from glint.viewer.collision import Collider
 from glint.viewer.controls import WalkControls
 from glint.viewer.gl import GL_REQUIRED, check_context
 from glint.viewer.gl_bindings import BLIT_UNIT
@@ -125,6 +126,9 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.triangle = self.ctx.vertex_array(self.blit, [])
         self.overlay = Overlay(self.ctx, self.blit, self.triangle)
         self.keys = key_table(self.wnd.keys)
+        if getattr(bake, "meshes", None) is not None and self.controls.collide is None:
+            # walking stops short of surfaces: a step through a wall showed the black outside
+            self.controls.collide = Collider.of_meshes(bake.meshes).move
         # Esc and fullscreen go through the controls like every other key, not the backend's defaults.
         self.wnd.exit_key = None
         self.wnd.fullscreen_key = None
@@ -147,7 +151,12 @@ class ViewerWindow(moderngl_window.WindowConfig):
             warn(f"no material panel: {e.name or 'imgui-bundle'} is not installed (pip install imgui-bundle)")
             return None
         self._imgui_context = imgui.create_context()
-        imgui.get_io().set_ini_filename("")  # no imgui.ini written into the working directory
+        io = imgui.get_io()
+        io.set_ini_filename("")  # no imgui.ini written into the working directory
+        io.config_flags |= imgui.ConfigFlags_.nav_enable_keyboard  # Tab between fields, Enter types a value
+        # ImGui hides its keyboard focus after a mouse click and then ignores Enter: shown always, Enter
+        # opens the field last clicked or tabbed to, and the user sees which one that is
+        io.config_nav_cursor_visible_always = True
         return ImguiRenderer(self.wnd)
 
     def _edited(self, materials: list[dict]) -> None:
@@ -187,6 +196,9 @@ class ViewerWindow(moderngl_window.WindowConfig):
 
         io = imgui.get_io()
         io.display_size = self.wnd.size
+        width, height = self.wnd.size
+        bw, bh = self.wnd.buffer_size
+        io.display_framebuffer_scale = (bw / max(width, 1), bh / max(height, 1))  # HiDPI: framebuffer pixels per window pixel
         io.delta_time = max(float(frame_time), 1e-4)  # ImGui asserts on 0
         imgui.new_frame()
         self.panel.draw()
@@ -228,14 +240,27 @@ class ViewerWindow(moderngl_window.WindowConfig):
             return False
         from imgui_bundle import imgui
 
-        return bool(getattr(imgui.get_io(), f"want_capture_{what}"))
+        return bool(getattr(imgui.get_io(), what))
 
     # -- input -----------------------------------------------------------------------------------
+    def _ui_takes(self, key) -> bool:
+        """Whether a key is the panel's alone: every key while a field is being typed into; the
+        keys that move between its fields and open one for typing (PANEL_KEYS) while it has the
+        keyboard focus (after a click on it). Letters walk even then."""
+        if self.ui is None:
+            return False
+        from imgui_bundle import imgui
+
+        io = imgui.get_io()
+        if io.want_text_input:
+            return True
+        return bool(io.want_capture_keyboard) and self.ui.REVERSE_KEYMAP.get(key) in self.ui.navigation_keys
+
     def on_key_event(self, key, action, modifiers) -> None:
         if self.ui is not None:
             self.ui.key_event(key, action, modifiers)
-            if self._ui_wants("keyboard"):
-                return  # typing into a field of the panel
+            if self._ui_takes(key):
+                return  # typing into a field of the panel, or moving between its fields
         name = self.keys.get(key)
         if name is None:
             return
@@ -249,7 +274,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
     def on_unicode_char_entered(self, char: str) -> None:
         if self.ui is not None:
             self.ui.unicode_char_entered(char)
-            if self._ui_wants("keyboard"):
+            if self._ui_wants("want_text_input"):
                 return
         self.controls.text(char)
 
@@ -263,7 +288,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
         if self.ui is not None:
             self.ui.mouse_press_event(x, y, button)
         # ImGui's flag is a frame late for a press that comes with its first move over the panel
-        over_panel = self._ui_wants("mouse") or (self.ui is not None and self.panel.contains(x, y))
+        over_panel = self._ui_wants("want_capture_mouse") or (self.ui is not None and self.panel.contains(x, y))
         self._press = (x, y) if button == self.wnd.mouse.left and not over_panel else None
 
     def on_mouse_release_event(self, x: int, y: int, button: int) -> None:
@@ -282,7 +307,7 @@ class ViewerWindow(moderngl_window.WindowConfig):
         self.mouse = (x, y)
         if self.ui is not None:
             self.ui.mouse_drag_event(x, y, dx, dy)
-        if self._press is None and self._ui_wants("mouse"):
+        if self._press is None and self._ui_wants("want_capture_mouse"):
             return  # dragging a slider of the panel
         self.controls.mouse_look(dx, dy)
 
