@@ -45,7 +45,7 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   worth a cube map, and Blender's default Principled BSDF exports r = 0.5, so plain
   walls stay in the `diffuse` role (light map only). The base layer's dropped lobe
   reflected (1 - M) * s times its albedo under uniform light (the table's `specular_albedo`, about
-  0.05 for f0 = 0.04): that much joins kd, grey, so a wall keeps its energy. Metal and
+  0.05 for f0 = 0.04): that much joins kd, grey, so a wall keeps its energy (up to kd = 1). Metal and
   transmit lobes are always kept. Lobes whose ks is 0 are dropped.
 - Emission (radiance, W/(m^2 sr)) = e * k; the emissiveTexture (sRGB, glTF 3.9.3) multiplies it
   per texel (`Material.emission_texture`, read by the loader).
@@ -218,8 +218,9 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
             lobe = Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr)
         if not rough:
             lobes.append(lobe)
-        else:  # a rough dielectric is diffuse: its layer's reflection joins kd, grey (module docstring)
-            kd = kd + dielectric * s * table.specular_albedo_at(fitted, f0)
+        else:  # a rough dielectric is diffuse: its layer's reflection joins kd, grey (module docstring),
+            # never past 1 (glTF's white rough dielectric reflects more than it receives: Appendix B)
+            kd = np.maximum(kd, np.minimum(kd + dielectric * s * table.specular_albedo_at(fitted, f0), 1.0))
     # a metal's Fresnel is Schlick's with f0 = base colour b (glTF conductor_fresnel): b at normal
     # incidence, white at grazing. One lobe has one r0: the lobe is the table's for f0 = max(b), and ks
     # carries the colour, b / max(b) <= 1: exact for grey metals and at normal incidence; a coloured

@@ -53,7 +53,7 @@ import math
 
 import numpy as np
 
-from glint.bench import mitsuba_bsdf
+from glint.bench import mitsuba_bsdf, mitsuba_gltf_bsdf
 from glint.core.scene import Scene
 from glint.viewer.tangent_frames import surface_tangents
 
@@ -194,14 +194,33 @@ def sensor_dict(camera, width: int, height: int, spp: int = 16, seed: int = 0) -
             "sampler": {"type": "independent", "sample_count": int(spp), "seed": int(seed)}}
 
 
-def convert(scene: Scene, sensors: list[dict] = ()) -> tuple[dict, list[str]]:
-    """(Mitsuba scene dict, warnings) of a glint Scene; load it with mi.load_dict after `register()`."""
+def gltf_reference(material) -> dict | None:
+    """The glTF specification's BRDF (bench/mitsuba_gltf_bsdf.py) for a material the loader mapped from
+    glTF factors and nothing changed (`Material.gltf`), untextured (the plugin reads factors only):
+    the material as its author defined it, not glint's lobes. None for any other."""
+    textured = any(t is not None for t in (material.kd_texture, material.metallic_roughness_texture,
+                                           material.normal_texture, material.alpha_texture,
+                                           material.emission_texture, material.anisotropy_texture))
+    if material.gltf is None or textured or material.alpha_mode != "OPAQUE":
+        return None
+    mitsuba_gltf_bsdf.register()
+    return mitsuba_gltf_bsdf.bsdf_dict(material.gltf, two_sided=bool(material.double_sided))
+
+
+def convert(scene: Scene, sensors: list[dict] = (), gltf: bool = False) -> tuple[dict, list[str]]:
+    """(Mitsuba scene dict, warnings) of a glint Scene; load it with mi.load_dict after `register()`.
+    `gltf`: materials from glTF factors are rendered by the specification's BRDF (`gltf_reference`),
+    the others by glint's own BSDF (bench/mitsuba_bsdf.py), each listed in the warnings."""
     import mitsuba as mi
 
     register()
     warnings = []
     out = {"type": "scene", "integrator": {"type": "path", "max_depth": -1}}
-    bsdfs = [mi.load_dict(bsdf_dict(m)) for m in scene.materials]
+    references = [gltf_reference(m) if gltf else None for m in scene.materials]
+    if gltf:
+        warnings += [f"material '{m.name}': glint's BSDF (no untextured glTF factors to render)"
+                     for m, r in zip(scene.materials, references) if r is None]
+    bsdfs = [mi.load_dict(r if r is not None else bsdf_dict(m)) for m, r in zip(scene.materials, references)]
     media = [mi.load_dict({"type": "homogeneous", "sigma_t": _rgb(m.absorption), "albedo": 0.0})
              if m.has_volume and np.any(m.absorption > 0) else None for m in scene.materials]
     if any(medium is not None for medium in media):

@@ -791,12 +791,14 @@ GF_FLOORS = {"metal": dict(base_color=(0.9, 0.9, 0.9, 1), metallic=1.0, roughnes
 GF_CAMERA = ("Camera", (0.0, 1.5, 1.9), (0.0, 0.55, -0.7), 60.0)
 
 
-def glossy_floor_room(floor: str) -> GltfWriter:
-    """The room above with the `floor` of GF_FLOORS ("metal" or "dielectric")."""
+def glossy_floor_room(floor: str | dict, camera=GF_CAMERA) -> GltfWriter:
+    """The room above with the `floor` of GF_FLOORS ("metal" or "dielectric"), or a floor of these glTF
+    factors (GltfWriter.add_material's keywords), seen from `camera` (name, eye, target, fov)."""
     w = GltfWriter(GENERATOR, png_level=0)
     M = {}
     add_class_room_materials(w, M, ("Red paint", "Green paint", "Blue paint", "Grey paint"))
-    M["Floor"] = w.add_material("Polished metal" if floor == "metal" else "Glossy floor", **GF_FLOORS[floor])
+    factors = GF_FLOORS[floor] if isinstance(floor, str) else floor
+    M["Floor"] = w.add_material("Polished metal" if factors["metallic"] > 0.5 else "Glossy floor", **factors)
 
     def node(name, mesh, material, **kw):
         return w.add_node(name, mesh=add_mesh(w, name, mesh, M[material]), **kw)
@@ -815,7 +817,7 @@ def glossy_floor_room(floor: str) -> GltfWriter:
     node("Ceiling light", CEILING_LIGHT, "Light diffuser", translation=(0.0, H - 0.01, 0.0))
     node("Pedestal", box((0.4, 0.8, 0.4), (0, 0.4, 0)), "Plinth", translation=(0.0, 0.0, -0.7))
     node("Ball", uv_sphere(0.2, 32, 16), "Blue paint", translation=(0.0, 1.0, -0.7))
-    add_class_room_camera(w, *GF_CAMERA)
+    add_class_room_camera(w, *camera)
     return w
 
 
