@@ -302,15 +302,22 @@ def mitsuba_cube() -> Mesh:
     return Mesh(p, n, idx)
 
 
+# glTF's way to write a Lambertian surface: no specular layer (KHR_materials_specular's factor 0), so
+# the BRDF is baseColor / pi (the extension's fresnel_mix with F = 0). Without it a glTF dielectric
+# reflects a white specular layer of 4 % and more towards grazing angles, which Mitsuba's Cornell
+# box, whose materials are `diffuse`, does not have.
+LAMBERT = {"KHR_materials_specular": {"specularFactor": 0.0}}
+
+
 def cornell_box() -> GltfWriter:
     w = GltfWriter(GENERATOR, png_level=0)
-    mats = {name: w.add_material(name, base_color=(*rgb, 1.0), metallic=0.0, roughness=1.0)
+    mats = {name: w.add_material(name, base_color=(*rgb, 1.0), metallic=0.0, roughness=1.0, extensions=LAMBERT)
             for name, rgb in CORNELL_REFLECTANCE.items()}
     peak = max(CORNELL_RADIANCE)
     # The light is Mitsuba's 'white' bsdf plus the area emitter. glTF clamps
     # emissiveFactor to [0, 1], so the scale goes into KHR_materials_emissive_strength.
     mats["light"] = w.add_material("light", base_color=(*CORNELL_REFLECTANCE["white"], 1.0),
-                                   metallic=0.0, roughness=1.0,
+                                   metallic=0.0, roughness=1.0, extensions=LAMBERT,
                                    emissive=[c / peak for c in CORNELL_RADIANCE],
                                    emissive_strength=peak)
     for name, kind, material, to_world in CORNELL_SHAPES:

@@ -39,7 +39,7 @@ def wall_points():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("M", [0.05, 0.001])  # the floor's Beckmann m (glTF roughness sqrt(m))
+@pytest.mark.parametrize("M", [0.05, 0.001])  # glTF roughness sqrt(M): a Beckmann m near M
 def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path, M):
     """Mean relative L1 error over the 24 points at most 3 %, the signed mean within +-1.5 % (measured:
     1.4 % and -0.3 %; the two sides' noise: the bake's 16384 paths and Mitsuba's 2048 samples per
@@ -55,8 +55,9 @@ def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path, M):
     bias on a near-mirror floor under an area lamp (measured 1.5 %, signed -0.5 %)."""
     scene = load_scene(write_metal_floor_room(tmp_path / "room.glb", M))
     floor = next(m for m in scene.materials if m.name == "Floor")
-    assert float(np.max(floor.kd)) == 0 and [(lobe.kind, lobe.r0) for lobe in floor.lobes] == [("reflect", 1.0)]
-    assert floor.lobes[0].mx == pytest.approx(M)
+    # one metal lobe as the loader maps it (fitted to the glTF BRDF, issue 24): m near M, Kurt's alpha ~ 1/2
+    assert float(np.max(floor.kd)) == 0 and [lobe.kind for lobe in floor.lobes] == ["reflect"]
+    assert 0.5 * M <= floor.lobes[0].mx <= 2 * M and floor.lobes[0].alpha > 0.3
     points, normals = wall_points()
     ours = compute_irradiance(scene, RayTracer(scene), points, normals, 16384, seed=1).irradiance
     reference = scene_irradiance(scene, points, normals, spp=2048)

@@ -14,6 +14,7 @@ import pytest
 import trimesh
 from conftest import FAST, quad, write_room
 
+from glint.scenes.generate import LAMBERT  # a Lambertian glTF material: the tests' expected kd is the base colour
 from glint import services
 from glint.bake import pipeline
 from glint.bake.cubemap import SKY_DISTANCE, automatic_size
@@ -46,11 +47,11 @@ LOBE = {"kind": "reflect", "ks": [1, 1, 1], "mx": 0.05, "my": 0.05, "r0": 0.04}
 def write_box_room(path, sidecar="", lobes=None):
     w = GltfWriter()
     for name, (c, u, v, e) in WALLS.items():
-        m = w.add_material(name, base_color=(0, 0, 0), emissive=e)
+        m = w.add_material(name, base_color=(0, 0, 0), emissive=e, extensions=LAMBERT)
         p, i = quad(c, u, v)
         w.add_node(name, mesh=w.add_mesh(name, p, i, m, normals=np.tile(np.cross(u, v), (4, 1))))
     for name, (c, half, e) in BOXES.items():
-        m = w.add_material(f"Mat{name}", base_color=(0, 0, 0), emissive=e,
+        m = w.add_material(f"Mat{name}", base_color=(0, 0, 0), emissive=e, extensions=LAMBERT,
                            extras={"glint": {"lobes": [(lobes or {}).get(name, LOBE)]}})
         box = trimesh.creation.box(extents=2 * np.array(half))
         w.add_node(name, mesh=w.add_mesh(name, box.vertices, box.faces, m, normals=box.vertex_normals),

@@ -7,6 +7,7 @@ import math
 import numpy as np
 from conftest import FAST
 
+from glint.scenes.generate import LAMBERT  # a Lambertian glTF material: the tests' expected kd is the base colour
 from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import resolve_settings
 from glint.core.bake_dir import Bake
@@ -116,11 +117,12 @@ def write_tiles(path) -> list[tuple[str, np.ndarray, np.ndarray]]:
         if k % 2:
             rgb = np.array(COLOURS[k // 2], np.uint8)
             image = np.tile(rgb, (4, 4, 1))
-            m = w.add_material(f"Tile {k}", base_color=(1, 1, 1), roughness=1.0, base_color_texture=image)
+            m = w.add_material(f"Tile {k}", base_color=(1, 1, 1), roughness=1.0, base_color_texture=image,
+                                   extensions=LAMBERT)
             expected = srgb_to_linear(rgb / 255.0)
         else:
             expected = np.array([0.1 + 0.07 * k, 0.8 - 0.06 * k, 0.3])
-            m = w.add_material(f"Tile {k}", base_color=tuple(expected), roughness=1.0)
+            m = w.add_material(f"Tile {k}", base_color=tuple(expected), roughness=1.0, extensions=LAMBERT)
         w.add_node(f"Tile {k}", mesh=w.add_mesh(f"Tile {k}", positions + centre, [[0, 1, 2], [0, 2, 3]], m,
                                                 normals=np.tile([0.0, 1.0, 0.0], (4, 1)), uvs=uvs))
         tiles.append((f"Tile {k}", centre, np.asarray(expected, float)))

@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 from test_capture_vs_mitsuba import object_ids
 
+from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.bake.gltf_loader import load_scene
 from glint.scenes.gltf_writer import GltfWriter, quad
 
@@ -157,12 +158,15 @@ def pattern_excess(kind: str, m: float, glossy: str, inside: np.ndarray) -> np.n
     c = np.clip(cos_o[inside], 1e-3, 1.0)
     wo = np.stack([np.sqrt(1 - c * c), np.zeros_like(c), c], axis=-1)
     planar = glossy == "Floor"
+    # the metal's lobe as the loader maps it (bake/material_mapping.py: fitted, Kurt's alpha ~ 1/2)
+    (lobe,) = map_pbr(GltfPbr(base_color=COPPER, metallic=1.0, roughness=float(np.sqrt(m))))[1]
+    m, r0, alpha = lobe.mx, lobe.r0, lobe.alpha
     xi = lp.pattern_xi(lp.choose_pattern(m, m, planar), lp.samples_for_lobe(m, m, planar))
-    _, f, pdf, cos_i = lp.pattern_samples(wo, xi, m, m, 1.0, 0.0, "reflect")
+    _, f, pdf, cos_i = lp.pattern_samples(wo, xi, m, m, r0, alpha, "reflect")
     pattern = lp.pattern_estimate(np.ones(f.shape + (1,)), f, pdf, cos_i)[..., 0]
     u = np.random.default_rng(0).random((4096, 2))
     wi = bsdf.sample_lobe(wo[:, None], u[:, 0], u[:, 1], m, m, "reflect")
-    f = bsdf.lobe_value(wi, wo[:, None], m, m, 1.0, 0.0, "reflect")
+    f = bsdf.lobe_value(wi, wo[:, None], m, m, r0, alpha, "reflect")
     pdf = bsdf.lobe_pdf(wi, wo[:, None], m, m, "reflect")
     ok = (wi[..., 2] > 0) & (pdf > 0)
     albedo = np.where(ok, f * np.maximum(wi[..., 2], 0.0) / np.where(ok, pdf, 1.0), 0.0).mean(axis=-1)
@@ -192,12 +196,14 @@ CASES = [("dielectric", 0.05), ("dielectric", 0.2), ("metal", 0.05), ("metal", 0
 @pytest.mark.slow
 @pytest.mark.parametrize("kind,m", CASES)
 def test_glossy_ball_matches_mitsuba(tmp_path, kind, m):
-    """The ball (cube map): |bias| at most 1.5 % in both modes, block MAE at most 5 % (the
+    """The ball (cube map): |bias| at most 2 % in both modes, block MAE at most 5 % (the
     dielectric's light-mapped diffuse part carries the draft bake's noise).
 
-    Measured (bias / MAE, still; walkthrough against Mitsuba x pattern_excess), in %:
+    Measured (bias / MAE, still; walkthrough against Mitsuba x pattern_excess), in %, with the lobes
+    fitted to the glTF BRDF (issue 24: Kurt's alpha ~ 1/2; before, alpha = 0, the metal 0.2 ball read
+    +0.80 / 0.65 and +0.74 / 2.2):
     dielectric 0.05: +0.15 / 3.3; +0.16 / 3.3.   dielectric 0.2: -0.77 / 1.9; -0.39 / 1.9.
-    metal 0.05: +0.29 / 0.34; +0.24 / 0.35.        metal 0.2: +0.80 / 0.65; +0.74 / 2.2.
+    metal 0.05: +0.28 / 0.39; +0.21 / 0.42.        metal 0.2: +1.48 / 0.82; +1.79 / 2.1.
     Deliberate bugs this catches (tried):
     - no Fresnel term (schlick_F = 1 in shaders/bsdf.glsl): the dielectric's bias +161 % (0.05)
       and +151 .. +159 % (0.2), both modes;
@@ -206,14 +212,14 @@ def test_glossy_ball_matches_mitsuba(tmp_path, kind, m):
       while pattern_excess predicts 5.0 %)."""
     out = compare(tmp_path, kind, m, "Ball")
     for name, (bias, mae) in out.items():
-        assert abs(bias) <= 0.015, (name, bias)
+        assert abs(bias) <= 0.02, (name, bias)
         assert mae <= 0.05, (name, mae)
 
 
 # Per case: (|bias| bound, block MAE bound) of the still camera and of the walkthrough.
 FLOOR_BOUNDS = {("dielectric", 0.05): ((0.04, 0.05), (0.04, 0.06)),
                 ("dielectric", 0.2): ((0.04, 0.05), (0.04, 0.06)),
-                ("metal", 0.05): ((0.04, 0.06), (0.05, 0.10)),
+                ("metal", 0.05): ((0.04, 0.06), (0.07, 0.10)),
                 ("metal", 0.2): ((0.04, 0.20), (0.20, 0.30))}
 
 
@@ -224,7 +230,9 @@ def test_glossy_floor_matches_mitsuba(tmp_path, kind, m):
     still: dielectric 0.05 +0.19 / 2.6, dielectric 0.2 +0.16 / 2.9, metal 0.05 -1.3 / 3.2,
     metal 0.2 +1.3 / 13.5 (the reference's noise: a rough metal reflecting a small bright panel at
     64 spp); walkthrough against Mitsuba x pattern_excess: dielectric +0.6 / 2.8 and +1.0 / 2.7,
-    metal 0.05 +2.4 / 6.7, metal 0.2 +13.2 / 20 (the planar patterns' excess beyond
+    metal 0.05 +2.4 / 6.7 (+6.0 / 8.9 with the lobes fitted to the glTF BRDF, issue 24: Kurt's
+    alpha ~ 1/2, whose f cos / p grows towards the horizon, docs/SCENES.md "glTF materials: how
+    close"), metal 0.2 +13.2 / 20 (+11.4 / 18.7 fitted; the planar patterns' excess beyond
     pattern_excess: their 10 samples of a wide lobe read the panel and the ball at separate,
     finely filtered look-ups, ghosts that the bounds of this case allow; docs/BENCHMARKS.md).
     Deliberate bugs this catches (tried):

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 from conftest import capture_front
 
+from glint.scenes.generate import LAMBERT  # a Lambertian glTF material: the tests' expected kd is the base colour
 from glint.bake.gltf_loader import load_scene
 from glint.scenes.gltf_writer import GltfWriter, quad
 
@@ -48,8 +49,9 @@ def expected(name: str) -> np.ndarray:
 def write_scene(path: Path) -> Path:
     w = GltfWriter()
     img = image()
-    mats = {"Set1": w.add_material("Set1", base_color=(1, 1, 1), base_color_texture=img, texcoord=1),
-            "Example": w.add_material("Example", base_color=(1, 1, 1), base_color_texture=img,
+    mats = {"Set1": w.add_material("Set1", base_color=(1, 1, 1), base_color_texture=img, texcoord=1,
+                                   extensions=LAMBERT),
+            "Example": w.add_material("Example", base_color=(1, 1, 1), base_color_texture=img, extensions=LAMBERT,
                                       texture_transform=EXAMPLE)}
     for name, cx in CENTRES.items():
         p, i = quad((cx, 1.0, 0.0), (HALF, 0, 0), (0, HALF, 0))
@@ -145,7 +147,7 @@ def extended(name: str) -> np.ndarray:
 def write_sampler_scene(path: Path) -> Path:
     w = GltfWriter()
     for name, cx in SAMPLER_CENTRES.items():
-        mat = w.add_material(name, base_color=(1, 1, 1), base_color_texture=sampler_image(),
+        mat = w.add_material(name, base_color=(1, 1, 1), extensions=LAMBERT, base_color_texture=sampler_image(),
                              sampler=SAMPLERS[name])
         p, i = quad((cx, 1.0, 0.0), (HALF, 0, 0), (0, HALF, 0))
         uv = np.stack([(p[:, 0] - cx) / (2 * HALF) + 0.5, 0.5 - (p[:, 1] - 1.0) / (2 * HALF)], axis=1)
@@ -231,7 +233,7 @@ def vertex_colour(u, v) -> np.ndarray:
 
 def write_colour_scene(path: Path) -> Path:
     w = GltfWriter()
-    mat = w.add_material("Coloured", base_color=FACTOR, base_color_texture=image())
+    mat = w.add_material("Coloured", base_color=FACTOR, base_color_texture=image(), extensions=LAMBERT)
     p, i = quad((0.0, 1.0, 0.0), (HALF, 0, 0), (0, HALF, 0))
     uv = np.stack([(p[:, 0]) / (2 * HALF) + 0.5, 0.5 - (p[:, 1] - 1.0) / (2 * HALF)], axis=1)
     w.add_node("Coloured", mesh=w.add_mesh("Coloured", p, i, mat, normals=np.tile([0, 0, 1], (4, 1)),
