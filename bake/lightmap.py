@@ -33,6 +33,7 @@ from glint.bake.dilate import dilate
 from glint.bake.executor import TASKS_PER_WORKER, executor_for
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
+from glint.bake.sample_points import adjust_samples
 from glint.bake.texels import TexelPage
 from glint.core.errors import warn
 from glint.core.scene import Scene
@@ -76,6 +77,7 @@ class LightmapPages:
     median_radiance: float | None = None
     trace_seconds: float = 0.0  # the path tracing of the tiles (the stage's parallel part), wall clock
     tiles: int = 0  # tasks the texels were traced in
+    moved: int = 0  # of `texels`, samples moved out of geometry that covered them (bake/sample_points.py)
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
@@ -140,12 +142,17 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     objects = np.concatenate([p.object[c] for p, c in zip(pages, covered)]).astype(np.int64)
     points = np.concatenate([p.position[c] for p, c in zip(pages, covered)])
     normals = np.concatenate([p.normal[c] for p, c in zip(pages, covered)])
+    sizes = np.concatenate([_sizes(p, settings)[c] for p, c in zip(pages, covered)])
     front = len(points)
     back = np.flatnonzero(two[objects]) if len(objects) else np.zeros(0, np.int64)
     # the back sides: the same points, around -n
     points = np.concatenate([points, points[back]])
     normals = np.concatenate([normals, -normals[back]])
     n = len(points)
+    # every side's sample moved out of geometry that covers it (bake/sample_points.py)
+    adjusted = adjust_samples(RayTracer(scene), points, normals, np.concatenate([sizes, sizes[back]]),
+                              np.concatenate([objects, objects[back]]))
+    points = adjusted.points.astype(points.dtype)
     E = np.zeros((n, 3), np.float32)
     backface = np.zeros(n, np.float32)
     rays = 0
@@ -162,7 +169,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
             if progress is not None:
                 progress(len(e))
     trace_seconds = time.perf_counter() - t0
-    valid = backface <= settings.backface_threshold
+    valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
     back_irradiance, back_baked = [], []
@@ -187,7 +194,14 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
                          unlit_by_object=unlit_by_object, median_radiance=median_radiance,
-                         trace_seconds=trace_seconds, tiles=len(tasks))
+                         trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()))
+
+
+def _sizes(page: TexelPage, settings) -> np.ndarray:
+    """(H, W) metres per texel: the page's own, or 1 / texels_per_metre for pages made without."""
+    if page.size is not None:
+        return page.size
+    return np.full(page.object.shape, 1.0 / settings.texels_per_metre, np.float32)
 
 
 def _median_radiance(scene: Scene, objects: np.ndarray, E: np.ndarray, texels: np.ndarray) -> float | None:
@@ -227,7 +241,7 @@ def _pages(pages: list[TexelPage], covers: list[np.ndarray], E: np.ndarray, vali
         image[cover] = E[offset:offset + count]
         mask[cover] = valid[offset:offset + count]
         offset += count
-        irradiance.append(_fill(image, mask, settings))
+        irradiance.append(_fill(image, mask, settings, page.object))
         baked.append(mask)
     return irradiance, baked
 
@@ -272,13 +286,14 @@ def _cut_out(scene: Scene, page: TexelPage) -> np.ndarray:
     return out
 
 
-def _fill(image: np.ndarray, valid: np.ndarray, settings) -> np.ndarray:
-    """Dilate into invalid and empty texels, then denoise, then restore what dilation owns.
+def _fill(image: np.ndarray, valid: np.ndarray, settings, labels: np.ndarray | None = None) -> np.ndarray:
+    """Dilate into invalid and empty texels (an invalid texel from its own object's, `labels`:
+    bake/dilate.py), then denoise, then restore what dilation owns.
 
     Dilating first gives the denoiser no black chart borders to bleed in.
     """
     grow = settings.padding + 2
-    image = dilate(image, valid, grow)
+    image = dilate(image, valid, grow, labels)
     if settings.denoise and valid.any():
-        image = dilate(np.where(valid[..., None], denoise_lightmap(image), 0.0), valid, grow)
+        image = dilate(np.where(valid[..., None], denoise_lightmap(image), 0.0), valid, grow, labels)
     return np.ascontiguousarray(image, dtype=np.float32)
