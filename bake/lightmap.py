@@ -14,9 +14,13 @@ Texel order, which fixes each texel's random numbers (bake/irradiance.py): every
 first, page by page, row-major, then the back texels in the same order, so adding back sides
 leaves the front pages' samples as they were.
 
+Sample points: each side's sample is first moved out of meshes that cover it (bake/sample_points.py:
+a moulding through the ceiling, a sofa on the floor; double-sided or not).
+
 Invalid texels: those whose own hemisphere rays hit the back of single-sided surfaces more
-often than `backface_threshold` (inside walls, under boxes); dilation fills them from their
-valid neighbours. Unlit texels: surface points that no light reached on any side they were
+often than `backface_threshold` (inside walls, under boxes), and those whose covered sample has no
+free position in its footprint; dilation fills them from their valid neighbours, of their own
+object first. Unlit texels: surface points that no light reached on any side they were
 baked for (E = 0 exactly). Both are counted per object for the bake's statistics and warning.
 """
 from __future__ import annotations
