@@ -23,6 +23,13 @@ A covered sample moves along the probe that found the nearest such hit, to the m
 part of its footprint on that line ((t + r) / 2), provided the new point is on its own object and
 no probe from it hits a back face within r / 2; else along the next probe. A covered sample with
 no such position is invalid: bake/lightmap.py fills it from its neighbours on the same object.
+
+Slivers. A sample that faces another surface closer than SLIVER x its texel size (a probe along n
+hits anything, front or back, within it) lies in a gap far narrower than its footprint: the back of
+a skirting board 1 mm off the wall, a book's side against the next. Its light comes through the gap's
+mouth, a sliver of its hemisphere that few of its paths find, each with a large weight: the texel is a
+firefly (measured: 2 x its converged value at 128 paths, docs/BAKE.md "Fireflies"), and no one sees
+it but at grazing angles. Such a sample is invalid too, filled from its neighbours.
 """
 from __future__ import annotations
 
@@ -35,13 +42,15 @@ from glint.bake.scatter import frame
 
 PROBES = 8  # tangent directions, 45 degrees apart
 MIN_MARGIN_EPS = 4.0  # a moved point lies at least this many ray offsets beyond the surface it crossed
+SLIVER = 0.1  # texel sizes: a sample facing a surface closer than this is in a sliver (module docstring)
 
 
 @dataclass
 class SampleAdjustment:
     points: np.ndarray  # (K, 3) float64 sample points, moved where covered
     moved: np.ndarray  # (K,) bool: moved to a free position
-    invalid: np.ndarray  # (K,) bool: covered, no free position within the texel's footprint
+    invalid: np.ndarray  # (K,) bool: covered with no free position within the texel's footprint, or in a sliver
+    sliver: np.ndarray | None = None  # (K,) bool: of `invalid`, in a sliver
 
 
 def _directions(n: np.ndarray) -> np.ndarray:
@@ -93,8 +102,14 @@ def adjust_samples(tracer: RayTracer, points, normals, sizes, objects) -> Sample
     covered_pairs[k[goes_on], j[goes_on]] = True
     covered = np.flatnonzero(covered_pairs.any(axis=1))
     out = p.copy()
-    if not len(covered):
-        return SampleAdjustment(out, moved, invalid)
+    if len(covered):
+        _move(tracer, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid)
+    sliver = tracer.intersect(out + lift[:, None] * n, n, SLIVER * np.asarray(sizes, np.float64)).hit
+    return SampleAdjustment(out, moved, invalid | sliver, sliver)
+
+
+def _move(tracer, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid) -> None:
+    """Moves the `covered` samples (indices) of p into `out`, marking them `moved` or `invalid`."""
 
     # candidates: along every probe of a covered sample that hit a back face, the middle of the free part
     tc = t[covered]
@@ -121,4 +136,3 @@ def adjust_samples(tracer: RayTracer, points, normals, sizes, objects) -> Sample
     out[rows[pi]] = cand[pi]
     moved[rows[pi]] = True
     invalid[covered] = ~moved[covered]
-    return SampleAdjustment(out, moved, invalid)
