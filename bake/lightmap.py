@@ -14,6 +14,9 @@ Texel order, which fixes each texel's random numbers (bake/irradiance.py): every
 first, page by page, row-major, then the back texels in the same order, so adding back sides
 leaves the front pages' samples as they were.
 
+Seams: after denoising, the border texels of charts that meet on a continuous surface are
+stitched (bake/seams.py) and the texels around them filled again.
+
 Sample points: each side's sample is first moved out of meshes that cover it (bake/sample_points.py:
 a moulding through the ceiling, a sofa on the floor; double-sided or not).
 
@@ -38,6 +41,7 @@ from glint.bake.executor import TASKS_PER_WORKER, executor_for
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
 from glint.bake.sample_points import adjust_samples
+from glint.bake.seams import stitch
 from glint.bake.texels import TexelPage
 from glint.core.errors import warn
 from glint.core.scene import Scene
@@ -176,10 +180,12 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
+    irradiance = _stitched(irradiance, baked, pages, 1.0, settings)
     back_irradiance, back_baked = [], []
     if len(back):
         back_cover = [c & two[np.maximum(p.object, 0)] for p, c in zip(pages, covered)]
         back_irradiance, back_baked = _pages(pages, back_cover, E[front:], valid[front:], settings)
+        back_irradiance = _stitched(back_irradiance, back_baked, pages, -1.0, settings)
 
     # per object: invalid samples (either side); unlit surface texels (no side with light)
     count = len(scene.objects)
@@ -199,6 +205,15 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
                          unlit_by_object=unlit_by_object, median_radiance=median_radiance,
                          trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()))
+
+
+def _stitched(images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage], sign: float,
+              settings) -> list[np.ndarray]:
+    """One side's pages with their seams stitched (bake/seams.py) and the texels that are not path
+    traced filled again from the stitched ones."""
+    grow = settings.padding + 2
+    return [np.ascontiguousarray(dilate(image, mask, grow, page.object), dtype=np.float32)
+            for image, mask, page in zip(stitch(images, baked, pages, sign), baked, pages)]
 
 
 def _sizes(page: TexelPage, settings) -> np.ndarray:

@@ -54,9 +54,15 @@ def _box(lo, hi) -> Mesh:
     return box(hi - lo, (lo + hi) / 2)
 
 
-def interior_meshes() -> dict[str, Mesh]:
-    """The room's meshes by name (world space, metres, Y up)."""
+def interior_meshes(split_floor: bool = False) -> dict[str, Mesh]:
+    """The room's meshes by name (world space, metres, Y up); `split_floor`: the floor as two meshes
+    meeting at x = 0 ("Floor" west of it, "Floor east"), as a floor modelled in two pieces."""
     Zo = Z + THICK  # the south wall's outer face
+    if split_floor:
+        meshes = interior_meshes()
+        meshes["Floor"] = quad((-X, 0, Zo), (0, 0, Zo), (0, 0, -Z), (-X, 0, -Z), uv_size=(X, Z + Zo))
+        meshes["Floor east"] = quad((0, 0, Zo), (X, 0, Zo), (X, 0, -Z), (0, 0, -Z), uv_size=(X, Z + Zo))
+        return meshes
     return {
         "Floor": quad((-X, 0, Zo), (X, 0, Zo), (X, 0, -Z), (-X, 0, -Z), uv_size=(2 * X, Z + Zo)),
         "Ceiling": quad((-X, H, -Z), (X, H, -Z), (X, H, Zo), (-X, H, Zo), uv_size=(2 * X, Z + Zo)),
@@ -70,14 +76,14 @@ def interior_meshes() -> dict[str, Mesh]:
     }
 
 
-def write_interior(path: Path, *, double_sided: bool = True) -> Path:
+def write_interior(path: Path, *, double_sided: bool = True, split_floor: bool = False) -> Path:
     """The scene as .glb with its sidecar (the sky); every material doubleSided unless told otherwise."""
     w = GltfWriter()
     paint = w.add_material("Paint", base_color=(0.8, 0.8, 0.8), roughness=1.0, double_sided=double_sided)
     wood = w.add_material("Wood", base_color=(0.5, 0.4, 0.3), roughness=1.0, double_sided=double_sided)
     fabric = w.add_material("Fabric", base_color=(0.4, 0.45, 0.5), roughness=1.0, double_sided=double_sided)
-    material = {"Floor": wood, "Sofa": fabric}
-    for name, mesh in interior_meshes().items():
+    material = {"Floor": wood, "Floor east": wood, "Sofa": fabric}
+    for name, mesh in interior_meshes(split_floor).items():
         w.add_node(name, mesh=add_mesh(w, name, mesh, material.get(name, paint)))
     w.add_node("Camera", camera=w.add_camera("Camera", 1.2), translation=(0.0, 1.3, 0.9))
     path = Path(path)
