@@ -42,6 +42,7 @@ from glint.bake.scatter import frame
 
 PROBES = 8  # tangent directions, 45 degrees apart
 MIN_MARGIN_EPS = 4.0  # a moved point lies at least this many ray offsets beyond the surface it crossed
+BATCH = 1 << 16  # samples probed at once: bounds memory (8 probes each)
 SLIVER = 0.1  # texel sizes: a sample facing a surface closer than this is in a sliver (module docstring)
 
 
@@ -64,31 +65,43 @@ def _back_hits(tracer: RayTracer, origins: np.ndarray, dirs: np.ndarray, reach: 
     """Probes from origins (K, 3) along dirs (K, P, 3) up to reach (K,): (K, P) distance to the first
     hit when it is a back face, inf otherwise."""
     K, P = dirs.shape[:2]
-    o = np.repeat(origins, P, axis=0)
     d = dirs.reshape(-1, 3)
-    h = tracer.intersect(o, d, np.repeat(reach, P))
-    t = np.where(h.hit & ~h.front, h.t, np.inf)
-    return t.reshape(K, P)
+    prim, _, _, t = tracer.intersect_raw(np.repeat(origins, P, axis=0), d, np.repeat(reach, P))
+    hit = prim >= 0
+    back = np.zeros(len(prim), bool)
+    back[hit] = np.einsum("ij,ij->i", d[hit], tracer.tri_ng[prim[hit]]) > 0
+    return np.where(back, t.astype(np.float64), np.inf).reshape(K, P)
 
 
 def _on_surface(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, objects: np.ndarray,
                 lift: np.ndarray) -> np.ndarray:
     """(K,) bool: a ray from each point lifted 4 lift along n, back along -n, meets its own object
     within 8 lift."""
-    h = tracer.intersect(points + 4.0 * lift[:, None] * normals, -normals, 8.0 * lift)
-    return h.hit & (h.object == objects)
+    prim, _, _, _ = tracer.intersect_raw(points + 4.0 * lift[:, None] * normals, -normals, 8.0 * lift)
+    return (prim >= 0) & (tracer.tri_object[np.maximum(prim, 0)] == objects)
 
 
 def adjust_samples(tracer: RayTracer, points, normals, sizes, objects) -> SampleAdjustment:
     """Sample points (K, 3) of texels of `objects` (K,) with unit normals (K, 3) of the baked side and
-    world texel sizes (K,) moved out of covering geometry (module docstring)."""
+    world texel sizes (K,) moved out of covering geometry (module docstring); in batches of BATCH."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    n = np.asarray(normals, np.float64).reshape(-1, 3)
+    sizes = np.asarray(sizes, np.float64).reshape(-1)
+    objects = np.asarray(objects, np.int64).reshape(-1)
+    parts = [_adjust(tracer, p[i:i + BATCH], n[i:i + BATCH], sizes[i:i + BATCH], objects[i:i + BATCH])
+             for i in range(0, len(p), BATCH)] or [_adjust(tracer, p, n, sizes, objects)]
+    return SampleAdjustment(*(np.concatenate([getattr(a, f) for a in parts])
+                              for f in ("points", "moved", "invalid", "sliver")))
+
+
+def _adjust(tracer: RayTracer, points, normals, sizes, objects) -> SampleAdjustment:
     p = np.asarray(points, np.float64).reshape(-1, 3)
     n = np.asarray(normals, np.float64).reshape(-1, 3)
     objects = np.asarray(objects, np.int64)
     K = len(p)
     moved, invalid = np.zeros(K, bool), np.zeros(K, bool)
     if K == 0:
-        return SampleAdjustment(p.copy(), moved, invalid)
+        return SampleAdjustment(p.copy(), moved, invalid, invalid.copy())
     r = np.asarray(sizes, np.float64) / np.sqrt(2.0)
     lift = tracer.point_eps(p, n)
     dirs = _directions(n)
@@ -104,7 +117,7 @@ def adjust_samples(tracer: RayTracer, points, normals, sizes, objects) -> Sample
     out = p.copy()
     if len(covered):
         _move(tracer, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid)
-    sliver = tracer.intersect(out + lift[:, None] * n, n, SLIVER * np.asarray(sizes, np.float64)).hit
+    sliver = tracer.intersect_raw(out + lift[:, None] * n, n, SLIVER * np.asarray(sizes, np.float64))[0] >= 0
     return SampleAdjustment(out, moved, invalid | sliver, sliver)
 
 
