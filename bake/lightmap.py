@@ -49,9 +49,8 @@ from glint.core.scene import Scene
 TILE = 2048  # texels per job: small enough for a smooth progress bar, big enough to amortise numpy
 MIN_CLUSTER_TILE = 256  # texels per job at the least, on a cluster of many workers (tile_size)
 # The bake warns when more than these shares of its texels are invalid, or of its surface unlit.
-# Well-made scenes have 10-23 % invalid texels (contacts, furniture against walls, and chart borders,
-# whose conservatively rasterised samples lie on edges; docs/BAKE.md has the figures) and a few per
-# cent unlit; more means a scene problem (surfaces seen from behind or inside others, no light
+# Well-made scenes have 1.5-16 % invalid texels (contacts, furniture against walls, slivers such as
+# books side by side; docs/BAKE.md has the figures) and a few per cent unlit; more means a scene problem (surfaces seen from behind or inside others, no light
 # reaching a part of the scene).
 INVALID_WARN_SHARE = 0.30
 UNLIT_WARN_SHARE = 0.10

@@ -24,6 +24,7 @@ from glint.bake.texels import TexelPage
 
 STITCH_RADIUS = 1.0  # texel sizes
 MIN_COS = 0.9
+PLANE_GAP = 0.1  # of the radius: how far one sample may lie off the other's tangent plane
 
 
 def _charts(page: TexelPage) -> np.ndarray:
@@ -77,7 +78,11 @@ def stitch(images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelP
     i, j = pairs[:, 0], pairs[:, 1]
     d = np.linalg.norm(points[i] - points[j], axis=1)
     r = np.minimum(radius[i], radius[j])
-    keep = (chart_ids[i] != chart_ids[j]) & (d < r) & (np.einsum("ij,ij->i", normals[i], normals[j]) > MIN_COS)
+    # the same surface: normals that agree, and each sample close to the other's tangent plane (a sofa's
+    # back flush against a wall and its foot 2 cm in front face the same way, but are not one surface)
+    gap = np.abs(np.einsum("ij,ij->i", points[i] - points[j], normals[i] + normals[j])) / 2.0
+    keep = ((chart_ids[i] != chart_ids[j]) & (d < r) & (np.einsum("ij,ij->i", normals[i], normals[j]) > MIN_COS)
+            & (gap < PLANE_GAP * r))
     i, j, w = i[keep], j[keep], (1.0 - d[keep] / r[keep])
     total = values.copy()
     weight = np.ones(len(values))
