@@ -157,7 +157,8 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     normals = np.concatenate([normals, -normals[back]])
     n = len(points)
     # every side's sample moved out of geometry that covers it (bake/sample_points.py)
-    adjusted = adjust_samples(RayTracer(scene), points, normals, np.concatenate([sizes, sizes[back]]),
+    tracer = RayTracer(scene)
+    adjusted = adjust_samples(tracer, points, normals, np.concatenate([sizes, sizes[back]]),
                               np.concatenate([objects, objects[back]]))
     points = adjusted.points.astype(points.dtype)
     E = np.zeros((n, 3), np.float32)
@@ -179,12 +180,12 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
-    irradiance = _stitched(irradiance, baked, pages, 1.0, settings)
+    irradiance = _stitched(tracer, irradiance, baked, pages, 1.0, settings)
     back_irradiance, back_baked = [], []
     if len(back):
         back_cover = [c & two[np.maximum(p.object, 0)] for p, c in zip(pages, covered)]
         back_irradiance, back_baked = _pages(pages, back_cover, E[front:], valid[front:], settings)
-        back_irradiance = _stitched(back_irradiance, back_baked, pages, -1.0, settings)
+        back_irradiance = _stitched(tracer, back_irradiance, back_baked, pages, -1.0, settings)
 
     # per object: invalid samples (either side); unlit surface texels (no side with light)
     count = len(scene.objects)
@@ -206,13 +207,13 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
                          trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()))
 
 
-def _stitched(images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage], sign: float,
-              settings) -> list[np.ndarray]:
+def _stitched(tracer: RayTracer, images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage],
+              sign: float, settings) -> list[np.ndarray]:
     """One side's pages with their seams stitched (bake/seams.py) and the texels that are not path
     traced filled again from the stitched ones."""
     grow = settings.padding + 2
     return [np.ascontiguousarray(dilate(image, mask, grow, page.object), dtype=np.float32)
-            for image, mask, page in zip(stitch(images, baked, pages, sign), baked, pages)]
+            for image, mask, page in zip(stitch(tracer, images, baked, pages, sign), baked, pages)]
 
 
 def _sizes(page: TexelPage, settings) -> np.ndarray:

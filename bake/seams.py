@@ -20,6 +20,7 @@ import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
+from glint.bake.raytrace import RayTracer
 from glint.bake.texels import TexelPage
 
 STITCH_RADIUS = 1.0  # texel sizes
@@ -44,12 +45,12 @@ def _border(charts: np.ndarray) -> np.ndarray:
     return out & (charts > 0)
 
 
-def stitch(images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage], sign: float = 1.0,
-           sides: list[np.ndarray] | None = None) -> list[np.ndarray]:
-    """The pages `images` (H, W, 3) with their border texels stitched (module docstring); `baked`:
-    the path-traced texels; `sign`: +1 for front pages, -1 for back pages (their normal is -n);
-    `sides`: per page, the texels that have this side (None: every covered texel)."""
-    rows, values, points, normals, sizes, chart_ids = [], [], [], [], [], []
+def stitch(tracer: RayTracer, images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage],
+           sign: float = 1.0, sides: list[np.ndarray] | None = None) -> list[np.ndarray]:
+    """The pages `images` (H, W, 3) with their border texels stitched (module docstring); `tracer`: the
+    scene's; `baked`: the path-traced texels; `sign`: +1 for front pages, -1 for back pages (their
+    normal is -n); `sides`: per page, the texels that have this side (None: every covered texel)."""
+    rows, values, points, normals, sizes, chart_ids, objects = [], [], [], [], [], [], []
     offset = 0
     for k, (image, mask, page) in enumerate(zip(images, baked, pages)):
         charts = _charts(page)
@@ -64,9 +65,11 @@ def stitch(images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelP
         size = page.size[ys, xs] if page.size is not None else np.full(len(ys), np.nan)
         sizes.append(size.astype(np.float64))
         chart_ids.append(charts[ys, xs].astype(np.int64) + offset)
+        objects.append(page.object[ys, xs].astype(np.int64))
         offset += int(charts.max()) + 1
     rows, values, points = np.concatenate(rows), np.concatenate(values), np.concatenate(points)
     normals, sizes, chart_ids = np.concatenate(normals), np.concatenate(sizes), np.concatenate(chart_ids)
+    objects = np.concatenate(objects)
     out = [image.copy() for image in images]
     if len(points) < 2 or not np.isfinite(sizes).all():
         return out
@@ -83,7 +86,9 @@ def stitch(images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelP
     gap = np.abs(np.einsum("ij,ij->i", points[i] - points[j], normals[i] + normals[j])) / 2.0
     keep = ((chart_ids[i] != chart_ids[j]) & (d < r) & (np.einsum("ij,ij->i", normals[i], normals[j]) > MIN_COS)
             & (gap < PLANE_GAP * r))
-    i, j, w = i[keep], j[keep], (1.0 - d[keep] / r[keep])
+    i, j, d, r = i[keep], j[keep], d[keep], r[keep]
+    touch = _touching(tracer, points[i], points[j], normals[i] + normals[j], objects[i], objects[j])
+    i, j, w = i[touch], j[touch], (1.0 - d[touch] / r[touch])
     total = values.copy()
     weight = np.ones(len(values))
     np.add.at(total, i, w[:, None] * values[j])
@@ -95,3 +100,14 @@ def stitch(images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelP
         sel = rows[:, 0] == k
         out[k][rows[sel, 1], rows[sel, 2]] = stitched[sel]
     return out
+
+
+def _touching(tracer: RayTracer, a, b, n, object_a, object_b) -> np.ndarray:
+    """(K,) bool: the point half-way between a and b lies on object_a or object_b (a ray from it lifted
+    4 eps along n, back along -n, meets one of them within 8 eps)."""
+    n = n / np.maximum(np.linalg.norm(n, axis=1), 1e-30)[:, None]
+    mid = 0.5 * (a + b)
+    eps = tracer.point_eps(mid, n)
+    prim, _, _, _ = tracer.intersect_raw(mid + 4.0 * eps[:, None] * n, -n, 8.0 * eps)
+    obj = tracer.tri_object[np.maximum(prim, 0)]
+    return (prim >= 0) & ((obj == object_a) | (obj == object_b))
