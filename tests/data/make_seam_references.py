@@ -1,7 +1,7 @@
 """Regenerates tests/data/seam_interior_reference.npz, Mitsuba 3's irradiance at the seam strips'
-points of tests/seam_scenes.py's interior (run once; about 15 minutes on 2 cores):
+points of tests/seam_scenes.py's interior (run once; 23 minutes on this shared 2-core machine):
 
-    python3 tests/data/make_seam_references.py
+    python3 tests/data/make_seam_references.py [SPP [OUT.npz]]
 
 The scene is written by seam_scenes.write_interior, loaded by glint's loader and converted by
 bench/mitsuba_scene.py (its own BSDFs, two-sided materials as Mitsuba's two_sided); irradiance by
