@@ -6,6 +6,11 @@ texel from the average of its valid 8-neighbours, one ring of texels per pass;
 `dilate_to_fill` does a few such passes and then fills every remaining empty
 texel of the page (pull-push: averages over coarser and coarser 2x2 blocks), so
 even mip-mapped or far-off look-ups never see black.
+
+With `labels` (the object of each texel, -1 where no surface), an invalid texel of a surface takes
+only neighbours of its own object while it has any, so a texel whose sample was covered by another
+object is filled from its own surface, not from the object that covered it across a chart's border
+(issue 25); empty texels (label -1) take any neighbour, as without labels.
 """
 from __future__ import annotations
 
@@ -15,13 +20,18 @@ import numpy as np
 _NEIGHBOURS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
 
 
-def dilate(image: np.ndarray, valid: np.ndarray, iterations: int) -> np.ndarray:
+def dilate(image: np.ndarray, valid: np.ndarray, iterations: int, labels: np.ndarray | None = None) -> np.ndarray:
     """(H, W, C) image, (H, W) bool valid -> image with `iterations` rings of invalid texels filled.
 
     Valid texels are returned unchanged; invalid texels no pass reaches keep
-    their input values. The input is not modified.
+    their input values. The input is not modified. `labels`: (H, W) int, the module docstring.
     """
-    return _dilate(*_check(image, valid), iterations)[0]
+    image, valid = _check(image, valid)
+    if labels is None:
+        return _dilate(image, valid, iterations)[0]
+    out, done = _dilate(image, valid, iterations, np.asarray(labels))
+    # what no neighbour of its own object reached: from any neighbour
+    return _dilate(out, done, iterations)[0]
 
 
 def dilate_to_fill(image: np.ndarray, valid: np.ndarray, iterations: int = 2) -> np.ndarray:
@@ -36,7 +46,7 @@ def dilate_to_fill(image: np.ndarray, valid: np.ndarray, iterations: int = 2) ->
     return np.where(done[..., None], out, fill)
 
 
-def _dilate(image: np.ndarray, valid: np.ndarray, iterations: int):
+def _dilate(image: np.ndarray, valid: np.ndarray, iterations: int, labels: np.ndarray | None = None):
     out = image.astype(np.float32, copy=True)
     done = valid.copy()
     H, W = done.shape
@@ -47,6 +57,7 @@ def _dilate(image: np.ndarray, valid: np.ndarray, iterations: int):
         # neighbours sparsely instead of filtering the whole page (mostly empty).
         count = _box3(done.astype(np.uint8)[..., None])[..., 0]
         ys, xs = np.nonzero(~done & (count > 0))
+        own = None if labels is None else labels[ys, xs]
         total = np.zeros((len(ys), out.shape[2]), np.float64)
         n = np.zeros(len(ys))
         for dy, dx in _NEIGHBOURS:
@@ -54,9 +65,15 @@ def _dilate(image: np.ndarray, valid: np.ndarray, iterations: int):
             ok = (y >= 0) & (y < H) & (x >= 0) & (x < W)
             y, x = np.clip(y, 0, H - 1), np.clip(x, 0, W - 1)
             ok &= done[y, x]
+            if own is not None:
+                ok &= (labels[y, x] == own) | (own < 0)
             total += np.where(ok[:, None], out[y, x], 0.0)
             n += ok
-        out[ys, xs] = total / n[:, None]
+        got = n > 0
+        if not got.any():
+            break
+        ys, xs = ys[got], xs[got]
+        out[ys, xs] = total[got] / n[got, None]
         done[ys, xs] = True
     return out, done
 

@@ -14,9 +14,16 @@ Texel order, which fixes each texel's random numbers (bake/irradiance.py): every
 first, page by page, row-major, then the back texels in the same order, so adding back sides
 leaves the front pages' samples as they were.
 
+Seams: after denoising, the border texels of charts that meet on a continuous surface are
+stitched (bake/seams.py) and the texels around them filled again.
+
+Sample points: each side's sample is first moved out of meshes that cover it (bake/sample_points.py:
+a moulding through the ceiling, a sofa on the floor; double-sided or not).
+
 Invalid texels: those whose own hemisphere rays hit the back of single-sided surfaces more
-often than `backface_threshold` (inside walls, under boxes); dilation fills them from their
-valid neighbours. Unlit texels: surface points that no light reached on any side they were
+often than `backface_threshold` (inside walls, under boxes), and those whose covered sample has no
+free position in its footprint; dilation fills them from their valid neighbours, of their own
+object first. Unlit texels: surface points that no light reached on any side they were
 baked for (E = 0 exactly). Both are counted per object for the bake's statistics and warning.
 """
 from __future__ import annotations
@@ -33,6 +40,8 @@ from glint.bake.dilate import dilate
 from glint.parallel.executor import TASKS_PER_WORKER, executor_for
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.raytrace import RayTracer
+from glint.bake.sample_points import adjust_samples
+from glint.bake.seams import stitch
 from glint.bake.texels import TexelPage
 from glint.core.errors import warn
 from glint.core.scene import Scene
@@ -40,9 +49,8 @@ from glint.core.scene import Scene
 TILE = 2048  # texels per job: small enough for a smooth progress bar, big enough to amortise numpy
 MIN_CLUSTER_TILE = 256  # texels per job at the least, on a cluster of many workers (tile_size)
 # The bake warns when more than these shares of its texels are invalid, or of its surface unlit.
-# Well-made scenes have 10-23 % invalid texels (contacts, furniture against walls, and chart borders,
-# whose conservatively rasterised samples lie on edges; docs/BAKE.md has the figures) and a few per
-# cent unlit; more means a scene problem (surfaces seen from behind or inside others, no light
+# Well-made scenes have 1.5-16 % invalid texels (contacts, furniture against walls, slivers such as
+# books side by side; docs/BAKE.md has the figures) and a few per cent unlit; more means a scene problem (surfaces seen from behind or inside others, no light
 # reaching a part of the scene).
 INVALID_WARN_SHARE = 0.30
 UNLIT_WARN_SHARE = 0.10
@@ -76,6 +84,7 @@ class LightmapPages:
     median_radiance: float | None = None
     trace_seconds: float = 0.0  # the path tracing of the tiles (the stage's parallel part), wall clock
     tiles: int = 0  # tasks the texels were traced in
+    moved: int = 0  # of `texels`, samples moved out of geometry that covered them (bake/sample_points.py)
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
@@ -140,12 +149,18 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     objects = np.concatenate([p.object[c] for p, c in zip(pages, covered)]).astype(np.int64)
     points = np.concatenate([p.position[c] for p, c in zip(pages, covered)])
     normals = np.concatenate([p.normal[c] for p, c in zip(pages, covered)])
+    sizes = np.concatenate([_sizes(p, settings)[c] for p, c in zip(pages, covered)])
     front = len(points)
     back = np.flatnonzero(two[objects]) if len(objects) else np.zeros(0, np.int64)
     # the back sides: the same points, around -n
     points = np.concatenate([points, points[back]])
     normals = np.concatenate([normals, -normals[back]])
     n = len(points)
+    # every side's sample moved out of geometry that covers it (bake/sample_points.py)
+    tracer = RayTracer(scene)
+    adjusted = adjust_samples(tracer, points, normals, np.concatenate([sizes, sizes[back]]),
+                              np.concatenate([objects, objects[back]]))
+    points = adjusted.points.astype(points.dtype)
     E = np.zeros((n, 3), np.float32)
     backface = np.zeros(n, np.float32)
     rays = 0
@@ -162,13 +177,15 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
             if progress is not None:
                 progress(len(e))
     trace_seconds = time.perf_counter() - t0
-    valid = backface <= settings.backface_threshold
+    valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
+    irradiance = _stitched(tracer, irradiance, baked, pages, 1.0, settings)
     back_irradiance, back_baked = [], []
     if len(back):
         back_cover = [c & two[np.maximum(p.object, 0)] for p, c in zip(pages, covered)]
         back_irradiance, back_baked = _pages(pages, back_cover, E[front:], valid[front:], settings)
+        back_irradiance = _stitched(tracer, back_irradiance, back_baked, pages, -1.0, settings)
 
     # per object: invalid samples (either side); unlit surface texels (no side with light)
     count = len(scene.objects)
@@ -187,7 +204,23 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
                          unlit_by_object=unlit_by_object, median_radiance=median_radiance,
-                         trace_seconds=trace_seconds, tiles=len(tasks))
+                         trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()))
+
+
+def _stitched(tracer: RayTracer, images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage],
+              sign: float, settings) -> list[np.ndarray]:
+    """One side's pages with their seams stitched (bake/seams.py) and the texels that are not path
+    traced filled again from the stitched ones."""
+    grow = settings.padding + 2
+    return [np.ascontiguousarray(dilate(image, mask, grow, page.object), dtype=np.float32)
+            for image, mask, page in zip(stitch(tracer, images, baked, pages, sign), baked, pages)]
+
+
+def _sizes(page: TexelPage, settings) -> np.ndarray:
+    """(H, W) metres per texel: the page's own, or 1 / texels_per_metre for pages made without."""
+    if page.size is not None:
+        return page.size
+    return np.full(page.object.shape, 1.0 / settings.texels_per_metre, np.float32)
 
 
 def _median_radiance(scene: Scene, objects: np.ndarray, E: np.ndarray, texels: np.ndarray) -> float | None:
@@ -227,7 +260,7 @@ def _pages(pages: list[TexelPage], covers: list[np.ndarray], E: np.ndarray, vali
         image[cover] = E[offset:offset + count]
         mask[cover] = valid[offset:offset + count]
         offset += count
-        irradiance.append(_fill(image, mask, settings))
+        irradiance.append(_fill(image, mask, settings, page.object))
         baked.append(mask)
     return irradiance, baked
 
@@ -272,13 +305,14 @@ def _cut_out(scene: Scene, page: TexelPage) -> np.ndarray:
     return out
 
 
-def _fill(image: np.ndarray, valid: np.ndarray, settings) -> np.ndarray:
-    """Dilate into invalid and empty texels, then denoise, then restore what dilation owns.
+def _fill(image: np.ndarray, valid: np.ndarray, settings, labels: np.ndarray | None = None) -> np.ndarray:
+    """Dilate into invalid and empty texels (an invalid texel from its own object's, `labels`:
+    bake/dilate.py), then denoise, then restore what dilation owns.
 
     Dilating first gives the denoiser no black chart borders to bleed in.
     """
     grow = settings.padding + 2
-    image = dilate(image, valid, grow)
+    image = dilate(image, valid, grow, labels)
     if settings.denoise and valid.any():
-        image = dilate(np.where(valid[..., None], denoise_lightmap(image), 0.0), valid, grow)
+        image = dilate(np.where(valid[..., None], denoise_lightmap(image), 0.0), valid, grow, labels)
     return np.ascontiguousarray(image, dtype=np.float32)

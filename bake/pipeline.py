@@ -66,7 +66,9 @@ class BakeReport:
         lm = stats.lightmaps
         cluster = stats.cluster
         where = f" on the Dask cluster {cluster['scheduler']} ({cluster['workers']} workers)" if cluster else ""
-        return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels, "
+        moved = (f" ({lm['moved_texels']} moved out of geometry, {lm['invalid_texels']} invalid)"
+                 if "moved_texels" in lm else "")
+        return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels{moved}, "
                 f"{lm['rays'] / 1e6:.1f} M rays in {lm['seconds']:.1f} s "
                 f"({lm['rays_per_second'] / 1e6:.2f} M rays/s)" + (f"; {cubes}" if cubes else "") + where)
 
@@ -434,7 +436,8 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
             "unwrap": {"seconds": round(t1 - t0, 3), "reused": old_dir is not None,
                        "triangles": int(sum(len(o.indices) for o in scene.objects))},
             "lightmaps": {"seconds": round(t2 - t1, 3), "texels": result.texels, "back_texels": result.back_texels,
-                          "invalid_texels": result.invalid, "unlit_texels": result.unlit,
+                          "invalid_texels": result.invalid, "moved_texels": result.moved,
+                          "unlit_texels": result.unlit,
                           "median_radiance": result.median_radiance,
                           "invalid_objects": worst(result.invalid_by_object),
                           "unlit_objects": worst(result.unlit_by_object),

@@ -9,6 +9,16 @@ centre in UV. A texel claimed by several triangles (neighbours in one chart,
 along their shared edge) takes the nearest, ties to the first in (object,
 triangle) order, so the result is deterministic. Nothing is offset along the
 normal here: the path tracer offsets its rays.
+
+No sample lies on a chart's border: a point closer than EDGE_INSET texel (in UV) to one of its
+triangle's border edges (edges no other triangle of the page shares), which every chart-border
+texel's closest point is, is moved that far towards the triangle's centroid (at most half-way). A sample exactly on an edge where the surface meets another
+(a floor under a wall, a wall's foot on the floor) starts its rays on the other surface's plane,
+where float32 ray casting misses it at t ~ 0 and the rays leak past it (issue 25: the bright rows at
+every contact; docs/BAKE.md "Sample points").
+
+Each texel also gets its world size (`TexelPage.size`: metres per texel on its triangle,
+sqrt(world area / UV area)), the footprint bake/sample_points.py searches for a free position.
 """
 from __future__ import annotations
 
@@ -19,6 +29,7 @@ import numpy as np
 # Candidate (triangle, texel) pairs handled at once: bounds the memory of the
 # vectorised rasteriser (about 30 float64 temporaries per pair) to ~100 MB.
 BATCH = 1 << 19
+EDGE_INSET = 0.1  # texels: how far (in UV) a sample stays from its triangle's edges (module docstring)
 
 
 @dataclass
@@ -28,6 +39,7 @@ class TexelPage:
     object: np.ndarray  # (H, W) int32 object index, -1 where no triangle covers the texel
     triangle: np.ndarray  # (H, W) int32 triangle index within the object, -1 where empty
     texcoord: np.ndarray | None = None  # (H, W, 2) float32 TEXCOORD_0 at the sample (0 without uvs)
+    size: np.ndarray | None = None  # (H, W) float32 metres per texel on the owning triangle (0 where empty)
 
 
 def rasterize_texels(objects, atlas) -> list[TexelPage]:
@@ -54,8 +66,9 @@ def rasterize_texels(objects, atlas) -> list[TexelPage]:
         owner = np.full(H * W, -1, np.int64)  # index into the scene's triangle list
         bary = np.zeros((H * W, 3))
         uv = tri_uv[sel]
+        border = _border_edges(uv)
         for batch in _batches(uv, W, H):
-            texel, tri, dist, b = _rasterise_batch(uv, batch, W, H)
+            texel, tri, dist, b = _rasterise_batch(uv, batch, W, H, border)
             # Nearest candidate per texel; stable sort keeps (object, triangle) order on ties.
             order = np.lexsort((dist, texel))
             texel, tri, dist, b = texel[order], tri[order], dist[order], b[order]
@@ -69,6 +82,17 @@ def rasterize_texels(objects, atlas) -> list[TexelPage]:
             bary[texel] = b[better]
         pages.append(_page(objects, atlas, owner, bary, tri_obj, tri_idx, W, H))
     return pages
+
+
+def _border_edges(uv: np.ndarray) -> np.ndarray:
+    """(K, 3) bool: edge i of each triangle (opposite corner i) is on a chart's border, i.e. no other
+    triangle of these has an edge with the same two UV end points."""
+    ends = np.stack([uv[:, [1, 2]], uv[:, [2, 0]], uv[:, [0, 1]]], axis=1)  # (K, 3, 2 ends, 2)
+    key = np.round(ends * 1024.0).astype(np.int64)
+    key = key[..., 0] * (1 << 31) + key[..., 1]  # (K, 3, 2) one integer per end point
+    key = np.sort(key, axis=2).reshape(-1, 2)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return (counts[inverse.ravel()] == 1).reshape(-1, 3)
 
 
 def _batches(uv: np.ndarray, W: int, H: int):
@@ -95,7 +119,7 @@ def _texel_range(uv: np.ndarray, W: int, H: int):
     return x0, np.maximum(x1, x0), y0, np.maximum(y1, y0)
 
 
-def _rasterise_batch(uv: np.ndarray, batch: np.ndarray, W: int, H: int):
+def _rasterise_batch(uv: np.ndarray, batch: np.ndarray, W: int, H: int, border: np.ndarray):
     """Candidate texels of triangles `batch`: (texel, triangle, distance, barycentrics) of the covered ones."""
     x0, x1, y0, y1 = _texel_range(uv[batch], W, H)
     nx = x1 - x0 + 1
@@ -131,7 +155,26 @@ def _rasterise_batch(uv: np.ndarray, batch: np.ndarray, W: int, H: int):
     if out.any():
         d, bo = _closest_on_edges(p[out], a[out], b[out], c[out])
         dist[out], bary[out] = d, bo
-    return texel, tri, dist, bary
+    return texel, tri, dist, _inset(bary, a, b, c, border[tri])
+
+
+def _inset(bary, a, b, c, border):
+    """Barycentrics moved towards the centroid until the UV point is EDGE_INSET from every `border`
+    edge (at most half-way: slivers thinner than that keep their middle)."""
+    q = bary[:, 0:1] * a + bary[:, 1:2] * b + bary[:, 2:3] * c
+    area2 = np.abs(_cross(b - a, c - a))
+    lengths = np.stack([np.hypot(*(c - b).T), np.hypot(*(a - c).T), np.hypot(*(b - a).T)], axis=1)
+    # distance to edge i (opposite corner i) = bary_i x 2 area / |edge i|
+    edge = np.min(np.where(border, np.clip(bary, 0.0, None) * area2[:, None] / np.maximum(lengths, 1e-300), np.inf),
+                  axis=1)
+    centre = (a + b + c) / 3.0
+    to_centre = np.hypot(*(centre - q).T)
+    # moving towards the centroid by a fraction lam raises every edge distance by at least lam x the
+    # centroid's smallest edge distance (2 area / 3 / longest edge)
+    inner = area2 / 3.0 / np.maximum(lengths.max(axis=1), 1e-300)
+    lam = np.clip((EDGE_INSET - edge) / np.maximum(inner - edge, 1e-300), 0.0, 0.5)
+    lam = np.where((area2 > 0) & (to_centre > 0) & np.isfinite(edge), lam, 0.0)
+    return (1.0 - lam)[:, None] * bary + (lam / 3.0)[:, None]
 
 
 def _closest_on_edges(p, a, b, c):
@@ -162,6 +205,7 @@ def _page(objects, atlas, owner, bary, tri_obj, tri_idx, W, H) -> TexelPage:
     obj_map = np.full(H * W, -1, np.int32)
     tri_map = np.full(H * W, -1, np.int32)
     texcoord = np.zeros((H * W, 2), np.float32)
+    size = np.zeros(H * W, np.float32)
     covered = np.nonzero(owner >= 0)[0]
     k_of = tri_obj[owner[covered]]
     for k in np.unique(k_of):
@@ -184,10 +228,14 @@ def _page(objects, atlas, owner, bary, tri_obj, tri_idx, W, H) -> TexelPage:
         nrm /= np.maximum(length, 1e-300)[:, None]
         if obj.uvs is not None:  # for the coverage of MASK materials (bake/alpha.py)
             texcoord[texels] = (bw * np.asarray(obj.uvs, np.float64)[corners]).sum(axis=1)
+        uv = charts.uv.astype(np.float64)[charts.indices[tris]] * (W, H)
+        uv_area = 0.5 * np.abs(_cross(uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]))
+        world_area = 0.5 * np.linalg.norm(np.cross(P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]), axis=1)
+        size[texels] = np.sqrt(world_area / np.maximum(uv_area, 1e-300))
         position[texels] = pos
         normal[texels] = nrm
         obj_map[texels] = k
         tri_map[texels] = tris
     return TexelPage(position=position.reshape(H, W, 3), normal=normal.reshape(H, W, 3),
                      object=obj_map.reshape(H, W), triangle=tri_map.reshape(H, W),
-                     texcoord=texcoord.reshape(H, W, 2))
+                     texcoord=texcoord.reshape(H, W, 2), size=size.reshape(H, W))

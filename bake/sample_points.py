@@ -1,0 +1,151 @@
+"""Light-map sample points moved out of the geometry that covers them (issue 25).
+
+A texel samples one point of its surface (bake/texels.py). Where separately modelled meshes meet,
+that point may lie where the surface is covered: inside a crown moulding that intersects the
+ceiling, above the ceiling on the moulding's face, under a sofa's edge, behind a wall a floor runs
+under. Traced from there, the texel sees the inside of the other object, or through it, the sky;
+its light-map value is then wrong (dark inside, bright beyond) and bilinear filtering shows it along
+the whole seam. With double-sided materials (what Blender exports by default) the back-face rule of
+bake/lightmap.py no longer catches it: the back of a double-sided surface is a valid surface.
+
+The test, per sample (point p, normal n of the side being baked, world texel size s): PROBES short
+rays from p lifted eps along n, in the tangent plane, as long as half the texel's diagonal
+(r = s / sqrt 2: the footprint). A probe that hits the back of a surface (the side its winding
+faces away from; winding, not the material's doubleSided, says which side of a closed mesh is its
+inside) at t < r is evidence that p is covered, but only when p's own surface goes on past the hit:
+a point lifted eps from a ray's end just beyond it (t + margin) and probed along -n finds p's own
+object. Otherwise the other surface meets p's surface at an edge (a room's corner, whose walls may
+face outwards in exports) and p is where it should be. This is Bakery's "adjust sample positions"
+and the push-off of Unity's progressive lightmapper, with the continuation test in place of their
+back-face tolerance, which double-sided exports defeat.
+
+A covered sample moves along the probe that found the nearest such hit, to the middle of the free
+part of its footprint on that line ((t + r) / 2), provided the new point is on its own object and
+no probe from it hits a back face within r / 2; else along the next probe. A covered sample with
+no such position is invalid: bake/lightmap.py fills it from its neighbours on the same object.
+
+Slivers. A sample that faces another surface closer than SLIVER x its texel size (a probe along n
+hits anything, front or back, within it) lies in a gap far narrower than its footprint: the back of
+a skirting board 1 mm off the wall, a book's side against the next. Its light comes through the gap's
+mouth, a sliver of its hemisphere that few of its paths find, each with a large weight: the texel is a
+firefly (measured: 2 x its converged value at 128 paths, docs/BAKE.md "Fireflies"), and no one sees
+it but at grazing angles. Such a sample is invalid too, filled from its neighbours.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from glint.bake.raytrace import RayTracer
+from glint.bake.scatter import frame
+
+PROBES = 8  # tangent directions, 45 degrees apart
+MIN_MARGIN_EPS = 4.0  # a moved point lies at least this many ray offsets beyond the surface it crossed
+BATCH = 1 << 16  # samples probed at once: bounds memory (8 probes each)
+SLIVER = 0.1  # texel sizes: a sample facing a surface closer than this is in a sliver (module docstring)
+
+
+@dataclass
+class SampleAdjustment:
+    points: np.ndarray  # (K, 3) float64 sample points, moved where covered
+    moved: np.ndarray  # (K,) bool: moved to a free position
+    invalid: np.ndarray  # (K,) bool: covered with no free position within the texel's footprint, or in a sliver
+    sliver: np.ndarray | None = None  # (K,) bool: of `invalid`, in a sliver
+
+
+def _directions(n: np.ndarray) -> np.ndarray:
+    """(K, PROBES, 3) unit tangent directions around each unit normal."""
+    t, b = frame(n)
+    angle = 2.0 * np.pi * np.arange(PROBES) / PROBES
+    return np.cos(angle)[None, :, None] * t[:, None, :] + np.sin(angle)[None, :, None] * b[:, None, :]
+
+
+def _back_hits(tracer: RayTracer, origins: np.ndarray, dirs: np.ndarray, reach: np.ndarray):
+    """Probes from origins (K, 3) along dirs (K, P, 3) up to reach (K,): (K, P) distance to the first
+    hit when it is a back face, inf otherwise."""
+    K, P = dirs.shape[:2]
+    d = dirs.reshape(-1, 3)
+    prim, _, _, t = tracer.intersect_raw(np.repeat(origins, P, axis=0), d, np.repeat(reach, P))
+    hit = prim >= 0
+    back = np.zeros(len(prim), bool)
+    back[hit] = np.einsum("ij,ij->i", d[hit], tracer.tri_ng[prim[hit]]) > 0
+    return np.where(back, t.astype(np.float64), np.inf).reshape(K, P)
+
+
+def _on_surface(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, objects: np.ndarray,
+                lift: np.ndarray) -> np.ndarray:
+    """(K,) bool: a ray from each point lifted 4 lift along n, back along -n, meets its own object
+    within 8 lift."""
+    prim, _, _, _ = tracer.intersect_raw(points + 4.0 * lift[:, None] * normals, -normals, 8.0 * lift)
+    return (prim >= 0) & (tracer.tri_object[np.maximum(prim, 0)] == objects)
+
+
+def adjust_samples(tracer: RayTracer, points, normals, sizes, objects) -> SampleAdjustment:
+    """Sample points (K, 3) of texels of `objects` (K,) with unit normals (K, 3) of the baked side and
+    world texel sizes (K,) moved out of covering geometry (module docstring); in batches of BATCH."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    n = np.asarray(normals, np.float64).reshape(-1, 3)
+    sizes = np.asarray(sizes, np.float64).reshape(-1)
+    objects = np.asarray(objects, np.int64).reshape(-1)
+    parts = [_adjust(tracer, p[i:i + BATCH], n[i:i + BATCH], sizes[i:i + BATCH], objects[i:i + BATCH])
+             for i in range(0, len(p), BATCH)] or [_adjust(tracer, p, n, sizes, objects)]
+    return SampleAdjustment(*(np.concatenate([getattr(a, f) for a in parts])
+                              for f in ("points", "moved", "invalid", "sliver")))
+
+
+def _adjust(tracer: RayTracer, points, normals, sizes, objects) -> SampleAdjustment:
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    n = np.asarray(normals, np.float64).reshape(-1, 3)
+    objects = np.asarray(objects, np.int64)
+    K = len(p)
+    moved, invalid = np.zeros(K, bool), np.zeros(K, bool)
+    if K == 0:
+        return SampleAdjustment(p.copy(), moved, invalid, invalid.copy())
+    r = np.asarray(sizes, np.float64) / np.sqrt(2.0)
+    lift = tracer.point_eps(p, n)
+    dirs = _directions(n)
+    t = _back_hits(tracer, p + lift[:, None] * n, dirs, r)
+
+    # covered: some back-face hit beyond which the own surface goes on
+    k, j = np.nonzero(np.isfinite(t))
+    beyond = p[k] + dirs[k, j] * (t[k, j] + MIN_MARGIN_EPS * lift[k])[:, None]
+    goes_on = _on_surface(tracer, beyond, n[k], objects[k], lift[k])
+    covered_pairs = np.zeros(t.shape, bool)
+    covered_pairs[k[goes_on], j[goes_on]] = True
+    covered = np.flatnonzero(covered_pairs.any(axis=1))
+    out = p.copy()
+    if len(covered):
+        _move(tracer, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid)
+    sliver = tracer.intersect_raw(out + lift[:, None] * n, n, SLIVER * np.asarray(sizes, np.float64))[0] >= 0
+    return SampleAdjustment(out, moved, invalid | sliver, sliver)
+
+
+def _move(tracer, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid) -> None:
+    """Moves the `covered` samples (indices) of p into `out`, marking them `moved` or `invalid`."""
+
+    # candidates: along every probe of a covered sample that hit a back face, the middle of the free part
+    tc = t[covered]
+    rc = r[covered]
+    step = np.maximum((tc + rc[:, None]) / 2.0, tc + MIN_MARGIN_EPS * lift[covered, None])
+    usable = np.isfinite(tc) & (step < rc[:, None])
+    ci, cj = np.nonzero(usable)
+    rows = covered[ci]
+    cand = p[rows] + dirs[rows, cj] * step[ci, cj][:, None]
+    ok = _on_surface(tracer, cand, n[rows], objects[rows], lift[rows])
+    if ok.any():
+        sel = np.flatnonzero(ok)
+        again = _back_hits(tracer, cand[sel] + lift[rows[sel], None] * n[rows[sel]], _directions(n[rows[sel]]),
+                           r[rows[sel]] / 2.0)
+        ok[sel] = ~np.isfinite(again).any(axis=1)
+    # the nearest good candidate per covered sample
+    dist = np.where(ok, step[ci, cj], np.inf)
+    best = np.full(len(covered), np.inf)
+    np.minimum.at(best, ci, dist)
+    pick = ok & (dist == best[ci])
+    pi = np.flatnonzero(pick)
+    first = np.unique(ci[pi], return_index=True)[1]
+    pi = pi[first]
+    out[rows[pi]] = cand[pi]
+    moved[rows[pi]] = True
+    invalid[covered] = ~moved[covered]

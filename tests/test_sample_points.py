@@ -1,0 +1,111 @@
+"""Light-map samples moved out of geometry that covers them (bake/sample_points.py, issue 25), and
+invalid texels filled from their own object (bake/dilate.py `labels`).
+
+Small scenes written as glTF (scenes/gltf_writer.py) and loaded as any export: a ceiling that a
+moulding-like box intersects, a floor running under a thick wall, a room corner whose wall faces
+outwards (as some exports have it). Expected positions are worked out by hand from the geometry.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from glint.bake.dilate import dilate
+from glint.bake.gltf_loader import load_scene
+from glint.bake.raytrace import RayTracer
+from glint.bake.sample_points import adjust_samples
+from glint.scenes.generate import add_mesh, box, quad
+from glint.scenes.gltf_writer import GltfWriter
+
+S = 1.0 / 16  # texel size (preview's 16 texels per metre); footprint radius r = S / sqrt 2 = 4.4 cm
+DOWN, UP = np.array([0.0, -1.0, 0.0]), np.array([0.0, 1.0, 0.0])
+
+
+def _scene(tmp_path, meshes: dict, double_sided: bool):
+    w = GltfWriter()
+    m = w.add_material("Paint", base_color=(0.8, 0.8, 0.8), double_sided=double_sided)
+    for name, mesh in meshes.items():
+        w.add_node(name, mesh=add_mesh(w, name, mesh, m))
+    path = w.write(tmp_path / "s.glb")
+    (tmp_path / "s.glint.toml").write_text("[sky]\n")
+    scene = load_scene(path)
+    return scene, RayTracer(scene), [o.name for o in scene.objects]
+
+
+def _ceiling():
+    return quad((-1, 2, -1), (1, 2, -1), (1, 2, 1), (-1, 2, 1))  # faces down
+
+
+def _adjust(tracer, names, obj, points, normal):
+    points = np.asarray(points, float)
+    return adjust_samples(tracer, points, np.tile(normal, (len(points), 1)), np.full(len(points), S),
+                          np.full(len(points), names.index(obj)))
+
+
+@pytest.mark.parametrize("double_sided", [True, False])
+def test_sample_inside_an_intersecting_box_moves_out_on_its_own_surface(tmp_path, double_sided):
+    """A box 8 cm wide (x in [-0.04, 0.04]) through the ceiling plane, 1 cm above it: a ceiling sample
+    at x = 0.01 lies inside it. The probe towards +x meets the box's inside at t = 3 cm < r, the
+    ceiling goes on past it: the sample moves to the middle of the free part, x = 0.01 + (0.03 + r) / 2
+    = 0.047, on the ceiling. A sample at x = 0.1 (free) and one at x = 0.3 stay where they are.
+
+    Bug this catches (tried): probes that find no back faces (what the old rule sees of an all
+    double-sided scene) leave the sample inside: moved [False, False, False]; it fails the next two
+    tests too."""
+    scene, tracer, names = _scene(tmp_path, {"Ceiling": _ceiling(), "Box": box((0.08, 0.1, 2.0), (0, 1.96, 0))},
+                                  double_sided)
+    a = _adjust(tracer, names, "Ceiling", [[0.01, 2.0, 0.3], [0.1, 2.0, 0.3], [0.3, 2.0, 0.3]], DOWN)
+    assert a.moved.tolist() == [True, False, False]
+    assert not a.invalid.any()
+    r = S / np.sqrt(2)
+    np.testing.assert_allclose(a.points[0], [0.01 + (0.03 + r) / 2, 2.0, 0.3], atol=1e-6)
+    np.testing.assert_array_equal(a.points[1:], [[0.1, 2.0, 0.3], [0.3, 2.0, 0.3]])
+
+
+def test_sample_whose_free_side_is_inside_another_object_is_invalid(tmp_path):
+    """Two boxes side by side through the ceiling, 1 mm apart (x in [-0.05, 0.03] and [0.031, 0.2]): a
+    ceiling sample at x = 0.01 in the first can only move into the second: invalid, not moved."""
+    scene, tracer, names = _scene(tmp_path, {"Ceiling": _ceiling(), "A": box((0.08, 0.1, 2.0), (-0.01, 1.96, 0)),
+                                             "B": box((0.169, 0.1, 2.0), (0.1155, 1.96, 0))}, True)
+    a = _adjust(tracer, names, "Ceiling", [[0.01, 2.0, 0.0]], DOWN)
+    assert a.invalid.tolist() == [True] and a.moved.tolist() == [False]
+
+
+def test_room_corner_whose_wall_faces_outwards_is_left_alone(tmp_path):
+    """A floor meeting a double-sided wall at x = 1 that faces outwards (+x): from the floor the wall is
+    seen from behind, but the floor ends there, so a floor sample 2 cm from the wall is not covered.
+
+    Bug this catches (tried): without the continuation test (every back face within r covers), the
+    sample is taken for covered and, with no free position on the floor, made invalid."""
+    floor = quad((-1, 0, 1), (1, 0, 1), (1, 0, -1), (-1, 0, -1))
+    wall = quad((1, 0, 1), (1, 0, -1), (1, 2, -1), (1, 2, 1))  # normal +x: away from the room
+    assert np.allclose(wall.normals[0], [1, 0, 0])
+    scene, tracer, names = _scene(tmp_path, {"Floor": floor, "Wall": wall}, True)
+    a = _adjust(tracer, names, "Floor", [[0.98, 0.0, 0.0]], UP)
+    assert not a.moved.any() and not a.invalid.any()
+    np.testing.assert_array_equal(a.points, [[0.98, 0.0, 0.0]])
+
+
+def test_floor_running_under_a_thick_wall_moves_to_the_room(tmp_path):
+    """A floor that runs under a 10 cm wall (z in [1, 1.1]): a floor sample 1 cm inside the wall moves
+    towards the room, to z = 1.01 - (0.01 + r) / 2 (the probe along -z meets the wall's inside at 1 cm)."""
+    floor = quad((-1, 0, 1.1), (1, 0, 1.1), (1, 0, -1), (-1, 0, -1))
+    scene, tracer, names = _scene(tmp_path, {"Floor": floor, "Wall": box((2.0, 2.0, 0.1), (0, 1.0, 1.05))}, True)
+    a = _adjust(tracer, names, "Floor", [[0.0, 0.0, 1.01]], UP)
+    r = S / np.sqrt(2)
+    assert a.moved.tolist() == [True]
+    np.testing.assert_allclose(a.points[0], [0.0, 0.0, 1.01 - (0.01 + r) / 2], atol=1e-6)
+
+
+def test_invalid_texel_is_filled_from_its_own_object():
+    """The middle texel of a 3 x 3 page is invalid; its left column belongs to its object (value 1), its
+    right column to another (value 5): with labels it takes 1, without, the average of all 8 (3)."""
+    image = np.zeros((3, 3, 1), np.float32)
+    image[:, 0], image[:, 2] = 1.0, 5.0
+    image[1, 1] = 100.0  # what the covered sample read
+    valid = np.ones((3, 3), bool)
+    valid[1, 1] = False
+    valid[0, 1] = valid[2, 1] = False  # the middle column: the border between the two
+    labels = np.array([[1, -1, 2], [1, 1, 2], [1, -1, 2]])
+    assert dilate(image, valid, 1, labels)[1, 1, 0] == pytest.approx(1.0)
+    assert dilate(image, valid, 1)[1, 1, 0] == pytest.approx(3.0)
