@@ -193,9 +193,11 @@ def test_shared_probes_match_own_maps(tmp_path, ctx):
     """many_objects' 1000 boxes (333 rough metal, 0.13 m apart), converged still camera, 128 x 72:
     shared probes (67) against each box its own map (probe_sharing = 0, the thesis' rule). Metric
     on luminance: 8 x 8 blocks within 20 % of the own-map image, at least 99.5 % (measured 100 %;
-    97.2 % within 10 %), the mean within 1 % (measured -0.3 %), relative MAE at most 2.5 %
-    (measured 1.9 %; 1.82 % before and 2.04 % after issue 25's light-map samples moved out of
-    the boxes' contacts with the floor changed what both images show).
+    97.2 % within 10 %), the mean within 1 % (measured -0.3 %), relative MAE at most 3 %
+    (measured 2.75 %; 1.82 % before and 2.04 % after issue 25's light-map samples moved out of
+    the boxes' contacts with the floor changed what both images show, 2.75 % once the boxes' metal
+    lobes were fitted to the glTF BRDF, issue 24: Kurt's alpha ~ 1/2 reflects more of the probes
+    towards grazing angles, where a shared probe's centre is farthest from the box's own).
     Deliberate bugs tried: the members not hidden from their shared probe (only the first one
     hidden; measured at 300 boxes): 96.5 % of blocks within 20 %, mean -7.8 %, MAE 7.9 %; the
     diffuse boxes whose box holds a probe's centre not left out (`enclosing`; 21 of the 67
@@ -214,7 +216,7 @@ def test_shared_probes_match_own_maps(tmp_path, ctx):
     ratio = blocks(a) / np.maximum(blocks(b), 1e-6)
     assert ((ratio > 1 / 1.2) & (ratio < 1.2)).mean() >= 0.995
     assert abs(a.mean() / b.mean() - 1) < 0.01
-    assert np.abs(a - b).sum() / b.sum() < 0.025
+    assert np.abs(a - b).sum() / b.sum() < 0.03
 
 
 def test_classes_over_the_texture_units_are_resampled_with_one_warning(tmp_path, monkeypatch, capsys):
