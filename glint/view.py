@@ -96,6 +96,46 @@ def sidecar_saver(scene_arg: str, scene_path: Path, original: list[dict], edits=
     return save
 
 
+def _bake_child(args, progress: bool, results) -> None:
+    """`bake_apart`'s child process: run_bake, its warnings summarised, the report or the one line."""
+    from glint.core.errors import summarised
+
+    try:
+        with summarised():
+            results.put(("report", run_bake(args, progress=progress)))
+    except GlintError as e:
+        results.put(("error", str(e)))
+    except KeyboardInterrupt:
+        results.put(("interrupted", None))
+
+
+def bake_apart(args):
+    """run_bake in a spawned process, so that nothing of the bake's GL lives in the window's process.
+    The bake renders its cube maps with a headless EGL context; in the same process, a window opened
+    after it showed only black (Mesa llvmpipe under Xvfb: the renderer drew and flipped every frame,
+    F12 saved a right image, X showed nothing) while a window opened on a bake already done was
+    right. A spawned child costs its start (about a second) and no GL state crosses to the window."""
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    results = ctx.SimpleQueue()
+    child = ctx.Process(target=_bake_child, args=(args, sys.stderr.isatty(), results), name="glint-bake")
+    child.start()
+    try:
+        child.join()
+    except KeyboardInterrupt:  # the child has its own Ctrl-C (the same process group): let it clean up
+        child.join()
+        raise
+    if results.empty():
+        raise GlintError(f"the bake's process ended without a result (exit status {child.exitcode})")
+    kind, value = results.get()
+    if kind == "interrupted":
+        raise KeyboardInterrupt
+    if kind == "error":
+        raise GlintError(value)
+    return value
+
+
 def cmd_view(args) -> int:
     width, height = parse_size(args.size)
     exposure = number(args.exposure, "--exposure", lo=-100, hi=100)
@@ -103,7 +143,7 @@ def cmd_view(args) -> int:
     if reason:  # before baking: the bake would be wasted on a machine that cannot show it
         raise no_window(args.scene, reason)
 
-    report = run_bake(args, progress=sys.stderr.isatty())
+    report = bake_apart(args)
     if report.status != "up-to-date":
         print(report.summary, flush=True)
 

@@ -463,3 +463,31 @@ def test_exposure_reaches_the_window(room_bake, tmp_path):
     result = glint("view", "cornell-box", "--exposure", "bright", env={**os.environ, "GLINT_CACHE": str(tmp_path / "c")})
     assert "bad --exposure 'bright'" in one_line(result) and result.returncode == 2
     assert not (tmp_path / "c").exists()
+
+
+_BAKE_APART = """
+import sys
+from glint.cli import build_parser
+from glint.view import bake_apart
+argv = ["view", "material-classes", "-q", "draft", "--bake-dir", sys.argv[1]]
+args = build_parser(argv).parse_args(argv)
+report = bake_apart(args)
+print(report.status, "glint.cubemap_stage" in sys.modules)
+"""
+
+
+def test_view_bakes_in_another_process(tmp_path):
+    """`glint view` on a scene not yet baked bakes it in a spawned process (glint/view.py bake_apart):
+    the bake's cube maps make a headless EGL context, after which the window opened in the same
+    process showed only black under Xvfb (Mesa llvmpipe), while a window on a bake already done was
+    right. Seen by hand: with run_bake in the window's process, a fresh `glint view material-classes`
+    under Xvfb grabbed as all 0; with bake_apart, the scene. This checks what the fix rests on: after
+    a bake that renders cube maps, the cube-map stage was never imported in the viewer's process.
+    Bug it catches (tried): bake_apart calling run_bake itself (the stage imported, its context made
+    here)."""
+    out = subprocess.run([sys.executable, "-c", _BAKE_APART, str(tmp_path / "b")], capture_output=True, text=True,
+                         timeout=600)
+    assert out.returncode == 0, out.stderr
+    status, stage = out.stdout.split()
+    assert status != "up-to-date" and (tmp_path / "b" / "cubemaps").is_dir()
+    assert stage == "False"
