@@ -485,8 +485,8 @@ def test_view_bakes_in_another_process(tmp_path):
     a bake that renders cube maps, the cube-map stage was never imported in the viewer's process.
     Bug it catches (tried): bake_apart calling run_bake itself (the stage imported, its context made
     here)."""
-    out = subprocess.run([sys.executable, "-c", _BAKE_APART, str(tmp_path / "b")], capture_output=True, text=True,
-                         timeout=600)
+    out = subprocess.run([sys.executable, "-c", _BAKE_APART, str(tmp_path / "b")], capture_output=True,
+                         text=True, timeout=600)
     assert out.returncode == 0, out.stderr
     status, stage = out.stdout.split()
     assert status != "up-to-date" and (tmp_path / "b" / "cubemaps").is_dir()
