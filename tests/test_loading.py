@@ -360,10 +360,13 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     fitted = table.specular_lobe(0.7, 0.9)
     assert lobe.ks == pytest.approx(tuple(fitted.ks * c / 0.9 for c in (0.9, 0.6, 0.2)))
     assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == pytest.approx(fitted.m)
-    # Rough dielectric (Blender's default 0.5): no lobe, its albedo joins kd; a lower threshold moves the line.
+    # Rough dielectric (Blender's default 0.5): no lobe, its albedo joins kd (never past 1); a lower
+    # threshold moves the line.
     kd, lobes, _ = map_pbr(GltfPbr(metallic=0, roughness=0.5))
     assert lobes == []
-    np.testing.assert_allclose(kd, share + table.specular_albedo_at(0.5, 0.04), rtol=1e-6)
+    np.testing.assert_allclose(kd, min(share + table.specular_albedo_at(0.5, 0.04), 1.0), rtol=1e-6)
+    kd, _, _ = map_pbr(GltfPbr(base_color=(0.5, 0.5, 0.5), metallic=0, roughness=0.5))
+    np.testing.assert_allclose(kd, 0.5 * share + table.specular_albedo_at(0.5, 0.04), rtol=1e-6)
     assert len(map_pbr(GltfPbr(metallic=0, roughness=0.5), diffuse_roughness=0.8)[1]) == 1
     # Frosted glass, ior 1.33: no diffuse, reflect + transmit lobes; the transmit lobe m = r^2, r0 = f0.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(1, 1, 1), metallic=0, roughness=0.6,
