@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import multiprocessing as mp
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -189,7 +190,7 @@ def _isolated(fn, *args):
     ctx = mp.get_context("fork")
     for attempt in range(XATLAS_TRIES):
         receive, send = ctx.Pipe(duplex=False)
-        child = ctx.Process(target=_child, args=(send, fn, args), daemon=True)
+        child = ctx.Process(target=_child, args=(os.getpid(), send, fn, args), daemon=True)
         with deferred_signals():  # until the child's quiet_child, a signal is the parent's
             child.start()
         send.close()
@@ -211,8 +212,8 @@ def _isolated(fn, *args):
                      f"(last exit code {child.exitcode}); run the bake again")
 
 
-def _child(send, fn, args) -> None:
-    quiet_child()
+def _child(parent: int, send, fn, args) -> None:
+    quiet_child(parent)
     try:
         send.send((True, fn(*args)))
     except BaseException as e:  # report it to the parent, which raises it

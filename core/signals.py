@@ -52,9 +52,13 @@ def exit_status(interrupt: KeyboardInterrupt) -> tuple[str, int]:
     return NAMES.get(signum, str(signum)), 128 + int(signum)
 
 
-def quiet_child() -> None:
+def quiet_child(parent: int | None = None) -> None:
     """In a worker process: Ctrl-C and SIGHUP ignored (the command stops its workers), SIGTERM kills at
-    once; on Linux it also gets SIGTERM when its parent dies (a SIGKILLed bake leaves no worker running)."""
+    once; on Linux it also gets SIGTERM when its parent dies (a SIGKILLed bake leaves no worker running).
+    `parent`: the pid of the process that started this one. A parent that died before the request was
+    made (between the fork and here) sends nothing: the worker then ends at once. Without this check a
+    pool worker of a bake SIGKILLed at that moment was left waiting on its task pipe for good (seen
+    once, under load, in tests/test_signals.py)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGHUP, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
@@ -63,6 +67,8 @@ def quiet_child() -> None:
             ctypes.CDLL(None).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
         except (OSError, AttributeError):
             pass
+    if parent is not None and os.getppid() != parent:
+        os._exit(128 + signal.SIGTERM)
 
 
 @contextmanager

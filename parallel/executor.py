@@ -30,6 +30,7 @@ import concurrent.futures
 import importlib.util
 import logging
 import multiprocessing as mp
+import os
 import pickle
 import re
 import threading
@@ -62,9 +63,9 @@ _worker_state: Any = None
 _worker_job: Callable | None = None
 
 
-def _init_worker(setup, setup_args, job) -> None:
+def _init_worker(parent: int, setup, setup_args, job) -> None:
     global _worker_state, _worker_job
-    quiet_child()  # Ctrl-C, SIGTERM, SIGHUP are the bake's: it stops the pool (no traceback of a worker's)
+    quiet_child(parent)  # Ctrl-C, SIGTERM, SIGHUP are the bake's: it stops the pool (no traceback of a worker's)
     _heap_for_large_arrays()
     _worker_state = setup(*setup_args)
     _worker_job = job
@@ -135,7 +136,7 @@ class LocalExecutor:
                 yield index, job(state, task)
             return
         pool = ProcessPoolExecutor(min(self.jobs, len(tasks)), mp_context=mp.get_context(self.start_method),
-                                   initializer=_init_worker, initargs=(setup, setup_args, job))
+                                   initializer=_init_worker, initargs=(os.getpid(), setup, setup_args, job))
         try:
             with deferred_signals():  # a signal between a fork and its worker's quiet_child is the bake's
                 futures = [pool.submit(_run_task, task) for task in tasks]  # the processes start here
