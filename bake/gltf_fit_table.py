@@ -82,7 +82,8 @@ class FitTable:
         return _between(a, b, u, albedo_a, albedo_b, m_ratio), float((1 - u) * albedo_a + u * albedo_b)
 
     def specular_albedo_at(self, roughness: float, f0: float) -> float:
-        """The mean directional albedo of that BRDF (below the grid's first f0: scaled by f0 / f0_row)."""
+        """That BRDF's albedo under uniform light, `specular_albedo` interpolated (below the grid's first
+        f0: scaled by f0 / f0_row)."""
         i, j, t = _bracket(self.f0, f0)
         k, l, u = _bracket(self.roughness, roughness)
         rows = self.specular_albedo

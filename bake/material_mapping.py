@@ -163,7 +163,7 @@ def dielectric_f0(p: GltfPbr) -> float:
     return float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
 
 
-def _fitted(table, lobe_of, roughness: float, weight, m_scale: float = 1.0) -> tuple:
+def _fitted(lobe_of, roughness: float, weight, m_scale: float = 1.0) -> tuple:
     """(ks (3,), m, r0, alpha) of the fitted lobe `lobe_of(roughness)`, ks times `weight`, m times
     `m_scale`."""
     lobe = lobe_of(float(np.clip(roughness, 0.0, 1.0)))
@@ -214,7 +214,7 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
             m = beckmann_m(factor)
             lobe = Lobe("reflect", _rgb3(dielectric * s), *anisotropic(m), f0, INTERFACE_ALPHA, mr)
         else:
-            ks, m, r0, alpha = _fitted(table, lambda r: table.specular_lobe(r, f0), fitted, dielectric * s, m_scale)
+            ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, f0), fitted, dielectric * s, m_scale)
             lobe = Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr)
         if not rough:
             lobes.append(lobe)
@@ -227,14 +227,14 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
     # metal's other channels stay below white at grazing angles (never above: no channel gains energy)
     brightest = float(np.max(base))
     if brightest > 0:
-        ks, m, r0, alpha = _fitted(table, lambda r: table.specular_lobe(r, brightest), fitted,
+        ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, brightest), fitted,
                                    base / brightest * metal_ks, m_scale)
         lobes.append(Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr and "metal"))
     if t > 0:
         lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), *anisotropic(beckmann_m(factor)), f0,
                           INTERFACE_ALPHA if volume else 0.0, mr))
     if p.clearcoat > 0 and not (p.clearcoat_roughness >= diffuse_roughness and t == 0.0):
-        ks, m, r0, alpha = _fitted(table, lambda r: table.specular_lobe(r, CLEARCOAT_R0), p.clearcoat_roughness,
+        ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, CLEARCOAT_R0), p.clearcoat_roughness,
                                    p.clearcoat)
         lobes.append(Lobe("reflect", ks, m, m, r0, alpha))
     lobes = [lobe for lobe in lobes if max(lobe.ks) > 0]
