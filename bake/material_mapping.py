@@ -20,10 +20,11 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   share)). The base colour texture, when present, multiplies kd (`Material.kd_texture`), as in glTF.
 - Dielectric reflection: one reflect lobe, the table's for f0 = ((n - 1) / (n + 1))^2 times the
   mean of s_c (0.04 for the default n = 1.5), its ks times (1 - M) * s. No lobe when f0 = 0 (n = 1).
-- Metal reflection: glTF's conductor_fresnel is Schlick's with f0 = b, so one reflect lobe, the
-  table's for f0 = max(b), its ks times b / max(b) * M: exact for grey metals and at normal
-  incidence; a coloured metal keeps its colour towards grazing angles where glTF's whitens (one
-  lobe has one r0), its dimmer channels below the specification's there, never above.
+- Metal reflection: glTF's conductor_fresnel is Schlick's with f0 = b: b at normal incidence,
+  white at grazing, per channel. The fitted lobe is the table's for f0 = max(b), its ks times M;
+  Schlick's F being linear in r0, a coloured metal gets two lobes of that one shape whose sum has
+  r0_c = r0 b_c / max(b) in each channel (`metal_lobes`): ks r0_c with r0 = 1 and ks (1 - r0_c)
+  with r0 = 0. A grey metal keeps one lobe, ks b / max(b) with the fitted r0.
 - Transmission (t > 0): one transmit lobe (Eq. 3.5, thin surface), ks = b * (1 - M) * t,
   m = max(r^2, 1e-4), r0 = f0, alpha = 0; Eq. 3.5's (1 - F) factor plays glTF's Fresnel weighting.
 - Clearcoat (c > 0): one more reflect lobe, the table's for f0 = 0.04 at roughness r_c, its ks
@@ -94,7 +95,7 @@ the whole list. `kd` still multiplies a base colour texture.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -142,6 +143,12 @@ class GltfPbr:
     attenuation_distance: float = float("inf")
     attenuation_color: tuple = (1.0, 1.0, 1.0)
 
+    @classmethod
+    def from_params(cls, params: GltfMaterialParams) -> "GltfPbr":
+        """The factors of core/gltf_brdf.py's parameters (`Material.gltf`, the panel's), the rest at
+        the specification's defaults: `_reference` read back."""
+        return cls(**{f.name: getattr(params, f.name) for f in fields(GltfMaterialParams)})
+
 
 def beckmann_m(roughness: float) -> float:
     """glTF perceptual roughness -> Beckmann m of Eq. 3.3."""
@@ -149,6 +156,7 @@ def beckmann_m(roughness: float) -> float:
     return max(r * r, M_MIN)
 
 
+GREY_METAL = 0.02  # a metal whose channels all lie within 2 % of its brightest gets one lobe (`metal_lobes`)
 INTERFACE_ALPHA = 0.5  # Kurt's alpha of a glass solid's lobes: sqrt(cos_i cos_o) cancels cos_i (module docstring)
 
 
@@ -169,6 +177,22 @@ def _fitted(lobe_of, roughness: float, weight, m_scale: float = 1.0) -> tuple:
     lobe = lobe_of(float(np.clip(roughness, 0.0, 1.0)))
     m = float(np.clip(lobe.m * m_scale, M_MIN, 1.0))
     return _rgb3(np.asarray(weight, np.float64) * lobe.ks), m, lobe.r0, lobe.alpha
+
+
+def metal_lobes(ks, m: tuple[float, float], r0: float, alpha: float, tint, mr: str) -> list[Lobe]:
+    """A metal's reflect lobes from the fitted lobe (ks, m = (mx, my), r0, alpha) of its brightest
+    channel, `tint` = b / max(b). Schlick's F = r0 (1 - w) + w, w = (1 - cos)^5, is linear in r0, so
+    channel c's ks F(r0_c), r0_c = r0 tint_c, is ks r0_c F(1) + ks (1 - r0_c) F(0): two lobes of the
+    one shape, ks r0_c with r0 = 1 (F = 1) and ks (1 - r0_c) with r0 = 0 (F = w). A grey metal
+    (every channel within GREY_METAL of the brightest) keeps one lobe, ks tint with r0: a second
+    lobe costs the viewer a pattern per pixel, for at most GREY_METAL of the light at grazing."""
+    tint = np.asarray(tint, np.float64)
+    ks = np.asarray(ks, np.float64)
+    if float(np.min(tint)) >= 1.0 - GREY_METAL:
+        return [Lobe("reflect", _rgb3(ks * tint), *m, r0, alpha, mr)]
+    r0_c = np.clip(r0 * tint, 0.0, 1.0)
+    return [Lobe("reflect", _rgb3(ks * r0_c), *m, 1.0, alpha, mr),
+            Lobe("reflect", _rgb3(ks * (1.0 - r0_c)), *m, 0.0, alpha, mr)]
 
 
 def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
@@ -222,14 +246,11 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
             # never past 1 (glTF's white rough dielectric reflects more than it receives: Appendix B)
             kd = np.maximum(kd, np.minimum(kd + dielectric * s * table.specular_albedo_at(fitted, f0), 1.0))
     # a metal's Fresnel is Schlick's with f0 = base colour b (glTF conductor_fresnel): b at normal
-    # incidence, white at grazing. One lobe has one r0: the lobe is the table's for f0 = max(b), and ks
-    # carries the colour, b / max(b) <= 1: exact for grey metals and at normal incidence; a coloured
-    # metal's other channels stay below white at grazing angles (never above: no channel gains energy)
+    # incidence, white at grazing; the lobes are the table's for f0 = max(b) (module docstring)
     brightest = float(np.max(base))
     if brightest > 0:
-        ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, brightest), fitted,
-                                   base / brightest * metal_ks, m_scale)
-        lobes.append(Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr and "metal"))
+        ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, brightest), fitted, metal_ks, m_scale)
+        lobes += metal_lobes(ks, anisotropic(m), r0, alpha, base / brightest, mr and "metal")
     if t > 0:
         lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), *anisotropic(beckmann_m(factor)), f0,
                           INTERFACE_ALPHA if volume else 0.0, mr))
@@ -371,11 +392,7 @@ def _reference(p: GltfPbr):
     if p.anisotropy > 0 or (p.thickness > 0 and p.transmission > 0):
         return None
     try:
-        return GltfMaterialParams(base_color=tuple(p.base_color[:3]), metallic=p.metallic, roughness=p.roughness,
-                                  ior=p.ior, specular=p.specular, specular_color=tuple(p.specular_color),
-                                  transmission=p.transmission, clearcoat=p.clearcoat,
-                                  clearcoat_roughness=p.clearcoat_roughness, emissive=tuple(p.emissive[:3]),
-                                  emissive_strength=p.emissive_strength)
+        return GltfMaterialParams(**{f.name: getattr(p, f.name) for f in fields(GltfMaterialParams)})
     except GlintError:
         return None
 

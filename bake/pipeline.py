@@ -160,7 +160,7 @@ def describe(scene: Scene, cubemaps: list[CubeMapPlan] = ()) -> dict:
                           lobes=[lobe_from_json(lobe.to_dict()) for lobe in m.lobes],
                           kd_texture=f"textures/material_{i}.exr" if m.kd_texture is not None else None,
                           **_emission_entry(m, i), **_metallic_roughness_entry(m, i), **_sampler_entry(m),
-                          **_coverage_entry(m), **_volume_entry(m), **_surface_detail_entry(m, i))
+                          **_coverage_entry(m), **_volume_entry(m), **_surface_detail_entry(m, i), gltf=m.gltf)
                  for i, m in enumerate(scene.materials)]
     lights = Lights(
         point=[PointLight(l.name, vec(l.position), vec(l.intensity)) for l in scene.point_lights],

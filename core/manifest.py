@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from glint.core.gltf_brdf import GltfMaterialParams
 from glint.core.scene import Lobe
 
 OPAQUE = "OPAQUE"
@@ -69,7 +70,10 @@ class Volume:
 class Material:
     """A manifest material (bake/pipeline.py describe). Optional entries, left out of the JSON at their
     defaults: emission_texture, metallic_roughness_texture, kd_sampler, the coverage (alpha_mode OPAQUE:
-    older bake dirs lack it), volume (None: thin), normal_texture with normal_scale, anisotropy."""
+    older bake dirs lack it), volume (None: thin), normal_texture with normal_scale, anisotropy, and
+    gltf: the glTF factors the material was mapped from (core/scene.py `Material.gltf`), so that the
+    panel shows them as their author set them; None (left out) for other materials and once an edit
+    changed kd or the lobes by hand."""
     name: str = ""
     kd: list = field(default_factory=lambda: [0.8, 0.8, 0.8])
     emission: list = field(default_factory=lambda: [0.0, 0.0, 0.0])
@@ -87,6 +91,7 @@ class Material:
     normal_scale: float = 1.0
     anisotropy_rotation: float = 0.0
     anisotropy_texture: str | None = None
+    gltf: GltfMaterialParams | None = None
 
     @property
     def has_coverage(self) -> bool:
@@ -99,7 +104,8 @@ class Material:
                  "normal_scale", "anisotropy_rotation", "anisotropy_texture")
         return cls(**{k: d[k] for k in plain if k in d}, lobes=[lobe_from_json(lobe) for lobe in d.get("lobes") or []],
                    kd_sampler=Sampler.from_json(d.get("kd_sampler")),
-                   volume=Volume.from_json(d["volume"]) if d.get("volume") else None)
+                   volume=Volume.from_json(d["volume"]) if d.get("volume") else None,
+                   gltf=GltfMaterialParams(**d["gltf"]) if d.get("gltf") else None)
 
     def to_json(self) -> dict:
         out = {"name": self.name, "kd": list(self.kd), "emission": list(self.emission),
@@ -121,6 +127,8 @@ class Material:
             out["anisotropy_rotation"] = self.anisotropy_rotation
         if self.anisotropy_texture is not None:
             out["anisotropy_texture"] = self.anisotropy_texture
+        if self.gltf is not None:
+            out["gltf"] = _fields(self.gltf)
         return out
 
 

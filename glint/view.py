@@ -17,6 +17,7 @@ from glint.bake.edits import format_assignment, material_assignments, parse_assi
 from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.core.bake_dir import Bake
 from glint.core.errors import GlintError, one_line
+from glint.core.gltf_brdf import GltfMaterialParams
 from glint.core.manifest import Manifest
 from glint.scenes import BUILTIN, resolve
 from glint.options import SCENE_HELP, add_bake_options, add_edit_option
@@ -68,11 +69,10 @@ def home_camera(manifest: Manifest, aspect: float):
     return ViewCamera.framing(*scene_bounds(manifest), aspect)
 
 
-def pbr_mapping(*, base_color, metallic: float, roughness: float, transmission: float) -> tuple[list, list]:
-    """The material panel's glTF-style controls -> (kd, lobes as manifest dicts), by the bake's rule
+def pbr_mapping(params: GltfMaterialParams) -> tuple[list, list]:
+    """The material panel's glTF factors -> (kd, lobes as manifest dicts), by the bake's rule
     (bake/material_mapping.py `map_pbr`; the viewer may not import the bake, so it is handed in)."""
-    kd, lobes, _ = map_pbr(GltfPbr(base_color=tuple(float(c) for c in base_color[:3]), metallic=float(metallic),
-                                   roughness=float(roughness), transmission=float(transmission)))
+    kd, lobes, _ = map_pbr(GltfPbr.from_params(params))
     return [float(c) for c in kd], [lobe.to_dict() for lobe in lobes]
 
 

@@ -9,14 +9,17 @@ from the specification, with none of glint's model or mapping in it.
 Metric: per channel, |glint - reference| / reference at view angles 0, 30, 60, 70 and 80 degrees.
 Threshold 3 % where the model can follow the specification:
 - dielectrics below `diffuse_roughness` (0.5), any base colour (their lobe is kept);
-- grey metals (base colours 1, 0.9, 0.5, 0.2) up to roughness 0.4.
+- grey metals (base colours 1, 0.9, 0.5, 0.2) up to roughness 0.4;
+- coloured metals (orange, gold, copper, blue) up to roughness 0.1: two lobes of one shape give each
+  channel its own Schlick r0 (`metal_lobes`).
 Where it cannot, the bound asserted is the measured one, and docs/SCENES.md ("glTF materials: how
 close") says why:
 - rough metals: a Beckmann lobe with Kurt's alpha follows GGX's albedo to 3.9 % at roughness 0.5,
   5.6 % at 0.7 (between two table rows of different solutions) and 4.5 % at 1 (at 70-80 degrees);
-- coloured metals: one lobe has one Schlick r0, the specification's Fresnel whitens each channel
-  towards grazing from its own f0 (orange (0.8, 0.5, 0.2): within 1 % to 30 degrees, 57 % low in
-  the blue channel at 80);
+- rough coloured metals: the two lobes take the fitted shape (m, alpha) of the brightest channel,
+  and the dimmer channels' Fresnel rise towards grazing follows a Beckmann shape less well the
+  rougher the lobe (orange (0.8, 0.5, 0.2): 2.6 % at roughness 0.2, 6.2 % at 0.3, 21 % at 0.5, at 80
+  degrees in the blue channel; one lobe, before: 57 % at roughness 0.05);
 - rough dielectrics (r >= 0.5): the lobe is dropped (a diffuse wall, no cube map) and its mean
   albedo joins kd, so the specification's rise towards grazing is lost (25 % at 80 degrees for
   a base colour of 0.2).
@@ -41,6 +44,8 @@ DIELECTRIC_ROUGHNESS = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.45)
 METAL_ROUGHNESS = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4)
 COLOURS = ((0.9, 0.9, 0.9), (0.8, 0.5, 0.2), (0.2, 0.2, 0.2))
 GREYS = (1.0, 0.9, 0.5, 0.2)
+COLOURED_METALS = ((0.8, 0.5, 0.2), (1.0, 0.78, 0.34), (0.95, 0.64, 0.54), (0.2, 0.2, 0.8))
+COLOURED_ROUGHNESS = (0.0, 0.05, 0.1)
 
 
 def relative_errors(factors: dict) -> np.ndarray:
@@ -55,6 +60,7 @@ def follows_the_specification() -> list[tuple[str, float]]:
     misses = []
     cases = [dict(base_color=c, metallic=0.0, roughness=r) for c in COLOURS for r in DIELECTRIC_ROUGHNESS]
     cases += [dict(base_color=(g, g, g), metallic=1.0, roughness=r) for g in GREYS for r in METAL_ROUGHNESS]
+    cases += [dict(base_color=c, metallic=1.0, roughness=r) for c in COLOURED_METALS for r in COLOURED_ROUGHNESS]
     for factors in cases:
         worst = float(relative_errors(factors).max())
         if worst > RTOL:
@@ -65,7 +71,8 @@ def follows_the_specification() -> list[tuple[str, float]]:
 def test_lobes_follow_the_specification_albedo():
     """Bugs it catches: Kurt's alpha = 0 for glTF lobes (the rule before issue 24: a smooth metal 66 %
     low at 70 degrees), a metal's r0 left at 1 (grey 0.2 metal: 0.2 at grazing instead of ~1), kd not
-    multiplied by fresnel_mix's diffuse share (+4 % for a white dielectric)."""
+    multiplied by fresnel_mix's diffuse share (+4 % for a white dielectric), a coloured metal as one
+    lobe whose ks carries the colour (the rule before `metal_lobes`: orange 57 % low at 80 degrees)."""
     misses = follows_the_specification()
     assert not misses, "\n".join(f"{m}: {100 * e:.1f} %" for m, e in misses)
 
@@ -74,8 +81,8 @@ def test_lobes_follow_the_specification_albedo():
     (dict(base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.5), 0.045),
     (dict(base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.7), 0.06),
     (dict(base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=1.0), 0.05),
-    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.05), 0.60),
-    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.5), 0.37),
+    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.3), 0.07),
+    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.5), 0.22),
     (dict(base_color=(0.2, 0.2, 0.2), metallic=0.0, roughness=0.5), 0.27),
     (dict(base_color=(0.8, 0.5, 0.2), metallic=0.0, roughness=0.8), 0.13),
 ])

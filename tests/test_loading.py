@@ -353,13 +353,20 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     assert lobe.kind == "reflect" and lobe.ks == pytest.approx((fitted.ks,) * 3)
     assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == lobe.my == pytest.approx(fitted.m)
     assert 0.85 * 0.04 <= lobe.r0 <= 1.15 * 0.04 and 0.3 < lobe.alpha < 0.6  # Kurt's alpha: not 0
-    # Metal: no diffuse; the table's lobe for f0 = the brightest channel, ks carrying the colour.
+    # Metal: no diffuse; the table's lobe for f0 = the brightest channel. A coloured metal: two lobes of
+    # its shape, F = 1 and F = (1 - cos)^5, weighted per channel so that each has Schlick's r0 = f0
+    # scaled by its colour; a grey metal: one lobe.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.9, 0.6, 0.2), metallic=1, roughness=0.7))
     np.testing.assert_allclose(kd, 0)
-    (lobe,) = lobes
     fitted = table.specular_lobe(0.7, 0.9)
-    assert lobe.ks == pytest.approx(tuple(fitted.ks * c / 0.9 for c in (0.9, 0.6, 0.2)))
-    assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == pytest.approx(fitted.m)
+    r0_c = np.array([fitted.r0 * c / 0.9 for c in (0.9, 0.6, 0.2)])
+    np.testing.assert_allclose([(lb.r0, lb.mx, lb.alpha) for lb in lobes], [(1.0, fitted.m, fitted.alpha),
+                                                                            (0.0, fitted.m, fitted.alpha)])
+    np.testing.assert_allclose(lobes[0].ks, fitted.ks * r0_c, rtol=1e-6)
+    np.testing.assert_allclose(lobes[1].ks, fitted.ks * (1 - r0_c), rtol=1e-6)
+    (lobe,) = map_pbr(GltfPbr(base_color=(0.6, 0.6, 0.6), metallic=1, roughness=0.7))[1]
+    fitted = table.specular_lobe(0.7, 0.6)
+    assert lobe.ks == pytest.approx((fitted.ks,) * 3) and lobe.r0 == pytest.approx(fitted.r0)
     # Rough dielectric (Blender's default 0.5): no lobe, its albedo joins kd (never past 1); a lower
     # threshold moves the line.
     kd, lobes, _ = map_pbr(GltfPbr(metallic=0, roughness=0.5))
@@ -382,9 +389,12 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     assert lobe.my == pytest.approx(m) and lobe.mx == pytest.approx(m + (1 - m) * 0.25)
     # Mirror: m at the table's floor; half metal: two lobes weighted by metallic.
     _, lobes, _ = map_pbr(GltfPbr(base_color=(1, 0, 0), metallic=0.5, roughness=0.0))
-    assert [lb.r0 for lb in lobes] == [pytest.approx(0.04, rel=0.15), pytest.approx(1.0, rel=0.15)]
+    # (a red metal: F = 1 for red alone, and (1 - cos)^5 whitening every channel towards grazing)
+    assert [lb.r0 for lb in lobes] == [pytest.approx(0.04, rel=0.15), 1.0, 0.0]
     assert lobes[0].ks == pytest.approx((0.5 * table.specular_lobe(0.0, 0.04).ks,) * 3)
-    assert lobes[1].ks == pytest.approx((0.5 * table.specular_lobe(0.0, 1.0).ks, 0, 0))
+    red = table.specular_lobe(0.0, 1.0)
+    assert lobes[1].ks == pytest.approx((0.5 * red.ks * red.r0, 0, 0))
+    assert lobes[2].ks == pytest.approx((0.5 * red.ks * (1 - red.r0), 0.5 * red.ks, 0.5 * red.ks))
     assert lobes[0].mx == 1e-4
 
 

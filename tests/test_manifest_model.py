@@ -53,6 +53,9 @@ def test_a_real_bake_round_trips(tmp_path):
     write_json(tmp_path / "again.json", model.to_json())
     assert (tmp_path / "again.json").read_text() == text  # the same bytes, key order included
     assert Bake(out).model == model
+    # the built-in scenes are glTF: each material keeps the factors it was mapped from (the panel's)
+    assert all(m.gltf is not None for m in model.materials)
+    assert model.materials[0].gltf == load_scene(SCENES / "cornell-box.glb").materials[0].gltf
 
 
 def test_every_optional_material_entry_round_trips():
@@ -65,7 +68,10 @@ def test_every_optional_material_entry_round_trips():
              "alpha_mode": "MASK", "alpha_cutoff": 0.25, "alpha": 0.75,
              "volume": {"ior": 1.4, "thickness": 0.1, "absorption": [0.1, 0.2, 0.3]},
              "normal_texture": "textures/normal_0.exr", "normal_scale": 0.5, "anisotropy_rotation": 0.3,
-             "anisotropy_texture": "textures/anisotropy_0.exr"}
+             "anisotropy_texture": "textures/anisotropy_0.exr",
+             "gltf": {"base_color": [0.9, 0.6, 0.2], "metallic": 0.3, "roughness": 0.3, "ior": 1.33, "specular": 1.0,
+                      "specular_color": [1.0, 1.0, 1.0], "transmission": 0.0, "clearcoat": 0.5,
+                      "clearcoat_roughness": 0.0, "emissive": [0.0, 0.0, 0.0], "emissive_strength": 1.0}}
     assert Material.from_json(entry).to_json() == entry
     assert list(Material.from_json(entry).to_json()) == list(entry)
 
@@ -87,7 +93,7 @@ def test_an_older_bake_dir_reads_with_the_defaults(tmp_path):
     assert all(o.lightmap_back is False for o in model.objects)
     m = Material.from_json({"name": "old", "kd": [0.5, 0.5, 0.5], "emission": [0, 0, 0], "double_sided": False,
                             "lobes": [{"kind": "reflect"}], "kd_texture": None})
-    assert (m.alpha_mode, m.alpha_cutoff, m.alpha, m.volume, m.normal_scale) == ("OPAQUE", 0.5, 1.0, None, 1.0)
+    assert (m.alpha_mode, m.alpha_cutoff, m.alpha, m.volume, m.normal_scale, m.gltf) == ("OPAQUE", 0.5, 1.0, None, 1.0, None)
     assert m.lobes[0].mx == m.lobes[0].my == Lobe().mx
     assert "alpha_mode" not in m.to_json()  # written as the bake writes an opaque material
 

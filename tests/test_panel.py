@@ -217,8 +217,8 @@ def test_lobe_count_change_and_emission_show_at_once(ctx, tmp_path):
 
 def test_gltf_controls_use_the_handed_in_mapping(ctx, tmp_path):
     """The glTF-style controls go through the command layer's mapping (glint/view.py, the bake's
-    map_pbr): metallic 1 gives kd 0 and one metal lobe, the fitted table's for f0 = 0.9 at roughness 0.3
-    (bake/gltf_fit_table.py), ks carrying the colour.
+    map_pbr): metallic 1 gives kd 0 and the metal lobes of the fitted table's shape for f0 = 0.9 at
+    roughness 0.3 (bake/gltf_fit_table.py), F = 1 with ks r0 times the colour, and F = (1 - cos)^5.
     Deliberate bug tried: gltf_guess reading the roughness as m (not sqrt m) -> a roughness edit of
     another control moved m from 0.09 to 0.0081."""
     from glint.view import pbr_mapping
@@ -231,11 +231,10 @@ def test_gltf_controls_use_the_handed_in_mapping(ctx, tmp_path):
         assert viewer.panel.set_gltf(base_color=[0.9, 0.6, 0.2], metallic=1.0, roughness=0.3)
         entry = viewer.edits.materials[0]
         assert entry.kd == [0.0, 0.0, 0.0]
-        assert len(entry.lobes) == 1
-        metal = entry.lobes[0]
         fitted = fit_table().specular_lobe(0.3, 0.9)
-        assert metal.r0 == pytest.approx(fitted.r0) and metal.mx == pytest.approx(fitted.m)
-        assert metal.ks == pytest.approx([fitted.ks * c / 0.9 for c in (0.9, 0.6, 0.2)])
+        assert [(lobe.r0, lobe.mx) for lobe in entry.lobes] == [(1.0, pytest.approx(fitted.m)),
+                                                                (0.0, pytest.approx(fitted.m))]
+        assert entry.lobes[0].ks == pytest.approx([fitted.ks * fitted.r0 * c / 0.9 for c in (0.9, 0.6, 0.2)])
         assert viewer.panel.set_gltf(metallic=0.0)  # the other values as last set: roughness 0.3 stays
         assert viewer.edits.materials[0].lobes[0].mx == pytest.approx(fit_table().specular_lobe(0.3, 0.04).m)
         frames(wnd)
@@ -379,3 +378,36 @@ def test_gltf_controls_say_what_they_replace_before_they_do():
             field, values = line[len("lobe 0 "):].split(": ")
             assert f"{float(getattr(after[0], field)):.3g}" == values.split(" -> ")[1]
     assert panel.gltf_changes() == []  # now the mapping's own material: nothing more to replace
+
+
+def test_a_gltf_material_shows_its_authors_factors_and_keeps_them():
+    """A material the bake mapped from glTF (the manifest's `gltf`: base colour (0.9, 0.6, 0.2),
+    metallic 0.3, roughness 0.3, ior 1.33, clearcoat 0.5) shows those factors in the glTF-style
+    controls, not values guessed back from its lobes; moving roughness keeps ior and clearcoat
+    (the lobes are those of map_pbr of all the factors, written here with GltfPbr directly); an
+    edit of kd by hand drops the factors (the material is no longer their mapping) and the controls
+    fall back to the guess. Deliberate bug this catches (tried): the controls handing only base
+    colour, metallic, roughness and transmission to the mapping -> ior 1.5 and no clearcoat lobe
+    after a roughness move (3 lobes instead of 4, the dielectric's r0 0.04 instead of 0.02)."""
+    from glint.bake.material_mapping import GltfPbr, map_pbr
+    from glint.core.gltf_brdf import GltfMaterialParams
+    from glint.view import pbr_mapping
+    from glint.viewer.panel import MaterialPanel
+
+    factors = dict(base_color=(0.9, 0.6, 0.2), metallic=0.3, roughness=0.3, ior=1.33, clearcoat=0.5)
+    kd, lobes = pbr_mapping(GltfMaterialParams(**factors))
+    entry = Material.from_json({"name": "Brass", "kd": kd, "lobes": lobes, "gltf": factors})
+    edits = MaterialEdits([entry], lambda i, e: None)
+    panel = MaterialPanel(edits, [("tap", 0)], pbr_mapping=pbr_mapping)
+    panel.select_object(0)
+    assert panel.gltf() == {"base_color": [0.9, 0.6, 0.2], "metallic": 0.3, "roughness": 0.3, "transmission": 0.0}
+    assert panel.gltf_changes() == []
+    assert panel.set_gltf(roughness=0.2)
+    _, expected, _ = map_pbr(GltfPbr(**{**factors, "roughness": 0.2}))
+    got = edits.materials[0].lobes
+    assert len(got) == len(expected) == 4  # dielectric, the coloured metal's two, clearcoat
+    for a, b in zip(got, expected):
+        np.testing.assert_allclose([*a.ks, a.mx, a.r0, a.alpha], [*b.ks, b.mx, b.r0, b.alpha], rtol=1e-6)
+    assert edits.materials[0].gltf.ior == 1.33 and panel.gltf()["roughness"] == 0.2
+    assert panel.set_kd([0.1, 0.1, 0.1])
+    assert edits.materials[0].gltf is None and panel.gltf() != {}

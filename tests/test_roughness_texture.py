@@ -56,7 +56,7 @@ def test_loader_and_mapping_read_the_texture_linear_and_keep_the_lobes_it_needs(
     """The texture is read linear (G = 153 -> 0.6, not sRGB-decoded 0.318), metallicFactor 0.5 is
     multiplied into B, kd is the base colour at M' = 0, and both the metal and the dielectric lobe are
     kept (metallic varies) with full weights and `mr` marks; no warning calls the texture ignored;
-    a texture-less copy keeps the factor rule (one metal lobe, kd x (1 - M)).
+    a texture-less copy keeps the factor rule (the metal lobes, kd x (1 - M)).
 
     Deliberate bugs this catches (tried): the texture decoded as sRGB (G 0.318); the dielectric
     lobe dropped as for roughnessFactor 1 >= diffuse_roughness (only one lobe)."""
@@ -66,13 +66,15 @@ def test_loader_and_mapping_read_the_texture_linear_and_keep_the_lobes_it_needs(
     np.testing.assert_allclose(mat.metallic_roughness_texture[0, :, 1], [G_LOW / 255, G_HIGH / 255] * 2, atol=1e-6)
     np.testing.assert_allclose(mat.metallic_roughness_texture[0, :, 2], [0.0, 0.5] * 2, atol=1e-6)
     np.testing.assert_allclose(mat.kd, np.array(BASE) * SHARE, rtol=1e-6)
+    # a coloured metal: two lobes of one shape, F = 1 and F = (1 - cos)^5 (material_mapping.metal_lobes)
     assert [(lobe.mr, lobe.r0) for lobe in mat.lobes] == [("dielectric", pytest.approx(0.04, rel=0.15)),
-                                                         ("metal", pytest.approx(BASE[0], rel=0.15))]
+                                                         ("metal", 1.0), ("metal", 0.0)]
     np.testing.assert_allclose(mat.lobes[1].ks, np.array(BASE) / BASE[0] * mat.lobes[1].ks[0], rtol=1e-6)
+    assert mat.lobes[1].ks[0] == pytest.approx(BASE[0], rel=0.15)  # ks r0, r0 ~ f0 = the brightest channel
     assert not any("metallicRoughnessTexture" in m for m in scene.warnings)
     assert scene.objects[0].role == "planar"
     plain = load_scene(write_bar_scene(tmp_path / "plain.glb", None, metallic=0.5))
-    assert [lobe.mr for lobe in plain.materials[0].lobes] == [""]
+    assert [lobe.mr for lobe in plain.materials[0].lobes] == ["", ""]  # the coloured metal's two
     dropped = 0.5 * fit_table().specular_albedo_at(1.0, 0.04)  # roughness 1: the dielectric lobe joins kd, grey
     np.testing.assert_allclose(plain.materials[0].kd, np.array(BASE) * 0.5 * SHARE + dropped, rtol=1e-6)
 

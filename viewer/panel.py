@@ -5,7 +5,10 @@ every object that shares it): `kd` (the base-colour texture, where there is one,
 multiplies it), emission, each lobe (kind, ks, one m while mx = my or mx and my, r0, alpha),
 the anisotropy direction, and glTF-style controls (base colour, metallic, roughness,
 transmission) mapped to kd and lobes by the bake's own rule, which the command layer hands in as
-`pbr_mapping` (the viewer does not import the bake: docs/ARCHITECTURE.md). Buttons: Undo, Redo,
+`pbr_mapping` (the viewer does not import the bake: docs/ARCHITECTURE.md). A material loaded from
+glTF shows its author's factors (the manifest's `gltf`), and moving one keeps the others (ior,
+specular, clearcoat) as they were; the lobes above show what the rule fitted to them. Other
+materials show values guessed from kd and the lobes (`gltf_guess`). Buttons: Undo, Redo,
 Revert (to the bake's materials), Save (the window's `on_save(materials)`).
 
 Every widget calls one of the panel's methods (`set_kd`, `set_lobe`, `set_gltf`, ...), which
@@ -29,6 +32,7 @@ from typing import Callable
 
 from glint.core.bsdf import M_MIN
 from glint.core.errors import GlintError
+from glint.core.gltf_brdf import GltfMaterialParams
 from glint.core.manifest import Material, lobe_from_json
 from glint.core.material_schema import LOBE_KINDS, lobe_value
 from glint.core.scene import Lobe
@@ -83,8 +87,8 @@ class MaterialPanel:
                  pbr_mapping: Callable[..., tuple[list, list]] | None = None,
                  on_save: Callable[[list[dict]], None] | None = None):
         """edits: the scene's MaterialEdits; objects: (name, material index) per object (the bake's
-        order, the G-buffer's object ids); pbr_mapping(base_color=, metallic=, roughness=,
-        transmission=) -> (kd, lobes as manifest dicts), or None (no glTF controls); on_save: the
+        order, the G-buffer's object ids); pbr_mapping(GltfMaterialParams) -> (kd, lobes as manifest
+        dicts), or None (no glTF controls); on_save: the
         window's callback (None: Save is disabled)."""
         self.edits = edits
         self.objects = [(str(name), int(material)) for name, material in objects]
@@ -130,9 +134,12 @@ class MaterialPanel:
 
     # -- edits (what the widgets call) -------------------------------------------------------------
     def _edit(self, changes: dict, group=None) -> bool:
-        """The material being edited with `changes` (Material fields) replaced, as an edit."""
+        """The material being edited with `changes` (Material fields) replaced, as an edit. An edit
+        other than the glTF controls' leaves a material that no longer is its glTF factors' mapping:
+        its `gltf` goes."""
         if self.material is None:
             return False
+        changes = {"gltf": None, **changes}
         try:
             self.edits.edit(self.material, replace(self.entry, **changes), group=group)
         except GlintError as e:
@@ -174,7 +181,11 @@ class MaterialPanel:
         return self._edit({"anisotropy_rotation": radians}, group)
 
     def gltf(self) -> dict:
-        """The glTF-style values shown for the material (last set, else `gltf_guess`)."""
+        """The glTF-style values shown for the material: its glTF factors, else the last set, else
+        `gltf_guess`."""
+        params = self.entry.gltf if self.entry is not None else None
+        if params is not None:
+            return {"base_color": list(params.base_color), **{k: getattr(params, k) for k in GLTF_KEYS[1:]}}
         if self.material not in self._gltf:
             self._gltf[self.material] = gltf_guess(self.entry)
         return self._gltf[self.material]
@@ -187,7 +198,7 @@ class MaterialPanel:
         if self.pbr_mapping is None or self.entry is None:
             return []
         try:
-            kd, lobes = self.pbr_mapping(**self.gltf())
+            kd, lobes = self.pbr_mapping(self._gltf_params())
         except GlintError:
             return []
         new = [lobe_from_json(lobe) for lobe in lobes]
@@ -215,14 +226,26 @@ class MaterialPanel:
             raise TypeError(f"unknown glTF values {sorted(unknown)}")
         state = {**self.gltf(), **values}
         try:
-            kd, lobes = self.pbr_mapping(**state)
+            params = self._gltf_params(values)
+            kd, lobes = self.pbr_mapping(params)
         except GlintError as e:
             self.message = str(e)
             return False
-        if self._edit({"kd": list(kd), "lobes": [lobe_from_json(lobe) for lobe in lobes]}, group):
+        # a material with glTF factors keeps the new ones; another one its shown values (`_gltf`)
+        keep = params if self.entry.gltf is not None else None
+        if self._edit({"kd": list(kd), "lobes": [lobe_from_json(lobe) for lobe in lobes], "gltf": keep}, group):
             self._gltf[self.material] = state
             return True
         return False
+
+    def _gltf_params(self, values: dict | None = None) -> GltfMaterialParams:
+        """The glTF factors shown, with `values` (GLTF_KEYS) changed: the material's own factors
+        (ior, specular, clearcoat ... kept) where it has them, else the specification's defaults
+        under the shown values. Raises GlintError for a value the specification refuses."""
+        shown = {**self.gltf(), **(values or {})}
+        shown["base_color"] = tuple(float(c) for c in shown["base_color"][:3])
+        base = self.entry.gltf if self.entry.gltf is not None else GltfMaterialParams()
+        return replace(base, **shown)
 
     def undo(self) -> bool:
         self._gltf.clear()  # the glTF values are guessed again from what is shown
