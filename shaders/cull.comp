@@ -7,16 +7,10 @@
 
 #include "common.glsl"
 #include "scene_objects.glsl"
+#include "draw_command.glsl"
 
 layout(local_size_x = CULL_GROUP) in;
 
-struct DrawCommand {
-    uint count;
-    uint instance_count;
-    uint first_index;
-    int base_vertex;     // 0: the scene's index buffer holds global vertex indices
-    uint base_instance;
-};
 
 layout(std430, binding = DRAW_ORDER_BINDING) readonly buffer DrawOrder { int draw_order[]; };
 layout(std430, binding = DRAW_COMMAND_BINDING) writeonly buffer DrawCommands { DrawCommand commands[]; };

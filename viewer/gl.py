@@ -48,6 +48,8 @@ GL_COLOR, GL_DEPTH = 0x1800, 0x1801
 GL_CLIP_DISTANCE0 = 0x3000
 GL_ANY_SAMPLES_PASSED_CONSERVATIVE = 0x8D6A
 GL_QUERY_RESULT, GL_QUERY_RESULT_AVAILABLE = 0x8866, 0x8867
+GL_TRIANGLES, GL_UNSIGNED_INT = 0x0004, 0x1405
+GL_DRAW_INDIRECT_BUFFER, GL_PARAMETER_BUFFER = 0x8F3F, 0x80EE
 
 # The sampling state of every cube-map array: trilinear, and clamped at the face edges (where
 # GL_TEXTURE_CUBE_MAP_SEAMLESS filters across them instead).
@@ -167,6 +169,17 @@ class GL:
         self.BeginQuery = fn("glBeginQuery", None, u, u)
         self.EndQuery = fn("glEndQuery", None, u)
         self.GetQueryObjectuiv = fn("glGetQueryObjectuiv", None, u, u, pu)
+        # draws whose count a buffer holds (GL 4.6, or ARB_indirect_parameters before it); None without
+        self.UseProgram = fn("glUseProgram", None, u)
+        self.BindVertexArray = fn("glBindVertexArray", None, u)
+        self.MultiDrawElementsIndirectCount = None
+        if ctx.version_code >= 460 or "GL_ARB_indirect_parameters" in ctx.extensions:
+            for name in ("glMultiDrawElementsIndirectCount", "glMultiDrawElementsIndirectCountARB"):
+                try:
+                    self.MultiDrawElementsIndirectCount = fn(name, None, u, u, p, ctypes.c_ssize_t, i, i)
+                    break
+                except GlintError:
+                    continue
 
     # -- errors -------------------------------------------------------------------------------------
     def errors(self) -> list[int]:
@@ -191,6 +204,24 @@ class GL:
             hint = ("; the GPU is out of memory: close other programs, or render smaller"
                     if GL_OUT_OF_MEMORY in found else "")
             raise GlintError(f"OpenGL could not {what} ({names}){hint}")
+
+    # -- drawing ------------------------------------------------------------------------------------
+    def multi_draw_indirect_count(self, program: moderngl.Program, vao: moderngl.VertexArray,
+                                  commands: moderngl.Buffer, first: int, counts: moderngl.Buffer,
+                                  count_offset: int, max_draws: int) -> None:
+        """What moderngl's `render_indirect` does (program, vertex array, indirect buffer, one
+        glMultiDrawElementsIndirect of 32-bit indices), with the number of draws read by the GPU
+        from `counts` at byte `count_offset` (at most `max_draws`) instead of given by the CPU:
+        commands from command `first` of `commands` (tightly packed, 20 bytes each). Leaves the
+        vertex array and the parameter buffer unbound, as moderngl expects to find them."""
+        self.UseProgram(program.glo)
+        self.BindVertexArray(vao.glo)
+        self.BindBuffer(GL_DRAW_INDIRECT_BUFFER, commands.glo)
+        self.BindBuffer(GL_PARAMETER_BUFFER, counts.glo)
+        self.MultiDrawElementsIndirectCount(GL_TRIANGLES, GL_UNSIGNED_INT, ctypes.c_void_p(first * 20),
+                                            count_offset, max_draws, 0)
+        self.BindBuffer(GL_PARAMETER_BUFFER, 0)
+        self.BindVertexArray(0)
 
     # -- textures -----------------------------------------------------------------------------------
     def new_texture(self, target: int) -> int:

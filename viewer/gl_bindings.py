@@ -38,6 +38,9 @@ DRAW_COMMAND_BINDING = 15   # cull.comp: the indirect draw commands it writes
 DRAW_STATE_BINDING = 16     # cull.comp: why each object was drawn or not
 DRAW_HIDDEN_BINDING = 17    # cull.comp: per object, 1 = left out
 OBJECT_LOD_BINDING = 18     # cull.comp: per object its levels of detail (viewer/gpu_meshes.py OBJECT_LOD_DTYPE)
+DRAW_BATCH_BINDING = 19     # compact.comp: per texture batch its first command and count
+DRAW_COMPACT_BINDING = 20   # compact.comp: the drawn commands, packed per batch
+DRAW_COUNT_BINDING = 21     # compact.comp: per batch how many it packed (the draws' count)
 
 # -- raster passes over the bake's meshes (raster_surface.glsl: G-buffer and mirror passes) -----------
 LIGHTMAP_UNIT = 0
