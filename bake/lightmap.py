@@ -29,6 +29,7 @@ baked for (E = 0 exactly). Both are counted per object for the bake's statistics
 from __future__ import annotations
 
 import time
+import warnings
 from contextlib import nullcontext
 from dataclasses import dataclass
 
@@ -38,7 +39,9 @@ from glint.bake.alpha import cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
 from glint.parallel.executor import TASKS_PER_WORKER, executor_for
-from glint.bake.irradiance import compute_irradiance
+from glint.bake.irradiance import AdaptiveSampling, compute_irradiance, mean_irradiance, refine_irradiance, \
+    relative_error
+from glint.bake.lights import luminance
 from glint.bake.raytrace import RayTracer
 from glint.bake.sample_points import adjust_samples
 from glint.bake.seams import stitch
@@ -62,6 +65,15 @@ WARN_OBJECTS = 3  # objects the warning names
 # --exposure that brings it to middle grey. The built-in living-room's median lies 3.6 stops below
 # (draft bake): dim, not black, so no warning.
 MIDDLE_GREY = 0.18
+# Adaptive sampling (module docstring): a texel is refined when, after the first pass, the standard
+# error of its luminance is over SELECT_ERROR x max(its mean, FLOOR_SHARE x the median lit texel's), or
+# its value is over SELECT_OUTLIER x the median of its NEIGHBOURHOOD^2 same-object neighbours'; it
+# then gets more paths until that error is below TARGET_ERROR (or settings.adaptive_samples x samples).
+SELECT_ERROR = 0.7
+SELECT_OUTLIER = 3.0
+NEIGHBOURHOOD = 5
+TARGET_ERROR = 0.2
+FLOOR_SHARE = 0.05
 DARK_STOPS, BRIGHT_STOPS = 4.0, 5.0
 
 
@@ -85,6 +97,8 @@ class LightmapPages:
     trace_seconds: float = 0.0  # the path tracing of the tiles (the stage's parallel part), wall clock
     tiles: int = 0  # tasks the texels were traced in
     moved: int = 0  # of `texels`, samples moved out of geometry that covered them (bake/sample_points.py)
+    refined: int = 0  # of `texels`, given more paths by adaptive sampling
+    refined_paths: int = 0  # the paths adaptive sampling added
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
@@ -112,12 +126,36 @@ class TileTask:
 
 
 def _trace_tile(state, task: TileTask):
-    """The irradiance, back-face share and ray count of the task's texels."""
+    """The sums of the paths' L and luminance squared, the back-face share and the ray count of the
+    task's texels."""
     scene, tracer, points, normals = state
     first, count = task.first, task.count
     result = compute_irradiance(scene, tracer, points[first:first + count], normals[first:first + count], task.samples,
                                 seed=task.seed, max_depth=task.max_depth, first_index=first)
-    return result.irradiance, result.backface, result.rays
+    return result.total, result.square, result.backface, result.rays
+
+
+@dataclass(frozen=True)
+class RefineTask:
+    """Adaptive sampling's task: more paths for the texels `texels` (global indices into the worker's
+    state) from their sums so far (bake/irradiance.py refine_irradiance)."""
+    texels: np.ndarray  # (k,) int64
+    total: np.ndarray  # (k, 3) float64
+    square: np.ndarray  # (k,) float64
+    count: np.ndarray  # (k,) int64
+    adaptive: AdaptiveSampling
+    seed: int
+    max_depth: int
+
+
+def _refine_tile(state, task: RefineTask):
+    """The task's texels' sums after refinement, and the rays it traced."""
+    scene, tracer, points, normals = state
+    total, square, count = task.total.copy(), task.square.copy(), task.count.copy()
+    rays = tracer.rays
+    refine_irradiance(scene, tracer, points[task.texels], normals[task.texels], task.texels.astype(np.uint64),
+                      total, square, count, task.adaptive, task.seed, task.max_depth)
+    return total, square, count, int(tracer.rays - rays)
 
 
 def tile_size(texels: int, executor) -> int:
@@ -161,7 +199,9 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     adjusted = adjust_samples(tracer, points, normals, np.concatenate([sizes, sizes[back]]),
                               np.concatenate([objects, objects[back]]))
     points = adjusted.points.astype(points.dtype)
-    E = np.zeros((n, 3), np.float32)
+    total = np.zeros((n, 3))
+    square = np.zeros(n)
+    paths = np.full(n, settings.samples, np.int64)
     backface = np.zeros(n, np.float32)
     rays = 0
     t0 = time.perf_counter()
@@ -169,21 +209,35 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         tile = tile_size(n, tiles)
         tasks = [TileTask(i, min(tile, n - i), settings.samples, settings.seed, settings.max_depth)
                  for i in range(0, n, tile)]
-        for index, (e, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
+        for index, (e, q, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
             start = index * tile
-            E[start:start + len(e)] = e
+            total[start:start + len(e)] = e
+            square[start:start + len(q)] = q
             backface[start:start + len(b)] = b
             rays += r
             if progress is not None:
                 progress(len(e))
+        valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
+        refined = np.zeros(0, np.int64)
+        if settings.adaptive_samples > 1 and n:
+            refined, adaptive = undersampled(pages, covered, back_cover_of(pages, covered, two), total, square,
+                                             paths, valid, settings)
+            # strided, so that neighbouring texels (a gap's whole row) spread over the tasks
+            parts = min(len(refined), len(tasks), TASKS_PER_WORKER * tiles.workers())
+            more = [RefineTask(r, total[r], square[r], paths[r], adaptive, settings.seed, settings.max_depth)
+                    for r in (refined[i::parts] for i in range(parts))]
+            for index, (e, q, c, r) in tiles.run(_setup, (scene, points, normals), _refine_tile, more):
+                rows = more[index].texels
+                total[rows], square[rows], paths[rows] = e, q, c
+                rays += r
     trace_seconds = time.perf_counter() - t0
-    valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
+    E = mean_irradiance(total, paths)
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
     irradiance = _stitched(tracer, irradiance, baked, pages, 1.0, settings)
     back_irradiance, back_baked = [], []
     if len(back):
-        back_cover = [c & two[np.maximum(p.object, 0)] for p, c in zip(pages, covered)]
+        back_cover = back_cover_of(pages, covered, two)
         back_irradiance, back_baked = _pages(pages, back_cover, E[front:], valid[front:], settings)
         back_irradiance = _stitched(tracer, back_irradiance, back_baked, pages, -1.0, settings)
 
@@ -204,7 +258,57 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
                          unlit_by_object=unlit_by_object, median_radiance=median_radiance,
-                         trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()))
+                         trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()),
+                         refined=len(refined), refined_paths=int((paths - settings.samples).sum()))
+
+
+def back_cover_of(pages: list[TexelPage], covered: list[np.ndarray], two: np.ndarray) -> list[np.ndarray]:
+    """Per page, the texels that have a back side (those of two-sided objects among `covered`)."""
+    return [c & two[np.maximum(p.object, 0)] for p, c in zip(pages, covered)]
+
+
+def undersampled(pages: list[TexelPage], covered: list[np.ndarray], back_cover: list[np.ndarray],
+                 total: np.ndarray, square: np.ndarray, count: np.ndarray, valid: np.ndarray, settings):
+    """Adaptive sampling's choice after the first pass (module docstring): (the indices of the texels
+    to refine, the rule they are refined by)."""
+    Y = luminance(total) / count
+    lit = valid & (Y > 0)
+    floor = FLOOR_SHARE * float(np.median(Y[lit])) if lit.any() else 0.0
+    adaptive = AdaptiveSampling(TARGET_ERROR, settings.samples * settings.adaptive_samples, floor)
+    noisy = relative_error(total, square, count, floor) > SELECT_ERROR
+    outlier = Y > np.maximum(SELECT_OUTLIER * _neighbourhood_median(pages, covered, back_cover, Y, valid), floor)
+    return np.flatnonzero(valid & (noisy | outlier)), adaptive
+
+
+def _neighbourhood_median(pages: list[TexelPage], covered: list[np.ndarray], back_cover: list[np.ndarray],
+                          Y: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """(n,) per texel (in the stage's order: the front sides page by page, then the back sides) the
+    median luminance of the valid texels of its object and side within NEIGHBOURHOOD x NEIGHBOURHOOD
+    texels around it, itself included."""
+    out = np.zeros(len(Y))
+    r = NEIGHBOURHOOD // 2
+    offset = 0
+    for covers in (covered, back_cover):
+        for page, cover in zip(pages, covers):
+            ys, xs = np.nonzero(cover)
+            k = len(ys)
+            if not k:
+                continue
+            H, W = cover.shape
+            image = np.full((H + 2 * r, W + 2 * r), np.nan)
+            label = np.full((H + 2 * r, W + 2 * r), -1, np.int64)
+            image[ys + r, xs + r] = np.where(valid[offset:offset + k], Y[offset:offset + k], np.nan)
+            label[ys + r, xs + r] = page.object[ys, xs]
+            own = page.object[ys, xs]
+            window = np.full((k, NEIGHBOURHOOD * NEIGHBOURHOOD), np.nan)
+            for i, (dy, dx) in enumerate(np.ndindex(NEIGHBOURHOOD, NEIGHBOURHOOD)):
+                same = label[ys + dy, xs + dx] == own
+                window[same, i] = image[ys + dy, xs + dx][same]
+            with warnings.catch_warnings():  # a texel with no valid neighbour (nor itself): inf, never refined
+                warnings.simplefilter("ignore", RuntimeWarning)
+                out[offset:offset + k] = np.nan_to_num(np.nanmedian(window, axis=1), nan=np.inf)
+            offset += k
+    return out
 
 
 def _stitched(tracer: RayTracer, images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage],
