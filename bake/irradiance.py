@@ -102,16 +102,6 @@ class IrradianceResult:
         return relative_error(self.total, self.square, self.samples, floor)
 
 
-@dataclass(frozen=True)
-class AdaptiveSampling:
-    """Adaptive sampling (module docstring): a texel whose relative standard error is above `target`
-    after its first `samples` paths gets as many again, until it is below or `max_samples` is reached;
-    the error is relative to max(mean luminance, floor) (W/m^2), so black corners are not refined."""
-    target: float
-    max_samples: int
-    floor: float = 0.0
-
-
 # -- random numbers ----------------------------------------------------------------------------
 def _mix(x: np.ndarray) -> np.ndarray:
     """splitmix64 finaliser (uint64 -> uint64, a bijection with good avalanche)."""
@@ -397,13 +387,10 @@ def _transport(scene: Scene, tracer: RayTracer) -> _Transport:
 
 # -- the integrator ----------------------------------------------------------------------------
 def compute_irradiance(scene: Scene, tracer: RayTracer, points, normals, samples: int, seed: int = 0,
-                       max_depth: int = 64, progress=None, first_index: int = 0,
-                       adaptive: AdaptiveSampling | None = None) -> IrradianceResult:
-    """E at K points with unit normals: `samples` paths each, and with `adaptive`, more for the points
-    whose relative standard error is over its target (refine_irradiance); deterministic per
-    (seed, first_index + k).
+                       max_depth: int = 64, progress=None, first_index: int = 0) -> IrradianceResult:
+    """E at K points with unit normals: `samples` paths each; deterministic per (seed, first_index + k).
 
-    progress, when given, is called with the number of texels finished after each batch of the first pass.
+    progress, when given, is called with the number of texels finished after each batch.
     """
     points = np.asarray(points, np.float64).reshape(-1, 3)
     normals = np.asarray(normals, np.float64).reshape(-1, 3)
@@ -412,7 +399,6 @@ def compute_irradiance(scene: Scene, tracer: RayTracer, points, normals, samples
     total = np.zeros((K, 3))
     square = np.zeros(K)
     back = np.zeros(K, np.float32)
-    count = np.full(K, samples, np.int64)
     rays_before = tracer.rays
     ids = np.arange(first_index, first_index + K, dtype=np.uint64)
     if K:
@@ -425,41 +411,34 @@ def compute_irradiance(scene: Scene, tracer: RayTracer, points, normals, samples
             total[start:stop], square[start:stop], back[start:stop] = e, q, b
             if progress is not None:
                 progress(stop - start)
-        if adaptive is not None:
-            refine_irradiance(scene, tracer, points, normals, ids, total, square, count, adaptive, seed, max_depth)
-    return IrradianceResult(total, square, count, back, int(tracer.rays - rays_before))
+    return IrradianceResult(total, square, np.full(K, samples, np.int64), back, int(tracer.rays - rays_before))
 
 
 def refine_irradiance(scene: Scene, tracer: RayTracer, points, normals, ids: np.ndarray, total: np.ndarray,
-                      square: np.ndarray, count: np.ndarray, adaptive: AdaptiveSampling, seed: int = 0,
+                      square: np.ndarray, count: np.ndarray, max_samples: int, seed: int = 0,
                       max_depth: int = 64) -> None:
-    """Adaptive sampling (module docstring): texels `ids` (global indices; points and normals theirs)
-    whose relative standard error is over `adaptive.target` get as many paths again as they have, the
-    paths that follow theirs in the texel's own sequence, until the error is below the target or
-    another round would pass `adaptive.max_samples`. The sums `total`, `square` and `count` (of
-    the paths' L, luminance squared, number) are updated in place; E = total / count weighs every
-    path the same."""
+    """More paths for points `ids` (global texel indices, which seed their random numbers; points and
+    normals theirs) until each has `max_samples`: the paths that follow the `count` it has in its own
+    sequence (R2 points and path hashes continued), traced in rounds that double the count. The sums
+    `total`, `square` and `count` (of the paths' L, luminance squared, number) are updated in place;
+    E = total / count weighs every path the same. How many paths a point ends with is the caller's
+    choice: for E to stay unbiased, it must not depend on the point's own paths (bake/lightmap.py)."""
     if not len(ids):
         return
     tp = _transport(scene, tracer)
     points = np.asarray(points, np.float64).reshape(-1, 3)
     normals = np.asarray(normals, np.float64).reshape(-1, 3)
-    while True:
-        more = np.flatnonzero((relative_error(total, square, count, adaptive.floor) > adaptive.target)
-                              & (2 * count <= adaptive.max_samples))
-        if not len(more):
-            return
-        # a round per distinct count (a texel's next paths continue its own sequence)
-        for n in np.unique(count[more]):
+    while (more := np.flatnonzero(count < max_samples)).size:
+        for n in np.unique(count[more]):  # a round per count (each point continues its own sequence)
             rows = more[count[more] == n]
-            n = int(n)
-            per_batch = max(1, BATCH_PATHS // n)
+            add = int(min(n, max_samples - n))
+            per_batch = max(1, BATCH_PATHS // add)
             for start in range(0, len(rows), per_batch):
                 r = rows[start:start + per_batch]
-                e, q, _ = _trace_batch(tp, points[r], normals[r], ids[r], n, n, seed, max_depth)
+                e, q, _ = _trace_batch(tp, points[r], normals[r], ids[r], int(n), add, seed, max_depth)
                 total[r] += e
                 square[r] += q
-            count[rows] += n
+            count[rows] += add
 
 
 def mean_irradiance(total: np.ndarray, count: np.ndarray) -> np.ndarray:

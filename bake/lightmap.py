@@ -39,8 +39,7 @@ from glint.bake.alpha import cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
 from glint.parallel.executor import TASKS_PER_WORKER, executor_for
-from glint.bake.irradiance import AdaptiveSampling, compute_irradiance, mean_irradiance, refine_irradiance, \
-    relative_error
+from glint.bake.irradiance import compute_irradiance, mean_irradiance, refine_irradiance, relative_error
 from glint.bake.lights import luminance
 from glint.bake.raytrace import RayTracer
 from glint.bake.sample_points import adjust_samples
@@ -65,14 +64,10 @@ WARN_OBJECTS = 3  # objects the warning names
 # --exposure that brings it to middle grey. The built-in living-room's median lies 3.6 stops below
 # (draft bake): dim, not black, so no warning.
 MIDDLE_GREY = 0.18
-# Adaptive sampling (module docstring): a texel is refined when, after the first pass, the standard
-# error of its luminance is over SELECT_ERROR x max(its mean, FLOOR_SHARE x the median lit texel's), or
-# its value is over SELECT_OUTLIER x the median of its NEIGHBOURHOOD^2 same-object neighbours'; it
-# then gets more paths until that error is below TARGET_ERROR (or settings.adaptive_samples x samples).
+# Adaptive sampling (module docstring): after the first pass a texel is flagged when the standard error
+# of its luminance is over SELECT_ERROR x max(its mean, FLOOR_SHARE x the median lit texel's); a texel
+# with a flagged neighbour then gets settings.adaptive_samples x samples paths.
 SELECT_ERROR = 0.7
-SELECT_OUTLIER = 3.0
-NEIGHBOURHOOD = 5
-TARGET_ERROR = 0.2
 FLOOR_SHARE = 0.05
 DARK_STOPS, BRIGHT_STOPS = 4.0, 5.0
 
@@ -143,7 +138,7 @@ class RefineTask:
     total: np.ndarray  # (k, 3) float64
     square: np.ndarray  # (k,) float64
     count: np.ndarray  # (k,) int64
-    adaptive: AdaptiveSampling
+    max_samples: int  # paths each texel ends with
     seed: int
     max_depth: int
 
@@ -154,7 +149,7 @@ def _refine_tile(state, task: RefineTask):
     total, square, count = task.total.copy(), task.square.copy(), task.count.copy()
     rays = tracer.rays
     refine_irradiance(scene, tracer, points[task.texels], normals[task.texels], task.texels.astype(np.uint64),
-                      total, square, count, task.adaptive, task.seed, task.max_depth)
+                      total, square, count, task.max_samples, task.seed, task.max_depth)
     return total, square, count, int(tracer.rays - rays)
 
 
@@ -220,11 +215,11 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
         refined = np.zeros(0, np.int64)
         if settings.adaptive_samples > 1 and n:
-            refined, adaptive = undersampled(pages, covered, back_cover_of(pages, covered, two), total, square,
-                                             paths, valid, settings)
+            refined = undersampled(pages, covered, back_cover_of(pages, covered, two), total, square, paths, valid)
+            cap = settings.samples * settings.adaptive_samples
             # strided, so that neighbouring texels (a gap's whole row) spread over the tasks
             parts = min(len(refined), len(tasks), TASKS_PER_WORKER * tiles.workers())
-            more = [RefineTask(r, total[r], square[r], paths[r], adaptive, settings.seed, settings.max_depth)
+            more = [RefineTask(r, total[r], square[r], paths[r], cap, settings.seed, settings.max_depth)
                     for r in (refined[i::parts] for i in range(parts))]
             for index, (e, q, c, r) in tiles.run(_setup, (scene, points, normals), _refine_tile, more):
                 rows = more[index].texels
@@ -268,25 +263,28 @@ def back_cover_of(pages: list[TexelPage], covered: list[np.ndarray], two: np.nda
 
 
 def undersampled(pages: list[TexelPage], covered: list[np.ndarray], back_cover: list[np.ndarray],
-                 total: np.ndarray, square: np.ndarray, count: np.ndarray, valid: np.ndarray, settings):
-    """Adaptive sampling's choice after the first pass (module docstring): (the indices of the texels
-    to refine, the rule they are refined by)."""
+                 total: np.ndarray, square: np.ndarray, count: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Adaptive sampling's choice after the first pass (module docstring): the indices of the valid
+    texels with a flagged neighbour, a valid texel of the same object and side in the 3 x 3 around it
+    (itself not counted) whose relative standard error is over SELECT_ERROR."""
     Y = luminance(total) / count
     lit = valid & (Y > 0)
     floor = FLOOR_SHARE * float(np.median(Y[lit])) if lit.any() else 0.0
-    adaptive = AdaptiveSampling(TARGET_ERROR, settings.samples * settings.adaptive_samples, floor)
-    noisy = relative_error(total, square, count, floor) > SELECT_ERROR
-    outlier = Y > np.maximum(SELECT_OUTLIER * _neighbourhood_median(pages, covered, back_cover, Y, valid), floor)
-    return np.flatnonzero(valid & (noisy | outlier)), adaptive
+    flagged = valid & (relative_error(total, square, count, floor) > SELECT_ERROR)
+    flags, same = _windows(pages, covered, back_cover, flagged.astype(np.float64), 3)
+    flags[:, 4] = 0.0  # the texel itself: its own paths must not decide how many it gets
+    return np.flatnonzero(valid & ((flags * same) > 0).any(axis=1))
 
 
-def _neighbourhood_median(pages: list[TexelPage], covered: list[np.ndarray], back_cover: list[np.ndarray],
-                          Y: np.ndarray, valid: np.ndarray) -> np.ndarray:
-    """(n,) per texel (in the stage's order: the front sides page by page, then the back sides) the
-    median luminance of the valid texels of its object and side within NEIGHBOURHOOD x NEIGHBOURHOOD
-    texels around it, itself included."""
-    out = np.zeros(len(Y))
-    r = NEIGHBOURHOOD // 2
+def _windows(pages: list[TexelPage], covered: list[np.ndarray], back_cover: list[np.ndarray], values: np.ndarray,
+             size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per texel (in the stage's order: the front sides page by page, then the back sides), the
+    `values` of the size x size texels around it, row-major (n, size^2), and which of them are texels
+    of its object on the same side (n, size^2) bool."""
+    n = len(values)
+    out = np.zeros((n, size * size))
+    same = np.zeros((n, size * size), bool)
+    r = size // 2
     offset = 0
     for covers in (covered, back_cover):
         for page, cover in zip(pages, covers):
@@ -295,20 +293,16 @@ def _neighbourhood_median(pages: list[TexelPage], covered: list[np.ndarray], bac
             if not k:
                 continue
             H, W = cover.shape
-            image = np.full((H + 2 * r, W + 2 * r), np.nan)
+            image = np.zeros((H + 2 * r, W + 2 * r))
             label = np.full((H + 2 * r, W + 2 * r), -1, np.int64)
-            image[ys + r, xs + r] = np.where(valid[offset:offset + k], Y[offset:offset + k], np.nan)
-            label[ys + r, xs + r] = page.object[ys, xs]
+            image[ys + r, xs + r] = values[offset:offset + k]
             own = page.object[ys, xs]
-            window = np.full((k, NEIGHBOURHOOD * NEIGHBOURHOOD), np.nan)
-            for i, (dy, dx) in enumerate(np.ndindex(NEIGHBOURHOOD, NEIGHBOURHOOD)):
-                same = label[ys + dy, xs + dx] == own
-                window[same, i] = image[ys + dy, xs + dx][same]
-            with warnings.catch_warnings():  # a texel with no valid neighbour (nor itself): inf, never refined
-                warnings.simplefilter("ignore", RuntimeWarning)
-                out[offset:offset + k] = np.nan_to_num(np.nanmedian(window, axis=1), nan=np.inf)
+            label[ys + r, xs + r] = own
+            for i, (dy, dx) in enumerate(np.ndindex(size, size)):
+                out[offset:offset + k, i] = image[ys + dy, xs + dx]
+                same[offset:offset + k, i] = label[ys + dy, xs + dx] == own
             offset += k
-    return out
+    return out, same
 
 
 def _stitched(tracer: RayTracer, images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage],
