@@ -6,13 +6,14 @@ fireflies (bench/fireflies.py) and the light-map stage's time, with adaptive sam
         [--quality preview] [--adaptive 1 16]
     python -m glint.bench.measure_fireflies --bias [--seeds 32]
 
-The bias: adaptive sampling decides from a texel's own first paths whether it gets more, so its mean
-over seeds can differ from the plain estimator's (unbiased). At living-room's four texels that were
-fireflies at preview (the sofa foot in the gap behind the sofa, the book's end) and RANDOM_TEXELS
-texels drawn from its light maps, each estimated with `--seeds` seeds both ways, the bake's rule
-(bake/lightmap.py: relative error over SELECT_ERROR, or over SELECT_OUTLIER x the neighbourhood's
-value, here the texel's converged value; then refined to TARGET_ERROR or the cap): the mean over
-seeds of each, and the converged value (REFERENCE paths, another seed).
+The bias (`--bias`) of the rule the bake does not use: a texel's own first paths decide whether it
+gets more (relative error over SELECT_ERROR, or its value over OWN_RULE_OUTLIER x its neighbourhood's,
+here its converged value), and it is refined until its own error is below OWN_RULE_TARGET or
+OWN_RULE_CAP x samples. Its mean over seeds differs from the plain estimator's, which is unbiased:
+measured at living-room's four texels that were fireflies at preview (the sofa foot in the gap behind
+the sofa, the book's end) and RANDOM_TEXELS texels drawn from its light maps, `--seeds` seeds each
+way, against the converged value (REFERENCE paths, another seed). The bake's rule (bake/lightmap.py)
+lets a texel's neighbours decide, never its own paths, so it adds no bias.
 """
 from __future__ import annotations
 
@@ -24,6 +25,11 @@ import numpy as np
 FIREFLY_TEXELS = ((0, 232, 326), (0, 233, 326), (0, 234, 326), (0, 310, 135))  # living-room, preview: (page, y, x)
 RANDOM_TEXELS = 40
 REFERENCE = 16384
+LIVING_ROOM_MEDIAN = 0.62  # W/m^2, living-room's median lit texel at preview (measured): the floor's scale
+# the rejected rule (module docstring)
+OWN_RULE_OUTLIER = 3.0
+OWN_RULE_TARGET = 0.2
+OWN_RULE_CAP = 16
 
 
 def _scene(name: str):
@@ -53,7 +59,7 @@ def count(args) -> None:
 
 def bias(args) -> None:
     from glint.bake import lightmap as LM
-    from glint.bake.irradiance import AdaptiveSampling, compute_irradiance, refine_irradiance, relative_error
+    from glint.bake.irradiance import compute_irradiance, refine_irradiance, relative_error
     from glint.bake.lights import luminance
     from glint.bake.raytrace import RayTracer
     from glint.bake.sample_points import adjust_samples
@@ -66,47 +72,46 @@ def bias(args) -> None:
     pages = rasterize_texels(scene.objects, unwrap(scene.objects, s.texels_per_metre, s.padding, s.max_page_size))
     tracer = RayTracer(scene)
     rng = np.random.default_rng(1)
-    texels = list(FIREFLY_TEXELS)
-    ys, xs = np.nonzero(pages[0].object >= 0)
-    texels += [(0, int(ys[i]), int(xs[i])) for i in rng.choice(len(ys), RANDOM_TEXELS, replace=False)]
     page = pages[0]
-    yx = np.array([t[1:] for t in texels])
+    ys, xs = np.nonzero(page.object >= 0)
+    picked = rng.choice(len(ys), RANDOM_TEXELS, replace=False)
+    yx = np.array([t[1:] for t in FIREFLY_TEXELS] + [(int(ys[i]), int(xs[i])) for i in picked])
     normals = page.normal[yx[:, 0], yx[:, 1]].astype(np.float64)
     moved = adjust_samples(tracer, page.position[yx[:, 0], yx[:, 1]], normals, page.size[yx[:, 0], yx[:, 1]],
                            page.object[yx[:, 0], yx[:, 1]])
-    keep = ~moved.invalid
-    points, normals = moved.points[keep], normals[keep]
-    kinds = np.array([k < len(FIREFLY_TEXELS) for k in range(len(texels))])[keep]
+    keep = np.flatnonzero(~moved.invalid)
+    points, normals, yx = moved.points[keep], normals[keep], yx[keep]
+    former = keep < len(FIREFLY_TEXELS)
     reference = luminance(compute_irradiance(scene, tracer, points, normals, REFERENCE, seed=777).total) / REFERENCE
-    floor = LM.FLOOR_SHARE * 0.62  # living-room's median lit texel at preview (0.62 W/m^2, measured)
-    rule = AdaptiveSampling(LM.TARGET_ERROR, s.samples * s.adaptive_samples, floor)
-    plain, adaptive, paths = [], [], []
+    floor = LM.FLOOR_SHARE * LIVING_ROOM_MEDIAN
+    cap = s.samples * OWN_RULE_CAP
+    plain, own, paths = [], [], []
     for seed in range(args.seeds):
         r = compute_irradiance(scene, tracer, points, normals, s.samples, seed=1000 + seed)
         total, square, n = r.total.copy(), r.square.copy(), r.samples.copy()
         plain.append(luminance(total) / n)
-        pick = np.flatnonzero((relative_error(total, square, n, floor) > LM.SELECT_ERROR)
-                              | (luminance(total) / n > np.maximum(LM.SELECT_OUTLIER * reference, floor)))
-        t, q, c = total[pick], square[pick], n[pick]
-        refine_irradiance(scene, tracer, points[pick], normals[pick], pick.astype(np.uint64), t, q, c, rule,
-                          1000 + seed)
-        total[pick], n[pick] = t, c
-        adaptive.append(luminance(total) / n)
+        # the rejected rule: a texel's own error (or its value against the neighbourhood's, here its
+        # converged value) decides, and it is refined until its own error is below OWN_RULE_TARGET
+        go = (relative_error(total, square, n, floor) > LM.SELECT_ERROR) | \
+            (luminance(total) / n > np.maximum(OWN_RULE_OUTLIER * reference, floor))
+        while (pick := np.flatnonzero(go & (n < cap))).size:
+            t, q, c = total[pick], square[pick], n[pick]
+            refine_irradiance(scene, tracer, points[pick], normals[pick], pick.astype(np.uint64), t, q, c,
+                              int(2 * c[0]) if len(set(c)) == 1 else int(c.max()), 1000 + seed)
+            total[pick], square[pick], n[pick] = t, q, c
+            go = relative_error(total, square, n, floor) > OWN_RULE_TARGET
+        own.append(luminance(total) / n)
         paths.append(n)
-    plain, adaptive, paths = np.array(plain), np.array(adaptive), np.array(paths)
-    for label, sel in (("former fireflies", kinds), ("random texels", ~kinds)):
-        for k in np.flatnonzero(sel) if label == "former fireflies" else [None]:
-            rows = [k] if k is not None else np.flatnonzero(sel)
-            p, a, ref = plain[:, rows].mean(axis=0), adaptive[:, rows].mean(axis=0), reference[rows]
-            se = np.sqrt(plain[:, rows].var(axis=0, ddof=1) / args.seeds).mean()
-            worst = np.max(np.abs(adaptive[:, rows] / np.maximum(ref, 1e-12) - 1.0), axis=1).mean()
-            print(f"{label}{'' if k is None else f' {texels[np.flatnonzero(keep)[k]]}'}: mean over {args.seeds} seeds, "
-                  f"plain {p.mean():.4f} (its standard error {se:.4f}), adaptive {a.mean():.4f}, converged "
-                  f"{ref.mean():.4f}; bias of the rule (adaptive - plain) / converged "
-                  f"{100 * (a.mean() - p.mean()) / ref.mean():+.1f} %; mean paths {paths[:, rows].mean():.0f}; "
-                  f"largest seed's error over converged: plain {100 * np.abs(plain[:, rows] / ref - 1).max():.0f} %, "
-                  f"adaptive {100 * np.abs(adaptive[:, rows] / ref - 1).max():.0f} % (mean worst {100 * worst:.0f} %)",
-                  flush=True)
+    plain, own, paths = np.array(plain), np.array(own), np.array(paths)
+    rows = [[k] for k in np.flatnonzero(former)] + [list(np.flatnonzero(~former))]
+    for r in rows:
+        label = f"texel {tuple(int(v) for v in yx[r[0]])} (a former firefly)" if len(r) == 1 else \
+            f"{len(r)} random texels"
+        p, a, ref = plain[:, r].mean(), own[:, r].mean(), reference[r].mean()
+        se = plain[:, r].mean(axis=1).std(ddof=1) / np.sqrt(args.seeds)
+        print(f"{label}: mean over {args.seeds} seeds: plain {p:.4f} (standard error {se:.4f}), own-error rule "
+              f"{a:.4f} ({paths[:, r].mean():.0f} paths on average), converged {ref:.4f} ({REFERENCE} paths); "
+              f"the rule's bias (own - plain) / converged {100 * (a - p) / ref:+.1f} %", flush=True)
 
 
 def main() -> None:
