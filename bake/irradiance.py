@@ -51,6 +51,11 @@ with the direction by a per-texel random permutation (unbiased, and less per-tex
 independent samples: docs/BAKE.md, "Sample pairing"); deeper vertices use a hash (splitmix64) of
 (path, dimension).
 
+Adaptive sampling: a batch returns each texel's sums of the paths' L and luminance squared (the
+standard error's second moment); refine_irradiance traces more paths for chosen texels, those that
+follow the ones they have (R2 points and path hashes continued; bake/lightmap.py chooses which, never
+from a texel's own paths); E is the sum over all of them divided by their number.
+
 Speed: most of the time is numpy around Embree, not Embree itself (docs/BAKE.md, "The integrator's
 speed").
 """

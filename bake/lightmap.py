@@ -20,6 +20,19 @@ stitched (bake/seams.py) and the texels around them filled again.
 Sample points: each side's sample is first moved out of meshes that cover it (bake/sample_points.py:
 a moulding through the ceiling, a sofa on the floor; double-sided or not).
 
+Adaptive sampling (issue 25). A texel's first `samples` paths give its mean and, from the sum of
+their luminance squared, the standard error of that mean. A texel whose relative error (against
+max(its mean, FLOOR_SHARE x the median lit texel's), so black corners are not flagged) is over
+SELECT_ERROR is flagged: a few of its paths found light through a narrow gap with a huge weight. The
+texels next to a flagged one (the 3 x 3 around it, the same object and side) then get
+`adaptive_samples` x `samples` paths in all, the paths that follow their first ones in their own
+sequences (bake/irradiance.py refine_irradiance), in a second round of tasks; every path weighs the
+same. A texel's own paths never decide how many it gets (its own flag does not count), so its
+estimate stays unbiased: the number is independent of its paths. A rule by the texel's own error
+(refine while it is over a target) averages to less than the plain estimator where rare paths carry
+the light: -13 to -55 % at living-room's former fireflies (bench/measure_fireflies.py --bias,
+docs/BAKE.md "Fireflies"). The price: a firefly with no flagged neighbour stays (docs/BAKE.md).
+
 Invalid texels: those whose own hemisphere rays hit the back of single-sided surfaces more
 often than `backface_threshold` (inside walls, under boxes), and those whose covered sample has no
 free position in its footprint; dilation fills them from their valid neighbours, of their own
