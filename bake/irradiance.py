@@ -102,10 +102,6 @@ class IrradianceResult:
         """(K, 3) float32 E = integral of L_i cos over the hemisphere around n (W/m^2), RGB: the mean of the paths."""
         return mean_irradiance(self.total, self.samples)
 
-    def error(self, floor: float = 0.0) -> np.ndarray:
-        """(K,) relative standard error of E's luminance (relative_error)."""
-        return relative_error(self.total, self.square, self.samples, floor)
-
 
 # -- random numbers ----------------------------------------------------------------------------
 def _mix(x: np.ndarray) -> np.ndarray:

@@ -30,7 +30,7 @@ sequences (bake/irradiance.py refine_irradiance), in a second round of tasks; ev
 same. A texel's own paths never decide how many it gets (its own flag does not count), so its
 estimate stays unbiased: the number is independent of its paths. A rule by the texel's own error
 (refine while it is over a target) averages to less than the plain estimator where rare paths carry
-the light: -13 to -55 % at living-room's former fireflies (bench/measure_fireflies.py --bias,
+the light: -16 to -90 % at living-room's former fireflies (bench/measure_fireflies.py --bias,
 docs/BAKE.md "Fireflies"). The price: a firefly with no flagged neighbour stays (docs/BAKE.md).
 
 Invalid texels: those whose own hemisphere rays hit the back of single-sided surfaces more
@@ -234,7 +234,9 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
             parts = min(len(refined), len(tasks), TASKS_PER_WORKER * tiles.workers())
             more = [RefineTask(r, total[r], square[r], paths[r], cap, settings.seed, settings.max_depth)
                     for r in (refined[i::parts] for i in range(parts))]
-            for index, (e, q, c, r) in tiles.run(_setup, (scene, points, normals), _refine_tile, more):
+            # no tasks, no run: a run of none would still build a worker state (a tracer) here
+            results = tiles.run(_setup, (scene, points, normals), _refine_tile, more) if more else ()
+            for index, (e, q, c, r) in results:
                 rows = more[index].texels
                 total[rows], square[rows], paths[rows] = e, q, c
                 rays += r
