@@ -20,10 +20,10 @@ stitched (bake/seams.py) and the texels around them filled again.
 Sample points: each side's sample is first moved out of meshes that cover it (bake/sample_points.py:
 a moulding through the ceiling, a sofa on the floor; double-sided or not).
 
-Adaptive sampling (issue 25). A texel's first `samples` paths give its mean and, from the sum of
-their luminance squared, the standard error of that mean. A texel whose relative error (against
-max(its mean, FLOOR_SHARE x the median lit texel's), so black corners are not flagged) is over
-SELECT_ERROR is flagged: a few of its paths found light through a narrow gap with a huge weight. The
+Adaptive sampling (issue 25). A texel's first `samples` paths give their mean and, from the sum of
+their luminance squared, their standard deviation. A texel whose paths' deviation is over SELECT_CV
+x max(their mean, FLOOR_SHARE x the median lit texel's; black corners are not flagged) is flagged: a
+few of its paths found light through a narrow gap with a huge weight. The
 texels next to a flagged one (the 3 x 3 around it, the same object and side) then get
 `adaptive_samples` x `samples` paths in all, the paths that follow their first ones in their own
 sequences (bake/irradiance.py refine_irradiance), in a second round of tasks; every path weighs the
@@ -77,10 +77,13 @@ WARN_OBJECTS = 3  # objects the warning names
 # --exposure that brings it to middle grey. The built-in living-room's median lies 3.6 stops below
 # (draft bake): dim, not black, so no warning.
 MIDDLE_GREY = 0.18
-# Adaptive sampling (module docstring): after the first pass a texel is flagged when the standard error
-# of its luminance is over SELECT_ERROR x max(its mean, FLOOR_SHARE x the median lit texel's); a texel
-# with a flagged neighbour then gets settings.adaptive_samples x samples paths.
-SELECT_ERROR = 0.7
+# Adaptive sampling (module docstring): after the first pass a texel is flagged when the standard
+# deviation of its paths' luminance is over SELECT_CV x max(their mean, FLOOR_SHARE x the median lit
+# texel's); a texel with a flagged neighbour then gets settings.adaptive_samples x samples paths.
+# SELECT_CV 8 is a relative standard error of 0.71 at preview's 128 paths (living-room's fireflies:
+# 0.61-0.96), 1.41 at draft's 32 (above what 32 paths can show: draft is not refined) and 0.25 at
+# final's 1024.
+SELECT_CV = 8.0
 FLOOR_SHARE = 0.05
 DARK_STOPS, BRIGHT_STOPS = 4.0, 5.0
 
@@ -281,11 +284,12 @@ def undersampled(pages: list[TexelPage], covered: list[np.ndarray], back_cover: 
                  total: np.ndarray, square: np.ndarray, count: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Adaptive sampling's choice after the first pass (module docstring): the indices of the valid
     texels with a flagged neighbour, a valid texel of the same object and side in the 3 x 3 around it
-    (itself not counted) whose relative standard error is over SELECT_ERROR."""
+    (itself not counted) whose paths' coefficient of variation is over SELECT_CV."""
     Y = luminance(total) / count
     lit = valid & (Y > 0)
     floor = FLOOR_SHARE * float(np.median(Y[lit])) if lit.any() else 0.0
-    flagged = valid & (relative_error(total, square, count, floor) > SELECT_ERROR)
+    # the paths' standard deviation over their mean: the standard error of the mean x sqrt(paths)
+    flagged = valid & (relative_error(total, square, count, floor) * np.sqrt(count) > SELECT_CV)
     flags, same = _windows(pages, covered, back_cover, flagged.astype(np.float64), 3)
     flags[:, 4] = 0.0  # the texel itself: its own paths must not decide how many it gets
     return np.flatnonzero(valid & ((flags * same) > 0).any(axis=1))

@@ -7,7 +7,7 @@ fireflies (bench/fireflies.py) and the light-map stage's time, with adaptive sam
     python -m glint.bench.measure_fireflies --bias [--seeds 32]
 
 The bias (`--bias`) of the rule the bake does not use: a texel's own first paths decide whether it
-gets more (relative error over SELECT_ERROR, or its value over OWN_RULE_OUTLIER x its neighbourhood's,
+gets more (relative error over OWN_RULE_ERROR, or its value over OWN_RULE_OUTLIER x its neighbourhood's,
 here its converged value), and it is refined until its own error is below OWN_RULE_TARGET or
 OWN_RULE_CAP x samples. Its mean over seeds differs from the plain estimator's, which is unbiased:
 measured at living-room's four texels that were fireflies at preview (the sofa foot in the gap behind
@@ -27,6 +27,7 @@ RANDOM_TEXELS = 40
 REFERENCE = 16384
 LIVING_ROOM_MEDIAN = 0.62  # W/m^2, living-room's median lit texel at preview (measured): the floor's scale
 # the rejected rule (module docstring)
+OWN_RULE_ERROR = 0.7  # relative standard error
 OWN_RULE_OUTLIER = 3.0
 OWN_RULE_TARGET = 0.2
 OWN_RULE_CAP = 16
@@ -92,7 +93,7 @@ def bias(args) -> None:
         plain.append(luminance(total) / n)
         # the rejected rule: a texel's own error (or its value against the neighbourhood's, here its
         # converged value) decides, and it is refined until its own error is below OWN_RULE_TARGET
-        go = (relative_error(total, square, n, floor) > LM.SELECT_ERROR) | \
+        go = (relative_error(total, square, n, floor) > OWN_RULE_ERROR) | \
             (luminance(total) / n > np.maximum(OWN_RULE_OUTLIER * reference, floor))
         while (pick := np.flatnonzero(go & (n < cap))).size:
             t, q, c = total[pick], square[pick], n[pick]

@@ -27,7 +27,7 @@ def _page(objects: np.ndarray) -> TexelPage:
 
 def test_a_texel_is_refined_for_its_neighbours_never_for_its_own_paths():
     """An 8 x 8 page, object 0 in columns 0-3, object 1 in columns 4-7; every texel's paths equal (no
-    error) but three, whose paths are one bright in 128 (relative error ~1): (2, 1) alone, and (5, 3)
+    deviation) but three, whose paths are one bright in 128 (deviation ~11 x the mean): (2, 1) alone, and (5, 3)
     with (6, 3), the latter two at object 0's edge next to object 1. Expected, by hand: the 3 x 3
     around each flagged texel, only object 0's texels, and a flagged texel only when another flagged
     texel is its neighbour: (5, 3) and (6, 3) yes, (2, 1) no.
@@ -88,13 +88,13 @@ def test_refined_paths_continue_the_texels_own_sequence():
 
 
 def test_refinement_does_not_depend_on_the_workers(monkeypatch):
-    """cornell-box at draft with a low SELECT_ERROR (so that hundreds of texels are refined), in small
+    """cornell-box at draft with a low SELECT_CV (so that hundreds of texels are refined), in small
     tiles: one worker and two give the same light maps, byte for byte, and the refinement added paths.
 
     Bug this catches (tried): the refinement's results put back by task order (`rows` taken from the
     first task) instead of each task's own texels: the pages differ between 1 and 2 workers."""
     monkeypatch.setattr(LM, "TILE", 512)
-    monkeypatch.setattr(LM, "SELECT_ERROR", 0.3)
+    monkeypatch.setattr(LM, "SELECT_CV", 1.7)
     scene = load_scene(builtin_path("cornell-box"))
     s = resolve_settings(scene.bake_settings, quality="draft", adaptive_samples=4)
     pages = rasterize_texels(scene.objects, unwrap(scene.objects, s.texels_per_metre, s.padding, s.max_page_size))
