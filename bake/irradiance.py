@@ -51,6 +51,11 @@ with the direction by a per-texel random permutation (unbiased, and less per-tex
 independent samples: docs/BAKE.md, "Sample pairing"); deeper vertices use a hash (splitmix64) of
 (path, dimension).
 
+Adaptive sampling: a batch returns each texel's sums of the paths' L and luminance squared (the
+standard error's second moment); refine_irradiance traces more paths for chosen texels, those that
+follow the ones they have (R2 points and path hashes continued; bake/lightmap.py chooses which, never
+from a texel's own paths); E is the sum over all of them divided by their number.
+
 Speed: most of the time is numpy around Embree, not Embree itself (docs/BAKE.md, "The integrator's
 speed").
 """
@@ -86,9 +91,16 @@ _R2_A = np.array([1.0 / _R2, 1.0 / _R2 ** 2])
 
 @dataclass
 class IrradianceResult:
-    irradiance: np.ndarray  # (K, 3) float32 E = integral of L_i cos over the hemisphere around n (W/m^2), RGB
-    backface: np.ndarray  # (K,) float32 fraction of first-bounce hemisphere rays that hit a single-sided back face
+    total: np.ndarray  # (K, 3) float64 sum over the paths of their L (RGB)
+    square: np.ndarray  # (K,) float64 sum over the paths of their luminance squared (the error's second moment)
+    samples: np.ndarray  # (K,) int64 paths traced per point (more than asked where adaptive sampling added)
+    backface: np.ndarray  # (K,) float32 fraction of the first pass's hemisphere rays that hit a single-sided back face
     rays: int  # rays traced (for statistics)
+
+    @property
+    def irradiance(self) -> np.ndarray:
+        """(K, 3) float32 E = integral of L_i cos over the hemisphere around n (W/m^2), RGB: the mean of the paths."""
+        return mean_irradiance(self.total, self.samples)
 
 
 # -- random numbers ----------------------------------------------------------------------------
@@ -385,46 +397,95 @@ def compute_irradiance(scene: Scene, tracer: RayTracer, points, normals, samples
     normals = np.asarray(normals, np.float64).reshape(-1, 3)
     K = len(points)
     samples = max(int(samples), 1)
-    E = np.zeros((K, 3), np.float32)
+    total = np.zeros((K, 3))
+    square = np.zeros(K)
     back = np.zeros(K, np.float32)
     rays_before = tracer.rays
-    if K == 0:
-        return IrradianceResult(E, back, 0)
+    ids = np.arange(first_index, first_index + K, dtype=np.uint64)
+    if K:
+        tp = _transport(scene, tracer)
+        per_batch = max(1, BATCH_PATHS // samples)
+        for start in range(0, K, per_batch):
+            stop = min(K, start + per_batch)
+            e, q, b = _trace_batch(tp, points[start:stop], normals[start:stop], ids[start:stop], 0, samples,
+                                   seed, max_depth)
+            total[start:stop], square[start:stop], back[start:stop] = e, q, b
+            if progress is not None:
+                progress(stop - start)
+    return IrradianceResult(total, square, np.full(K, samples, np.int64), back, int(tracer.rays - rays_before))
+
+
+def refine_irradiance(scene: Scene, tracer: RayTracer, points, normals, ids: np.ndarray, total: np.ndarray,
+                      square: np.ndarray, count: np.ndarray, max_samples: int, seed: int = 0,
+                      max_depth: int = 64) -> None:
+    """More paths for points `ids` (global texel indices, which seed their random numbers; points and
+    normals theirs) until each has `max_samples`: the paths that follow the `count` it has in its own
+    sequence (R2 points and path hashes continued), traced in rounds that double the count. The sums
+    `total`, `square` and `count` (of the paths' L, luminance squared, number) are updated in place;
+    E = total / count weighs every path the same. How many paths a point ends with is the caller's
+    choice: for E to stay unbiased, it must not depend on the point's own paths (bake/lightmap.py)."""
+    if not len(ids):
+        return
     tp = _transport(scene, tracer)
-    per_batch = max(1, BATCH_PATHS // samples)
-    for start in range(0, K, per_batch):
-        stop = min(K, start + per_batch)
-        e, b = _trace_batch(tp, points[start:stop], normals[start:stop], samples, seed,
-                            first_index + start, max_depth)
-        E[start:stop] = e
-        back[start:stop] = b
-        if progress is not None:
-            progress(stop - start)
-    return IrradianceResult(E, back, int(tracer.rays - rays_before))
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    normals = np.asarray(normals, np.float64).reshape(-1, 3)
+    while (more := np.flatnonzero(count < max_samples)).size:
+        for n in np.unique(count[more]):  # a round per count (each point continues its own sequence)
+            rows = more[count[more] == n]
+            add = int(min(n, max_samples - n))
+            per_batch = max(1, BATCH_PATHS // add)
+            for start in range(0, len(rows), per_batch):
+                r = rows[start:start + per_batch]
+                e, q, _ = _trace_batch(tp, points[r], normals[r], ids[r], int(n), add, seed, max_depth)
+                total[r] += e
+                square[r] += q
+            count[rows] += add
 
 
-def _texel_qmc(texel_key: np.ndarray, samples: int, tag: int, permute: bool) -> tuple[np.ndarray, np.ndarray]:
-    """R2 points for every (texel, sample) (texel-major), rotated per texel, optionally permuted per texel."""
+def mean_irradiance(total: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """(K, 3) float32 E: the sums of the paths' L over their number (every path weighs the same)."""
+    return np.clip(total / np.maximum(count, 1)[:, None], 0.0, np.finfo(np.float32).max).astype(np.float32)
+
+
+def relative_error(total: np.ndarray, square: np.ndarray, count: np.ndarray, floor: float) -> np.ndarray:
+    """(K,) the standard error of each texel's mean luminance over its `count` paths (from the sums of
+    L and of luminance squared), relative to max(mean luminance, floor); 0 for a texel black in every
+    path, inf for one path."""
+    mean = luminance(total) / count
+    var = np.maximum(square / count - mean * mean, 0.0) * count / np.maximum(count - 1, 1)
+    se = np.where(count > 1, np.sqrt(var / count), np.inf)
+    scale = np.maximum(mean, floor)
+    return np.where(scale > 0, se / np.where(scale > 0, scale, 1.0), 0.0)
+
+
+def _texel_qmc(texel_key: np.ndarray, samples: int, tag: int, permute: bool,
+               first_sample: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """R2 points first_sample .. first_sample + samples - 1 for every (texel, sample) (texel-major),
+    rotated per texel, optionally permuted per texel within that run of points (a later pass of an
+    adaptive texel continues the sequence where the earlier one ended)."""
     nt = len(texel_key)
-    index = np.broadcast_to(np.arange(samples, dtype=np.float64), (nt, samples))
+    index = np.broadcast_to(np.arange(first_sample, first_sample + samples, dtype=np.float64), (nt, samples))
     if permute:
-        keys = _mix(texel_key[:, None] * _GOLDEN + np.arange(samples, dtype=np.uint64)[None, :]
-                    + np.uint64(tag))
-        index = np.argsort(keys, axis=1).astype(np.float64)
+        keys = _mix(texel_key[:, None] * _GOLDEN
+                    + np.arange(first_sample, first_sample + samples, dtype=np.uint64)[None, :] + np.uint64(tag))
+        index = first_sample + np.argsort(keys, axis=1).astype(np.float64)
     shift = _uniform2(texel_key, 1000 + tag)
     u = np.mod(shift[0][:, None] + index * _R2_A[0], 1.0).ravel()
     v = np.mod(shift[1][:, None] + index * _R2_A[1], 1.0).ravel()
     return u, v
 
 
-def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, max_depth):
+def _trace_batch(tp: _Transport, points, normals, texel_ids, first_sample, samples, seed, max_depth):
+    """Paths first_sample .. first_sample + samples - 1 of the texels `texel_ids` (global indices, which
+    seed their random numbers): (sum of the paths' L (nt, 3), sum of their luminance squared (nt,),
+    back-face share (nt,))."""
     tr = tp.tracer
     sky = tp.lights.sky
     nt = len(points)
     N = nt * samples
-    texel_key = _mix(np.arange(first_texel, first_texel + nt, dtype=np.uint64)
-                     + _mix(np.full(1, seed, dtype=np.uint64)))
-    key = _mix(np.repeat(texel_key, samples) * _GOLDEN + np.tile(np.arange(samples, dtype=np.uint64), nt))
+    texel_key = _mix(np.asarray(texel_ids, np.uint64) + _mix(np.full(1, seed, dtype=np.uint64)))
+    key = _mix(np.repeat(texel_key, samples) * _GOLDEN
+               + np.tile(np.arange(first_sample, first_sample + samples, dtype=np.uint64), nt))
 
     n = normals.copy()
     length = np.sqrt(dot3(n, n))
@@ -442,12 +503,12 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
 
     # vertex 0, the texel: its BSDF is 1 (E integrates L cos): NEE, then a cosine direction (QMC)
     x_up = x + eps[:, None] * n
-    u_light = [u[a] for u in _texel_qmc(texel_key, samples, 1, True)]
-    u_sky = [u[a] for u in _texel_qmc(texel_key, samples, 2, True)]
+    u_light = [u[a] for u in _texel_qmc(texel_key, samples, 1, True, first_sample)]
+    u_sky = [u[a] for u in _texel_qmc(texel_key, samples, 2, True, first_sample)]
     texel_bsdf = Vertex(np.full((len(a), 3), np.pi), n, None)  # f = pi / pi = 1, pdf = cos / pi
     for rows, c in tp.next_event(x, x_up, eps, n, n, np.ones((len(a), 3)), texel_bsdf, u_light, u_sky):
         _add_rows(L, a[rows], c)
-    d, cos = _cosine_sample(n, *[u[a] for u in _texel_qmc(texel_key, samples, 0, False)])
+    d, cos = _cosine_sample(n, *[u[a] for u in _texel_qmc(texel_key, samples, 0, False, first_sample)])
     s = np.flatnonzero(cos > 0)
     idx, o, d, prev_pos, prev_pdf, key = _take(s, a, x_up, d, x, cos * INV_PI, key)
     beta = np.full((len(s), 3), np.pi)  # f cos / pdf = 1 x cos / (cos / pi)
@@ -541,7 +602,7 @@ def _trace_batch(tp: _Transport, points, normals, samples, seed, first_texel, ma
             idx, o, d, beta, prev_pos, prev_pdf, key = (np.concatenate(pair) for pair in
                                                         zip(t_state, (idx, o, d, beta, prev_pos, prev_pdf, key)))
 
-    L = np.nan_to_num(L, nan=0.0, posinf=0.0, neginf=0.0)
-    E = L.reshape(nt, samples, 3).mean(axis=1)
-    b = backface.reshape(nt, samples).mean(axis=1)
-    return np.clip(E, 0.0, np.finfo(np.float32).max).astype(np.float32), b.astype(np.float32)
+    L = np.clip(np.nan_to_num(L, nan=0.0, posinf=0.0, neginf=0.0), 0.0, np.finfo(np.float32).max)
+    Y = luminance(L).reshape(nt, samples)
+    return (L.reshape(nt, samples, 3).sum(axis=1), (Y * Y).sum(axis=1),
+            backface.reshape(nt, samples).mean(axis=1))

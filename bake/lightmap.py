@@ -20,6 +20,19 @@ stitched (bake/seams.py) and the texels around them filled again.
 Sample points: each side's sample is first moved out of meshes that cover it (bake/sample_points.py:
 a moulding through the ceiling, a sofa on the floor; double-sided or not).
 
+Adaptive sampling (issue 25). A texel's first `samples` paths give their mean and, from the sum of
+their luminance squared, their standard deviation. A texel whose paths' deviation is over SELECT_CV
+x max(their mean, FLOOR_SHARE x the median lit texel's; black corners are not flagged) is flagged: a
+few of its paths found light through a narrow gap with a huge weight. The
+texels next to a flagged one (the 3 x 3 around it, the same object and side) then get
+`adaptive_samples` x `samples` paths in all, the paths that follow their first ones in their own
+sequences (bake/irradiance.py refine_irradiance), in a second round of tasks; every path weighs the
+same. A texel's own paths never decide how many it gets (its own flag does not count), so its
+estimate stays unbiased: the number is independent of its paths. A rule by the texel's own error
+(refine while it is over a target) averages to less than the plain estimator where rare paths carry
+the light: -16 to -90 % at living-room's former fireflies (bench/measure_fireflies.py --bias,
+docs/BAKE.md "Fireflies"). The price: a firefly with no flagged neighbour stays (docs/BAKE.md).
+
 Invalid texels: those whose own hemisphere rays hit the back of single-sided surfaces more
 often than `backface_threshold` (inside walls, under boxes), and those whose covered sample has no
 free position in its footprint; dilation fills them from their valid neighbours, of their own
@@ -29,6 +42,7 @@ baked for (E = 0 exactly). Both are counted per object for the bake's statistics
 from __future__ import annotations
 
 import time
+import warnings
 from contextlib import nullcontext
 from dataclasses import dataclass
 
@@ -38,7 +52,8 @@ from glint.bake.alpha import cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
 from glint.parallel.executor import TASKS_PER_WORKER, executor_for
-from glint.bake.irradiance import compute_irradiance
+from glint.bake.irradiance import compute_irradiance, mean_irradiance, refine_irradiance, relative_error
+from glint.bake.lights import luminance
 from glint.bake.raytrace import RayTracer
 from glint.bake.sample_points import adjust_samples
 from glint.bake.seams import stitch
@@ -62,6 +77,14 @@ WARN_OBJECTS = 3  # objects the warning names
 # --exposure that brings it to middle grey. The built-in living-room's median lies 3.6 stops below
 # (draft bake): dim, not black, so no warning.
 MIDDLE_GREY = 0.18
+# Adaptive sampling (module docstring): after the first pass a texel is flagged when the standard
+# deviation of its paths' luminance is over SELECT_CV x max(their mean, FLOOR_SHARE x the median lit
+# texel's); a texel with a flagged neighbour then gets settings.adaptive_samples x samples paths.
+# SELECT_CV 8 is a relative standard error of 0.71 at preview's 128 paths (living-room's fireflies:
+# 0.61-0.96), 1.41 at draft's 32 (above what 32 paths can show: draft is not refined) and 0.25 at
+# final's 1024.
+SELECT_CV = 8.0
+FLOOR_SHARE = 0.05
 DARK_STOPS, BRIGHT_STOPS = 4.0, 5.0
 
 
@@ -85,6 +108,8 @@ class LightmapPages:
     trace_seconds: float = 0.0  # the path tracing of the tiles (the stage's parallel part), wall clock
     tiles: int = 0  # tasks the texels were traced in
     moved: int = 0  # of `texels`, samples moved out of geometry that covered them (bake/sample_points.py)
+    refined: int = 0  # of `texels`, given more paths by adaptive sampling
+    refined_paths: int = 0  # the paths adaptive sampling added
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
@@ -112,12 +137,36 @@ class TileTask:
 
 
 def _trace_tile(state, task: TileTask):
-    """The irradiance, back-face share and ray count of the task's texels."""
+    """The sums of the paths' L and luminance squared, the back-face share and the ray count of the
+    task's texels."""
     scene, tracer, points, normals = state
     first, count = task.first, task.count
     result = compute_irradiance(scene, tracer, points[first:first + count], normals[first:first + count], task.samples,
                                 seed=task.seed, max_depth=task.max_depth, first_index=first)
-    return result.irradiance, result.backface, result.rays
+    return result.total, result.square, result.backface, result.rays
+
+
+@dataclass(frozen=True)
+class RefineTask:
+    """Adaptive sampling's task: more paths for the texels `texels` (global indices into the worker's
+    state) from their sums so far (bake/irradiance.py refine_irradiance)."""
+    texels: np.ndarray  # (k,) int64
+    total: np.ndarray  # (k, 3) float64
+    square: np.ndarray  # (k,) float64
+    count: np.ndarray  # (k,) int64
+    max_samples: int  # paths each texel ends with
+    seed: int
+    max_depth: int
+
+
+def _refine_tile(state, task: RefineTask):
+    """The task's texels' sums after refinement, and the rays it traced."""
+    scene, tracer, points, normals = state
+    total, square, count = task.total.copy(), task.square.copy(), task.count.copy()
+    rays = tracer.rays
+    refine_irradiance(scene, tracer, points[task.texels], normals[task.texels], task.texels.astype(np.uint64),
+                      total, square, count, task.max_samples, task.seed, task.max_depth)
+    return total, square, count, int(tracer.rays - rays)
 
 
 def tile_size(texels: int, executor) -> int:
@@ -161,7 +210,9 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     adjusted = adjust_samples(tracer, points, normals, np.concatenate([sizes, sizes[back]]),
                               np.concatenate([objects, objects[back]]))
     points = adjusted.points.astype(points.dtype)
-    E = np.zeros((n, 3), np.float32)
+    total = np.zeros((n, 3))
+    square = np.zeros(n)
+    paths = np.full(n, settings.samples, np.int64)
     backface = np.zeros(n, np.float32)
     rays = 0
     t0 = time.perf_counter()
@@ -169,21 +220,37 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         tile = tile_size(n, tiles)
         tasks = [TileTask(i, min(tile, n - i), settings.samples, settings.seed, settings.max_depth)
                  for i in range(0, n, tile)]
-        for index, (e, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
+        for index, (e, q, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
             start = index * tile
-            E[start:start + len(e)] = e
+            total[start:start + len(e)] = e
+            square[start:start + len(q)] = q
             backface[start:start + len(b)] = b
             rays += r
             if progress is not None:
                 progress(len(e))
+        valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
+        refined = np.zeros(0, np.int64)
+        if settings.adaptive_samples > 1 and n:
+            refined = undersampled(pages, covered, back_cover_of(pages, covered, two), total, square, paths, valid)
+            cap = settings.samples * settings.adaptive_samples
+            # strided, so that neighbouring texels (a gap's whole row) spread over the tasks
+            parts = min(len(refined), len(tasks), TASKS_PER_WORKER * tiles.workers())
+            more = [RefineTask(r, total[r], square[r], paths[r], cap, settings.seed, settings.max_depth)
+                    for r in (refined[i::parts] for i in range(parts))]
+            # no tasks, no run: a run of none would still build a worker state (a tracer) here
+            results = tiles.run(_setup, (scene, points, normals), _refine_tile, more) if more else ()
+            for index, (e, q, c, r) in results:
+                rows = more[index].texels
+                total[rows], square[rows], paths[rows] = e, q, c
+                rays += r
     trace_seconds = time.perf_counter() - t0
-    valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
+    E = mean_irradiance(total, paths)
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
     irradiance = _stitched(tracer, irradiance, baked, pages, 1.0, settings)
     back_irradiance, back_baked = [], []
     if len(back):
-        back_cover = [c & two[np.maximum(p.object, 0)] for p, c in zip(pages, covered)]
+        back_cover = back_cover_of(pages, covered, two)
         back_irradiance, back_baked = _pages(pages, back_cover, E[front:], valid[front:], settings)
         back_irradiance = _stitched(tracer, back_irradiance, back_baked, pages, -1.0, settings)
 
@@ -204,7 +271,57 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
                          unlit_by_object=unlit_by_object, median_radiance=median_radiance,
-                         trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()))
+                         trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()),
+                         refined=len(refined), refined_paths=int((paths - settings.samples).sum()))
+
+
+def back_cover_of(pages: list[TexelPage], covered: list[np.ndarray], two: np.ndarray) -> list[np.ndarray]:
+    """Per page, the texels that have a back side (those of two-sided objects among `covered`)."""
+    return [c & two[np.maximum(p.object, 0)] for p, c in zip(pages, covered)]
+
+
+def undersampled(pages: list[TexelPage], covered: list[np.ndarray], back_cover: list[np.ndarray],
+                 total: np.ndarray, square: np.ndarray, count: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Adaptive sampling's choice after the first pass (module docstring): the indices of the valid
+    texels with a flagged neighbour, a valid texel of the same object and side in the 3 x 3 around it
+    (itself not counted) whose paths' coefficient of variation is over SELECT_CV."""
+    Y = luminance(total) / count
+    lit = valid & (Y > 0)
+    floor = FLOOR_SHARE * float(np.median(Y[lit])) if lit.any() else 0.0
+    # the paths' standard deviation over their mean: the standard error of the mean x sqrt(paths)
+    flagged = valid & (relative_error(total, square, count, floor) * np.sqrt(count) > SELECT_CV)
+    flags, same = _windows(pages, covered, back_cover, flagged.astype(np.float64), 3)
+    flags[:, 4] = 0.0  # the texel itself: its own paths must not decide how many it gets
+    return np.flatnonzero(valid & ((flags * same) > 0).any(axis=1))
+
+
+def _windows(pages: list[TexelPage], covered: list[np.ndarray], back_cover: list[np.ndarray], values: np.ndarray,
+             size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per texel (in the stage's order: the front sides page by page, then the back sides), the
+    `values` of the size x size texels around it, row-major (n, size^2), and which of them are texels
+    of its object on the same side (n, size^2) bool."""
+    n = len(values)
+    out = np.zeros((n, size * size))
+    same = np.zeros((n, size * size), bool)
+    r = size // 2
+    offset = 0
+    for covers in (covered, back_cover):
+        for page, cover in zip(pages, covers):
+            ys, xs = np.nonzero(cover)
+            k = len(ys)
+            if not k:
+                continue
+            H, W = cover.shape
+            image = np.zeros((H + 2 * r, W + 2 * r))
+            label = np.full((H + 2 * r, W + 2 * r), -1, np.int64)
+            image[ys + r, xs + r] = values[offset:offset + k]
+            own = page.object[ys, xs]
+            label[ys + r, xs + r] = own
+            for i, (dy, dx) in enumerate(np.ndindex(size, size)):
+                out[offset:offset + k, i] = image[ys + dy, xs + dx]
+                same[offset:offset + k, i] = label[ys + dy, xs + dx] == own
+            offset += k
+    return out, same
 
 
 def _stitched(tracer: RayTracer, images: list[np.ndarray], baked: list[np.ndarray], pages: list[TexelPage],

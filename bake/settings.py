@@ -34,6 +34,9 @@ class BakeSettings:
     padding: int = _default("padding")  # texels between charts, so bilinear look-ups never mix charts
     max_page_size: int = _default("max_page_size")
     max_depth: int = _default("max_depth")
+    # paths per texel at most, as a multiple of `samples`, where adaptive sampling finds a texel
+    # undersampled (bake/lightmap.py "Adaptive sampling"); 1: every texel gets `samples` paths
+    adaptive_samples: int = _default("adaptive_samples")
     denoise: bool = _default("denoise")
     backface_threshold: float = _default("backface_threshold")
     seed: int = _default("seed")

@@ -25,6 +25,8 @@ BAKE = {
     "padding": Key("whole", lo=0, hi=64, default=2),  # texels between charts
     "max_page_size": Key("whole", lo=64, hi=8192, default=2048),
     "max_depth": Key("whole", lo=1, hi=1024, default=64),  # bounces of a path
+    # adaptive sampling: undersampled texels get up to this many times `samples` paths; 1: off
+    "adaptive_samples": Key("whole", lo=1, hi=1024, default=8),
     "denoise": Key("bool", default=True),
     # texels seeing more back faces than this share are invalid (inside walls)
     "backface_threshold": Key("number", lo=0, hi=1, default=0.2),
