@@ -36,7 +36,7 @@ def test_buffer_bindings_are_distinct_and_shading_units_follow_the_fixed_ones():
         c = max(classes, 1)
         taken = [*fixed, *range(units["CUBE_FIRST_UNIT"], units["CUBE_FIRST_UNIT"] + c),
                  *(units[name] for name in gl_bindings.MIRROR_UNIT_NAMES),
-                 *range(units["SPLIT_SUM_FIRST_UNIT"], units["SPLIT_SUM_FIRST_UNIT"] + c), units["SPLIT_SUM_LUT_UNIT"]]
+                 *range(units["SPLIT_SUM_FIRST_UNIT"], units["SPLIT_SUM_FIRST_UNIT"] + c), units["LOBE_ALBEDO_UNIT"]]
         assert sorted(taken) == list(range(len(taken)))  # no unit twice, none skipped
 
 
