@@ -67,6 +67,7 @@ def test_table_layers_are_shared_and_exact_where_they_can_be(ctx):
               (0.3, 0.1, 1.0, 0.0), (0.2, 0.2, 0.04, 0.0)]
     lobes = _rows(shapes, ["reflect"] * 5 + ["transmit"])
     table = LA.LobeAlbedo(ctx, GL(ctx))
+    LA._LAYERS.clear()  # computed here, not by an earlier test of this process
     try:
         table.update(lobes, [0, 0, 1, 0, 2, 0], [False, False, False, True, True, False])
         rows = table.lobe_rows
@@ -89,5 +90,9 @@ def test_table_layers_are_shared_and_exact_where_they_can_be(ctx):
         # the nodes g = 1 and s = 1 are the factors' lobes, computed once
         assert computed == table.layers - 2
         assert table.computed == 0  # an update (a material edit) recomputes nothing it had
+        other = LA.LobeAlbedo(ctx, GL(ctx))  # nor does another renderer's table in this process
+        other.update(lobes, [0, 0, 1, 0, 2, 0], [False, False, False, True, True, False])
+        assert other.computed == 0 and np.array_equal(other.table, table.table)
+        other.release()
     finally:
         table.release()

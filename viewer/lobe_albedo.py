@@ -25,8 +25,14 @@ horizon's loss. A pixel whose samples all fall below it gets 0, as with Eq. 4.25
 Layout. Per distinct lobe (mx, my, r0, alpha, kind) a layer of LUT_COS x LUT_PHI albedos by
 glint.core.bsdf.lobe_albedo (ALBEDO_SAMPLES quasi-random importance samples, without ks) on
 sqrt(cos theta_v) x view azimuth in [0, pi/2] (the lobe is symmetric under x -> -x and y -> -y),
-read bilinearly; lobes with equal parameters share their layers (`_cache`, kept across material
-edits, so an edit computes only what it changed), isotropic ones are computed for one azimuth.
+read bilinearly; lobes with equal parameters share their layers, and each layer is computed once per
+process (`_LAYERS`, up to CACHE_LAYERS of them: a material edit computes only what it changed, and
+`glint bench`'s many renderers of one scene the table once); isotropic ones for one azimuth. Cost
+(`albedo_ms` in renderer.stats["lobe_albedo"], when the renderer is made; measured on the shared
+2-core machine at load 7, docs/BENCHMARKS.md "The walkthrough's albedo normalisation"): 0.1 s for
+the many-objects rooms' one metal lobe, 0.6 s for planar-classes (4 lobes), 4.1-4.5 s for
+living-room and material-classes (9 and 6 lobes, anisotropic ones 8 azimuths each); the bake's
+cube-map renders have no lobes (glint/cubemap_stage.py diffuse_view) and pay nothing.
 
 Lobes whose width varies per texel (shaders/specular.glsl `lobe_at_pixel`):
 - a metallic-roughness texture (Lobe.mr; bake/material_mapping.py): m' = max(m g^2, M_MIN), g the
@@ -62,6 +68,7 @@ LUT_COS, LUT_PHI = 32, 8  # albedo grid: sqrt(cos theta_v) x view azimuth in [0,
 ALBEDO_SAMPLES = 4096     # per albedo (glint.core.bsdf.lobe_albedo)
 ROUGHNESS_NODES = 13      # g = 0 .. 1 for lobes that follow a metallic-roughness texture
 ANISOTROPY_NODES = 5      # s = 0 .. 1 for lobes of a material with an anisotropy texture
+CACHE_LAYERS = 4096       # layers kept per process (1 KiB each: 4 MiB)
 # shaders/lobe_albedo.glsl: what the row's z says about the layers (defines of the same names)
 AXES = {"LOBE_ALBEDO_AXIS_NONE": 0, "LOBE_ALBEDO_AXIS_ROUGHNESS": 1, "LOBE_ALBEDO_AXIS_ANISOTROPY": 2}
 # shaders/lobe_sampling.glsl: the walkthrough's pattern estimators (viewer/passes/shading.py WEIGHTS)
@@ -76,6 +83,9 @@ class LobeKey:
     r0: float
     alpha: float
     kind: str  # "reflect" or "transmit"
+
+
+_LAYERS: dict[LobeKey, np.ndarray] = {}  # every LobeAlbedo's layers, by key (module docstring)
 
 
 def lut_views() -> np.ndarray:
@@ -131,7 +141,6 @@ class LobeAlbedo:
 
     def __init__(self, ctx: moderngl.Context, gl):
         self.ctx, self._gl = ctx, gl
-        self._cache: dict[LobeKey, np.ndarray] = {}
         self.texture = self.rows = None
         self.albedo_ms = 0.0
         self.layers = 0
@@ -155,10 +164,12 @@ class LobeAlbedo:
             if keys not in index:
                 index[keys] = len(layers)
                 for key in keys:
-                    if key not in self._cache:
-                        self._cache[key] = albedo_layer(key)
+                    if key not in _LAYERS:
+                        if len(_LAYERS) >= CACHE_LAYERS:
+                            _LAYERS.pop(next(iter(_LAYERS)))  # the oldest
+                        _LAYERS[key] = albedo_layer(key)
                         computed += 1
-                    layers.append(self._cache[key])
+                    layers.append(_LAYERS[key])
             rows[k] = (index[keys], len(keys), axis, int(exact))
         self.computed = computed
         self.layers = len(layers)
