@@ -27,9 +27,9 @@ float lobe_albedo_at(vec3 wo, int lobe_index, float g, float s, out bool exact) 
     float t = row.z == LOBE_ALBEDO_AXIS_ROUGHNESS ? g : row.z == LOBE_ALBEDO_AXIS_ANISOTROPY ? s : 0.0;
     float x = clamp(t, 0.0, 1.0) * float(max(row.y - 1, 0));
     float k = min(floor(x), float(max(row.y - 2, 0)));
-    float a0 = texture(lobe_albedo_table, vec3(uv, float(row.x) + k)).r;
+    float a0 = textureLod(lobe_albedo_table, vec3(uv, float(row.x) + k), 0.0).r;  // no MIPs
     float a = a0;
     if (row.y > 1)
-        a = mix(a0, texture(lobe_albedo_table, vec3(uv, float(row.x) + k + 1.0)).r, x - k);
+        a = mix(a0, textureLod(lobe_albedo_table, vec3(uv, float(row.x) + k + 1.0), 0.0).r, x - k);
     return max(a, 0.0);
 }
