@@ -71,10 +71,11 @@ def test_table_layers_are_shared_and_exact_where_they_can_be(ctx):
     try:
         table.update(lobes, [0, 0, 1, 0, 2, 0], [False, False, False, True, True, False])
         rows = table.lobe_rows
-        assert rows[0].tolist() == [0, 1, LA.AXES["LOBE_ALBEDO_AXIS_NONE"], 1]
+        exact, iso = LA.FLAGS["LOBE_ALBEDO_EXACT"], LA.FLAGS["LOBE_ALBEDO_ISOTROPIC"]
+        assert rows[0].tolist() == [0, 1, LA.AXES["LOBE_ALBEDO_AXIS_NONE"], exact | iso]
         assert rows[1].tolist() == rows[0].tolist()  # shared
-        assert rows[2, 1:].tolist() == [LA.ROUGHNESS_NODES, LA.AXES["LOBE_ALBEDO_AXIS_ROUGHNESS"], 1]
-        assert rows[3, 1:].tolist() == [LA.ANISOTROPY_NODES, LA.AXES["LOBE_ALBEDO_AXIS_ANISOTROPY"], 1]
+        assert rows[2, 1:].tolist() == [LA.ROUGHNESS_NODES, LA.AXES["LOBE_ALBEDO_AXIS_ROUGHNESS"], exact | iso]
+        assert rows[3, 1:].tolist() == [LA.ANISOTROPY_NODES, LA.AXES["LOBE_ALBEDO_AXIS_ANISOTROPY"], exact]
         assert rows[4, 1:].tolist() == [1, LA.AXES["LOBE_ALBEDO_AXIS_NONE"], 0]  # both textures: inexact
         assert table.layers == 1 + LA.ROUGHNESS_NODES + LA.ANISOTROPY_NODES + 1 + 1
         lut = np.frombuffer(table.texture.read(), np.float32).reshape(table.layers, LA.LUT_COS, LA.LUT_PHI)

@@ -39,6 +39,7 @@ DRAW_STATE_BINDING = 16     # cull.comp: why each object was drawn or not
 DRAW_HIDDEN_BINDING = 17    # cull.comp: per object, 1 = left out
 OBJECT_LOD_BINDING = 18     # cull.comp: per object its levels of detail (viewer/gpu_meshes.py OBJECT_LOD_DTYPE)
 LOBE_ALBEDO_BINDING = 19    # lobe_albedo.glsl: per lobe its layers of the albedo table (viewer/lobe_albedo.py)
+LOBE_ALBEDO_TABLE_BINDING = 20  # lobe_albedo.glsl: the table's values, layer by layer
 
 # -- raster passes over the bake's meshes (raster_surface.glsl: G-buffer and mirror passes) -----------
 LIGHTMAP_UNIT = 0
@@ -100,10 +101,10 @@ def mirror_units(first_unit: int) -> dict[str, int]:
 def shading_units(cube_classes: int) -> dict[str, int]:
     """The shading programs' scene-dependent units, from SHADING_CUBE_UNIT on, with C =
     max(cube_classes, 1) (cubemaps.glsl's sampler arrays have at least one element): the cube-map
-    classes, the mirror buffers' arrays, the split-sum prefiltered classes (bound only by split-sum) and
-    the lobes' albedo table (viewer/lobe_albedo.py: the walkthrough's estimate and split-sum's)."""
+    classes, the mirror buffers' arrays and the split-sum prefiltered classes; UNIT_COUNT: how many
+    units that is (the lobes' albedo table is a storage buffer: viewer/lobe_albedo.py)."""
     c = max(int(cube_classes), 1)
     mirror = SHADING_CUBE_UNIT + c
     split_sum = mirror + len(MIRROR_UNIT_NAMES)
     return {"CUBE_FIRST_UNIT": SHADING_CUBE_UNIT, **mirror_units(mirror), "SPLIT_SUM_FIRST_UNIT": split_sum,
-            "LOBE_ALBEDO_UNIT": split_sum + c}
+            "UNIT_COUNT": split_sum + c}

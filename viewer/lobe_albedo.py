@@ -50,7 +50,7 @@ The texel's ks (ks M' or ks (1 - M')) multiplies the estimate outside the table,
 
     table = LobeAlbedo(ctx, gl)
     table.update(lobe_table, lobe_mr, anisotropy_textured)   # GpuMaterials._upload, after every edit
-    table.bind(unit)          # the texture; the per-lobe rows are bound as LOBE_ALBEDO_BINDING
+    table.bind()              # rows and values: LOBE_ALBEDO_BINDING, LOBE_ALBEDO_TABLE_BINDING
     table.describe()          # albedo_ms, layers, ... (renderer.stats["lobe_albedo"])
 """
 from __future__ import annotations
@@ -62,7 +62,7 @@ import moderngl
 import numpy as np
 
 from glint.core import bsdf
-from glint.viewer.gl_bindings import LOBE_ALBEDO_BINDING
+from glint.viewer.gl_bindings import LOBE_ALBEDO_BINDING, LOBE_ALBEDO_TABLE_BINDING
 
 LUT_COS, LUT_PHI = 32, 8  # albedo grid: sqrt(cos theta_v) x view azimuth in [0, pi/2]
 ALBEDO_SAMPLES = 4096     # per albedo (glint.core.bsdf.lobe_albedo)
@@ -71,6 +71,8 @@ ANISOTROPY_NODES = 5      # s = 0 .. 1 for lobes of a material with an anisotrop
 CACHE_LAYERS = 4096       # layers kept per process (1 KiB each: 4 MiB)
 # shaders/lobe_albedo.glsl: what the row's z says about the layers (defines of the same names)
 AXES = {"LOBE_ALBEDO_AXIS_NONE": 0, "LOBE_ALBEDO_AXIS_ROUGHNESS": 1, "LOBE_ALBEDO_AXIS_ANISOTROPY": 2}
+FLAGS = {"LOBE_ALBEDO_EXACT": 1, "LOBE_ALBEDO_ISOTROPIC": 2}  # bits of the row's w
+MAX_LAYERS = 1 << 16      # layers uploaded at most (64 MiB)
 # shaders/lobe_sampling.glsl: the walkthrough's pattern estimators (viewer/passes/shading.py WEIGHTS)
 ESTIMATORS = {"albedo": "ESTIMATE_ALBEDO", "eq4.25": "ESTIMATE_EQ_4_25", "eq4.24": "ESTIMATE_EQ_4_24"}
 
@@ -135,9 +137,13 @@ def lobe_keys(row, axis: int) -> list[LobeKey]:
 
 
 class LobeAlbedo:
-    """Every lobe's albedo layers in one float32 texture array, and per lobe an ivec4 row (first layer,
-    node count, axis, exact: 1 where the table holds the texel's lobe) in a storage buffer
-    (LOBE_ALBEDO_BINDING)."""
+    """Every lobe's albedo layers, float32, one after the other in a storage buffer
+    (LOBE_ALBEDO_TABLE_BINDING; `texture` is the name kept for it), and per lobe an ivec4 row (first
+    layer, node count, axis, flags: LOBE_ALBEDO_EXACT where the table holds the texel's lobe,
+    LOBE_ALBEDO_ISOTROPIC where its layers do not depend on the azimuth) in another
+    (LOBE_ALBEDO_BINDING). A storage buffer and the shader's own bilinear interpolation rather than a
+    texture array: on llvmpipe a texture fetch per lobe and pixel cost 8-23 % of the specular pass
+    (docs/BENCHMARKS.md, "Issue 24: the walkthrough's albedo normalisation"), buffer loads do not."""
 
     def __init__(self, ctx: moderngl.Context, gl):
         self.ctx, self._gl = ctx, gl
@@ -170,39 +176,39 @@ class LobeAlbedo:
                         _LAYERS[key] = albedo_layer(key)
                         computed += 1
                     layers.append(_LAYERS[key])
-            rows[k] = (index[keys], len(keys), axis, int(exact))
+            iso = all(max(key.mx, bsdf.M_MIN) == max(key.my, bsdf.M_MIN) for key in keys)
+            rows[k] = (index[keys], len(keys), axis, FLAGS["LOBE_ALBEDO_EXACT"] * exact
+                       + FLAGS["LOBE_ALBEDO_ISOTROPIC"] * iso)
         self.computed = computed
         self.layers = len(layers)
         lut = np.stack(layers) if layers else np.zeros((1, LUT_COS, LUT_PHI), np.float32)
         self.albedo_ms = (time.perf_counter() - started) * 1e3
         self._release()
-        limit = int(self.ctx.info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 2048))
-        if len(lut) > limit:  # thousands of distinct lobes: those past the limit read layer 0, inexact
+        limit = MAX_LAYERS
+        if len(lut) > limit:  # tens of thousands of distinct lobes: those past the limit read layer 0, inexact
             over = rows[:, 0] + rows[:, 1] > limit
-            rows[over] = (0, 1, AXES["LOBE_ALBEDO_AXIS_NONE"], 0)
+            rows[over] = (0, 1, AXES["LOBE_ALBEDO_AXIS_NONE"], 0)  # inexact, any azimuth
             lut = lut[:limit]
         with self._gl.checked(f"upload the lobes' albedo table ({len(lut)} layers)"):
-            self.texture = self.ctx.texture_array((LUT_PHI, LUT_COS, len(lut)), 1,
-                                                  np.ascontiguousarray(lut, np.float32).tobytes(), dtype="f4")
-            self.texture.filter = (moderngl.LINEAR, moderngl.LINEAR)
-            self.texture.repeat_x = self.texture.repeat_y = False
+            self.texture = self.ctx.buffer(np.ascontiguousarray(lut, np.float32).tobytes())
             self.rows = self.ctx.buffer(rows.tobytes())
         self.table = lut
         self.lobe_rows = rows[:count]
 
     def defines(self) -> dict:
-        """shaders/lobe_albedo.glsl's grid and axes."""
-        return {"LOBE_ALBEDO_COS": LUT_COS, "LOBE_ALBEDO_PHI": LUT_PHI, **AXES}
+        """shaders/lobe_albedo.glsl's grid, axes and flags."""
+        return {"LOBE_ALBEDO_COS": LUT_COS, "LOBE_ALBEDO_PHI": LUT_PHI, **AXES, **FLAGS}
 
-    def bind(self, unit: int) -> None:
-        """The texture on `unit` (viewer/gl_bindings.py shading_units LOBE_ALBEDO_UNIT) and the rows."""
-        self.texture.use(unit)
+    def bind(self) -> None:
+        """The rows and the values (LOBE_ALBEDO_BINDING, LOBE_ALBEDO_TABLE_BINDING)."""
+        self.texture.bind_to_storage_buffer(LOBE_ALBEDO_TABLE_BINDING)
         self.rows.bind_to_storage_buffer(LOBE_ALBEDO_BINDING)
 
     def describe(self) -> dict:
         return {"albedo_ms": round(self.albedo_ms, 3), "layers": self.layers, "computed": self.computed,
                 "grid": [LUT_COS, LUT_PHI], "samples": ALBEDO_SAMPLES,
-                "inexact": int(np.sum(self.lobe_rows[:, 3] == 0)) if self.rows is not None else 0}
+                "inexact": int(np.sum((self.lobe_rows[:, 3] & FLAGS["LOBE_ALBEDO_EXACT"]) == 0))
+                if self.rows is not None else 0}
 
     def _release(self) -> None:
         for obj in (self.texture, self.rows):

@@ -73,11 +73,11 @@ class ShadingPass:
         extra = {**scene.cubemaps.defines(self.units["CUBE_FIRST_UNIT"]), **SPECULAR_MODES}
         if weights != "albedo":
             extra["WEIGHTS_EQ_4_24" if weights == "eq4.24" else "WEIGHTS_EQ_4_25"] = 1
-        extra.update(scene.material_buffers.albedo.defines(), LOBE_ALBEDO_UNIT=self.units["LOBE_ALBEDO_UNIT"])
+        extra.update(scene.material_buffers.albedo.defines())
         self.split_sum = split_sum
         if split_sum is not None:
             extra.update(split_sum.defines(self.units["SPLIT_SUM_FIRST_UNIT"]))
-        last = self.units["LOBE_ALBEDO_UNIT"]
+        last = self.units["UNIT_COUNT"] - 1 if split_sum is not None else self.units["MIRROR_NORMAL_UNIT"]
         check_compute_texture_units(ctx, last + 1, f"shading this scene (cube maps of {len(scene.cubemaps.classes)} "
                                                    f"face sizes{', split-sum' if split_sum is not None else ''})")
         self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
@@ -127,7 +127,7 @@ class ShadingPass:
             gbuffer[name].use(unit)
         self.scene.bind_materials()
         self.scene.bind_specular()
-        self.scene.material_buffers.albedo.bind(self.units["LOBE_ALBEDO_UNIT"])
+        self.scene.material_buffers.albedo.bind()
         if self.mirror is not None:
             self.mirror.bind()
         self.work.bind_to_storage_buffer(SPECULAR_WORK_BINDING)
