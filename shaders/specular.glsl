@@ -420,7 +420,9 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
         if (estimator == ESTIMATE_ALBEDO) {
             bool exact;
             albedo = lobe_albedo_at(sp.wo, lobe_index, sp.texel.x, sp.texel.y, exact);
+#ifdef LOBE_ALBEDO_INEXACT
             estimator = exact ? ESTIMATE_ALBEDO : ESTIMATE_EQ_4_25;
+#endif
         }
         L = planar ? planar_pattern_estimate(sp, lobe, pattern, estimator) : lobe_pattern_estimate(sp, lobe, pattern, estimator);
         if (estimator == ESTIMATE_ALBEDO)

@@ -190,6 +190,16 @@ class GpuMaterials:
         self.materials[index] = checked_material(material).to_json()
         self._upload()
 
+    @property
+    def albedo_defines(self) -> dict:
+        """shaders/lobe_albedo.glsl's defines; LOBE_ALBEDO_INEXACT only where a material has both a
+        metallic-roughness and an anisotropy texture (its lobes' tables are the factor's: Eq. 4.25 for
+        them), fixed with the textures for the renderer's life: elsewhere the walkthrough's estimator is
+        a constant the shader compiler folds."""
+        both = MATERIAL_FLAGS["MAT_MR_TEXTURE"] | MATERIAL_FLAGS["MAT_ANISOTROPY_TEXTURE"]
+        inexact = any(flags & both == both for flags in self._texture_flags)
+        return {**self.albedo.defines(), **({"LOBE_ALBEDO_INEXACT": 1} if inexact else {})}
+
     def emissive(self) -> np.ndarray:
         """Per material whether it emits (MAT_EMISSIVE)."""
         return (self.material_table["info"][:, 0] & MATERIAL_FLAGS["MAT_EMISSIVE"]) != 0

@@ -73,7 +73,7 @@ class ShadingPass:
         extra = {**scene.cubemaps.defines(self.units["CUBE_FIRST_UNIT"]), **SPECULAR_MODES}
         if weights != "albedo":
             extra["WEIGHTS_EQ_4_24" if weights == "eq4.24" else "WEIGHTS_EQ_4_25"] = 1
-        extra.update(scene.material_buffers.albedo.defines())
+        extra.update(scene.material_buffers.albedo_defines)
         self.split_sum = split_sum
         if split_sum is not None:
             extra.update(split_sum.defines(self.units["SPLIT_SUM_FIRST_UNIT"]))
