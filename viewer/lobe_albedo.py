@@ -16,8 +16,8 @@ incident radiance times the albedo of this view, exact under uniform light at ev
 pattern's weighting of the light kept otherwise. The weights p cos are Eq. 4.24's (there times v):
 measured in bench/measure_lobe_patterns.py's numpy model (16 spherical-Gaussian environments x 6
 views of 0-82 degrees x 6 lobes: the fitted glTF metals of roughness 0.3, 0.5, dielectrics of 0.25,
-0.4, an alpha = 0 lobe of m = 0.1 and an anisotropic line; docs/BENCHMARKS.md, "The walkthrough's
-albedo normalisation") they gave the smallest error against the lobe's integral, median 6.0 %,
+0.4, an alpha = 0 lobe of m = 0.1 and an anisotropic line; docs/BENCHMARKS.md, "Issue 24: the
+walkthrough's albedo normalisation") they gave the smallest error against the lobe's integral, median 6.0 %,
 90th percentile 85 %, against f cos (8.6 %, 96 %), v = f cos / p (9.8 %, 138 %) and Eq. 4.25
 itself (9.1 %, 97 %). Samples below the horizon are dropped from the mean; A already holds the
 horizon's loss. A pixel whose samples all fall below it gets 0, as with Eq. 4.25.
@@ -29,7 +29,7 @@ read bilinearly; lobes with equal parameters share their layers, and each layer 
 process (`_LAYERS`, up to CACHE_LAYERS of them: a material edit computes only what it changed, and
 `glint bench`'s many renderers of one scene the table once); isotropic ones for one azimuth. Cost
 (`albedo_ms` in renderer.stats["lobe_albedo"], when the renderer is made; measured on the shared
-2-core machine at load 7, docs/BENCHMARKS.md "The walkthrough's albedo normalisation"): 0.1 s for
+2-core machine at load 7, docs/BENCHMARKS.md "Issue 24: the walkthrough's albedo normalisation"): 0.1 s for
 the many-objects rooms' one metal lobe, 0.6 s for planar-classes (4 lobes), 4.1-4.5 s for
 living-room and material-classes (9 and 6 lobes, anisotropic ones 8 azimuths each); the bake's
 cube-map renders have no lobes (glint/cubemap_stage.py diffuse_view) and pay nothing.
@@ -42,10 +42,11 @@ Lobes whose width varies per texel (shaders/specular.glsl `lobe_at_pixel`):
   lobes (metal roughness 0.5 and 0.8, dielectric 0.3) at views up to 80 degrees, against 0.97 %
   with 9 nodes and 3.8 % with 5 (tests/test_lobe_albedo.py). Its cost: 13 tables instead of one.
 - KHR_materials_anisotropy's texture: mx' = my + (mx - my) s^2, s the texel's strength in [0, 1]:
-  ANISOTROPY_NODES layers over s (`AXIS_ANISOTROPY`).
-- both at once: the factor's table only, marked inexact (the row's w = 0): the walkthrough keeps
-  Eq. 4.25 for that lobe (split-sum reads the factor's albedo, as it did for every lobe before), as
-  a table over (g, s) would cost ROUGHNESS_NODES x ANISOTROPY_NODES anisotropic tables (seconds).
+  ANISOTROPY_NODES layers over s (`AXIS_ANISOTROPY`; their accuracy between nodes is not measured).
+- both at once: the factor's table only, without the LOBE_ALBEDO_EXACT flag: the walkthrough keeps
+  Eq. 4.25 for that lobe (LOBE_ALBEDO_INEXACT compiled in: viewer/gpu_materials.py albedo_defines;
+  split-sum reads the factor's albedo, as it did for every lobe before), as a table over (g, s)
+  would cost ROUGHNESS_NODES x ANISOTROPY_NODES anisotropic tables (seconds).
 The texel's ks (ks M' or ks (1 - M')) multiplies the estimate outside the table, as ks always does.
 
     table = LobeAlbedo(ctx, gl)
