@@ -91,7 +91,7 @@ class Method:
     key: str
     label: str
     walkthrough: str | None   # Renderer(walkthrough=...) for a walkthrough frame; None: still camera
-    weights: str = "eq4.25"
+    weights: str = "albedo"
     planar_pattern: str = "auto"  # Renderer(planar_pattern=...): "ring" forces the single ring on planar lobes
     ignores_n: bool = False  # one look-up per lobe whatever n: run once, reported as n = 1
     footprint: str = "moment"  # Renderer(footprint=...): "thesis" filters each look-up by A / n (Eq. 4.16)
@@ -118,19 +118,21 @@ class Method:
 
 
 METHODS = {m.key: m for m in (
-    Method("patterns", "ours: regular patterns + MIP, Eq. 4.25", "patterns", "eq4.25"),
+    Method("patterns", "ours: regular patterns + MIP, albedo-normalised", "patterns"),
     # The walkthrough as `glint view` and `glint capture` run it: every lobe's n chosen from its width
     # (viewer/lobe_patterns.py; JSON samples_per_lobe), so the sweep's n means nothing: one point.
     Method("patterns-auto", "ours as shipped: n per lobe from its width", "patterns", ignores_n=True,
            auto_samples=True),
     Method("patterns-eq4.24", "ours with Eq. 4.24 weights", "patterns", "eq4.24"),
+    # The thesis' Eq. 4.25 normalisation that the albedo-normalised mean replaced (viewer/lobe_albedo.py).
+    Method("patterns-eq4.25", "ours with Eq. 4.25 weights (the thesis')", "patterns", "eq4.25"),
     # The thesis' own MIP footprint per cube-map look-up, A / n (Eq. 4.16), that "patterns" replaced.
     Method("patterns-thesis", "ours with the thesis' footprint A / n (Eq. 4.16)", "patterns", footprint="thesis"),
     Method("patterns-moment-all", "ours with the second-moment footprint on transmission lobes too", "patterns",
            footprint="moment-all"),
     # Planar reflectors: the single ring of curved objects instead of the multi-ring
     # (section 4.5.3); the same as "patterns" on curved objects. Not in the default sweep.
-    Method("patterns-ring", "ours with the single ring on planar reflectors", "patterns", "eq4.25", "ring"),
+    Method("patterns-ring", "ours with the single ring on planar reflectors", "patterns", planar_pattern="ring"),
     Method("filtered-is", "Colbert-Krivanek filtered importance sampling", "filtered-importance"),
     Method("qmc", "unfiltered per-pixel QMC (still camera, one frame)", None),
     # What game engines and glTF viewers use (viewer/split_sum.py): prefiltered when its renderer

@@ -5,6 +5,7 @@
     python3 -m glint.bench.measure_lobe_patterns samples --pattern line --ms 0.02,0.03,0.05
     python3 -m glint.bench.measure_lobe_patterns threshold
     python3 -m glint.bench.measure_lobe_patterns fis            # patterns against filtered importance sampling
+    python3 -m glint.bench.measure_lobe_patterns albedo         # the albedo-normalised mean's weights
     python3 -m glint.bench.measure_lobe_patterns samples --seed 5 --envs 30   # another set of environments
 
 Set-up (numpy only, no GPU; the functions measured are viewer/lobe_patterns.py's and
@@ -27,6 +28,13 @@ within 1% / 2.5% (`samples_for_lobe`'s criterion); `threshold` prints ring again
 same n over anisotropy ratios (sum of errors over sum of references, %). The defaults are the
 runs quoted in docs/BENCHMARKS.md ("Lobe patterns: how the rules were measured"), behind the
 rules of viewer/lobe_patterns.py: seed 11 with 40 environments, seed 21 with 30.
+
+`albedo` (not part of `all`; docs/BENCHMARKS.md, "The walkthrough's albedo normalisation"): the
+walkthrough's albedo-normalised estimate A x sum w L / sum w (viewer/lobe_albedo.py; A by
+core/bsdf.py lobe_albedo) with the weights w = p cos, f cos or v = f cos / p, beside Eq. 4.25 and
+4.24, for the lobes the glTF mapping fits (Kurt's alpha ~ 1/2: metals of roughness 0.3 and 0.5,
+dielectrics of 0.25 and 0.4), an alpha = 0 lobe of m = 0.1 and an anisotropic line (m 0.02 x 0.2,
+alpha 0.5), at views of 0-82 degrees (ALBEDO_VIEWS); median, 75th and 90th percentile of the error.
 
 `fis` (not part of `all`; docs/BENCHMARKS.md) puts the patterns beside Colbert and Krivanek's
 filtered importance sampling at the same n, in the same model: Eq. 4.4 weights f cos / p over n
@@ -198,6 +206,53 @@ def fis_table(ms, ns, err) -> str:
     return "\n".join(lines)
 
 
+ALBEDO_VIEWS = ((0, 0.7), (30, 0.7), (50, 0.7), (65, 0.7), (75, 0.7), (82, 0.7))
+ALBEDO_WEIGHTS = {"Eq. 4.25": "4.25", "Eq. 4.24": "4.24", "A x mean, w = f cos": "fcos",
+                  "A x mean, w = v": "v", "A x mean, w = p cos": "pcos"}
+
+
+def albedo_estimate(wo, env, mx, my, r0, alpha, pattern, n, weights, kind="reflect"):
+    """`estimate`, or the albedo-normalised mean with weights "fcos", "v" or "pcos"."""
+    if weights in ("4.25", "4.24"):
+        return estimate(wo, env, mx, my, r0, alpha, pattern, n, weights, kind)
+    xi = P.pattern_xi(pattern, n)
+    wi, f, p, c = P.pattern_samples(wo, xi, mx, my, r0, alpha, kind)
+    lam_f = 12.0 / np.minimum(P.lobe_ellipse_area(wo, mx, my, kind) / n, OMEGA_MAX)
+    L = radiance(wi / np.linalg.norm(wi, axis=-1, keepdims=True), env, lam_f)
+    keep = (f > 0) & (p > 0) & (c > 0)
+    w = np.where(keep, {"fcos": f * c, "v": f * c / np.where(keep, p, 1.0), "pcos": p * c}[weights], 0.0)
+    albedo = float(bsdf.lobe_albedo(wo, mx, my, r0, alpha, kind))
+    return albedo * float(np.sum(w * L)) / max(float(np.sum(w)), 1e-300)
+
+
+def measure_albedo(seed: int, envs: int, log=print) -> str:
+    """The table of `albedo`: error percentiles of each estimator over lobes x views x environments."""
+    from glint.bake.material_mapping import GltfPbr, map_pbr
+
+    lobes = []
+    for metallic, base, r in ((1.0, 1.0, 0.3), (1.0, 1.0, 0.5), (0.0, 0.5, 0.25), (0.0, 0.5, 0.4)):
+        (lobe,) = map_pbr(GltfPbr(base_color=(base,) * 3, metallic=metallic, roughness=r))[1]
+        lobes.append((lobe.mx, lobe.my, lobe.r0, lobe.alpha, "ring"))
+    lobes += [(0.1, 0.1, 0.5, 0.0, "ring"), (0.02, 0.2, 0.5, 0.5, "line_y")]
+    rng = np.random.default_rng(seed)
+    environments = [environment(rng) for _ in range(envs)]
+    errors = {name: [] for name in ALBEDO_WEIGHTS}
+    for mx, my, r0, alpha, pattern in lobes:
+        n = P.samples_for_lobe(mx, my, False)
+        for theta, phi in ALBEDO_VIEWS:
+            wo = sph(np.radians(theta), phi)
+            refs = np.array([reference(wo, e, mx, my, r0, alpha) for e in environments])
+            for name, weights in ALBEDO_WEIGHTS.items():
+                est = np.array([albedo_estimate(wo, e, mx, my, r0, alpha, pattern, n, weights) for e in environments])
+                errors[name].append(np.abs(est - refs) / refs)
+        log(f"  lobe m {mx:.3g} x {my:.3g}, alpha {alpha:.2f}: done")
+    lines = ["| estimator | median | 75th | 90th |", "|---|---|---|---|"]
+    for name, e in errors.items():
+        e = np.concatenate(e) * 100
+        lines.append(f"| {name} | {np.median(e):.1f} % | {np.percentile(e, 75):.1f} % | {np.percentile(e, 90):.1f} % |")
+    return "\n".join(lines)
+
+
 def cases(seed: int, envs: int):
     rng = np.random.default_rng(seed)
     environments = [environment(rng) for _ in range(envs)]
@@ -273,7 +328,7 @@ def threshold_table(result) -> str:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("what", nargs="?", default="all", choices=("all", "samples", "threshold", "fis"),
+    parser.add_argument("what", nargs="?", default="all", choices=("all", "samples", "threshold", "fis", "albedo"),
                         help="the sample-count tables (ring and line), the ring/line threshold table, all of "
                              "those, or patterns against filtered importance sampling (fis)")
     parser.add_argument("--pattern", choices=("ring", "line", "both"), default="both",
@@ -314,6 +369,11 @@ def main(argv=None) -> int:
         print(f"Threshold: ring against line at the same n (sum of errors over sum of references, %), "
               f"{envs} environments (seed {seed}) x {len(VIEWS)} views, r0 = {args.r0:g}, Eq. {args.weights}\n")
         print(threshold_table(measure_threshold(seed, envs, args.r0, args.weights, log)))
+    if args.what == "albedo":
+        seed, envs = (21 if args.seed is None else args.seed), (16 if args.envs is None else args.envs)
+        print(f"The walkthrough's estimators against the lobe integral, {envs} environments (seed {seed}) x "
+              f"{len(ALBEDO_VIEWS)} views (0-82 degrees) x 6 lobes\n")
+        print(measure_albedo(seed, envs, log))
     if args.what == "fis":
         seed, envs = (11 if args.seed is None else args.seed), (20 if args.envs is None else args.envs)
         ms = [float(x) for x in args.ms.split(",")] if args.ms else [0.02, 0.05, 0.1]

@@ -109,8 +109,9 @@ def add_capture_options(p: argparse.ArgumentParser) -> None:
     specular.add_argument("--lobe-samples", metavar="N",
                           help="samples per lobe of the walkthrough's regular patterns (default: chosen per lobe "
                                "from its width)")
-    specular.add_argument("--weights", choices=("eq4.25", "eq4.24"), default="eq4.25",
-                          help="the walkthrough's normalised estimator: the thesis' Eq. 4.25 (default) or Eq. 4.24")
+    specular.add_argument("--weights", choices=("albedo", "eq4.25", "eq4.24"), default="albedo",
+                          help="the walkthrough's normalised estimator: the lobe's albedo times the pattern's mean "
+                               "radiance (default), or, for comparisons, the thesis' Eq. 4.25 or Eq. 4.24")
     specular.add_argument("--walkthrough-method", choices=("patterns", "filtered-importance", "split-sum"),
                           default="patterns",
                           help="regular patterns (default), or, for comparisons, Colbert-Krivanek filtered importance "

@@ -1,6 +1,7 @@
 // Deterministic regular lobe sampling for walkthroughs (thesis section 4.4.3): pattern directions
 // (Eq. 4.10-4.13), the MIP level of each sample (Eq. 4.14-4.17, and Colbert-Krivanek's pdf-based
-// level for filtered importance sampling), and the normalised estimators of Eq. 4.24 / 4.25.
+// level for filtered importance sampling), and the normalised estimators: the albedo-normalised
+// mean (the default) and Eq. 4.24 / 4.25.
 // The pattern positions in (xi1, xi2) space come from viewer/lobe_patterns.py, which also holds
 // the numpy reference of every function here (tests/test_lobe_patterns.py holds them equal).
 // Directions are in the local frame (t, b, n) of bsdf.glsl.
@@ -120,39 +121,56 @@ float importance_mip_level(float pdf, int n, float face_size) {
     return clamp(level, 0.0, log2(face_size));
 }
 
-// The normalised estimators of the specular integral over a pattern (Eq. 4.24, 4.25). Both are a
-// weighted mean of each sample's radiance times its importance weight v = cos(theta_i) f / p:
+// The normalised estimators of the specular integral over a pattern. The thesis' two (Eq. 4.24,
+// 4.25) are a weighted mean of each sample's radiance times its importance weight v = cos(theta_i) f / p:
 //   Eq. 4.24: sum L cos^2 f / sum p cos             = sum w v L / sum w, w = p cos
-//   Eq. 4.25: sum L cos^2 f^2 / p / sum f cos       = sum w v L / sum w, w = f cos   (the default)
+//   Eq. 4.25: sum L cos^2 f^2 / p / sum f cos       = sum w v L / sum w, w = f cos
+// Under uniform light neither reads the lobe's directional albedo A: Eq. 4.25 gives
+// sum f^2 cos^2 / p / sum f cos, leaning towards the samples of large v, and with Kurt's alpha f
+// carries (cos_i cos_o)^-alpha, which the pdf (Eq. 4.9) does not, so v grows towards the horizon and
+// the bias with alpha (6-12 % too bright at 74.5 degrees for the fitted glTF lobes, issue 24). The
+// default, ESTIMATE_ALBEDO, is the split sum's normalisation (Karis 2013) applied to the pattern:
+//   A(wo) x sum w L / sum w, w = p cos   (Eq. 4.24 with each sample's v replaced by its mean A)
+// -- exact under uniform light, the pattern's weighting of the light kept; A from the table of
+// viewer/lobe_albedo.py (lobe_albedo.glsl), which also says why p cos and not f cos or v. The
+// caller multiplies lobe_sum_result by A. Eq. 4.25 and 4.24 stay for comparisons (Renderer
+// weights="eq4.25" / "eq4.24": ESTIMATOR_DEFAULT), and Eq. 4.25 for lobes with no exact table.
 // `num` holds that mean, updated incrementally (West 1979), `den` the sum of the weights: no
 // product w v L is ever formed, because f reaches ~1e27 for near-mirror lobes seen at grazing
 // angles and cube-map radiance may be large, which together would overflow fp32.
 // Start from LobeSum(vec3(0.0), 0.0).
+const int ESTIMATE_ALBEDO = 0, ESTIMATE_EQ_4_25 = 1, ESTIMATE_EQ_4_24 = 2;
+#if defined(WEIGHTS_EQ_4_24)
+const int ESTIMATOR_DEFAULT = ESTIMATE_EQ_4_24;
+#elif defined(WEIGHTS_EQ_4_25)
+const int ESTIMATOR_DEFAULT = ESTIMATE_EQ_4_25;
+#else
+const int ESTIMATOR_DEFAULT = ESTIMATE_ALBEDO;
+#endif
+
 struct LobeSum {
-    vec3 num;   // weighted mean of L v so far
+    vec3 num;   // weighted mean of L (ESTIMATE_ALBEDO) or of L v (Eq. 4.24, 4.25) so far
     float den;  // sum of the weights w
 };
 
 // Add one pattern sample: L its (filtered) incident radiance, f = lobe_value, pdf = lobe_pdf, and
 // cos_i the cosine of the sample direction on the lobe's side of the surface (wi.z for reflection,
-// -wi.z for transmission). Samples below that horizon (cos_i <= 0) or outside the lobe's support
-// (f or pdf 0) are dropped, as the thesis drops samples below the horizon.
-void add_pattern_sample(inout LobeSum s, vec3 L, float f, float pdf, float cos_i) {
+// -wi.z for transmission); `estimator` one of ESTIMATE_*. Samples below that horizon (cos_i <= 0)
+// or outside the lobe's support (f or pdf 0) are dropped, as the thesis drops samples below the
+// horizon (ESTIMATE_ALBEDO: the mean of the kept ones, A holding the horizon's loss).
+void add_pattern_sample(inout LobeSum s, vec3 L, float f, float pdf, float cos_i, int estimator) {
     if (!(f > 0.0 && pdf > 0.0 && cos_i > 0.0))
         return;
     float v = cos_i * (f / pdf);  // the importance weight of Eq. 4.4
-#ifdef WEIGHTS_EQ_4_24
-    float w = pdf * cos_i;        // Eq. 4.24
-#else
-    float w = f * cos_i;          // Eq. 4.25
-#endif
-    if (!(w > 0.0))
+    float w = estimator == ESTIMATE_EQ_4_25 ? f * cos_i : pdf * cos_i;  // Eq. 4.25; Eq. 4.24 and albedo
+    if (!(w > 0.0) || isinf(w))
         return;                   // underflowed: it would add nothing, and 0/0 on a first sample
+    vec3 x = estimator == ESTIMATE_ALBEDO ? L : L * v;
     s.den += w;
-    s.num += (w / s.den) * (L * v - s.num);
+    s.num += (w / s.den) * (x - s.num);
 }
 
-// The estimate of Eq. 4.24 / 4.25: the weighted mean, or 0 when no sample counted.
+// The weighted mean (times A for ESTIMATE_ALBEDO: the caller's), or 0 when no sample counted.
 vec3 lobe_sum_result(LobeSum s) {
     return s.den > 0.0 ? s.num : vec3(0.0);
 }

@@ -8,7 +8,13 @@
 // - SPECULAR_PATTERNS (walkthrough): the lobe's deterministic regular pattern (Eq. 4.10-4.13, the
 //   same (xi1, xi2) positions at every pixel: smooth in space and time), each sample a MIP-filtered
 //   look-up (Eq. 4.16-4.17; its footprint from the lobe's second moment, or the thesis' A / n of
-//   Eq. 4.14-4.15 with `pattern_footprint`), weighted by Eq. 4.25 (or Eq. 4.24 with WEIGHTS_EQ_4_24).
+//   Eq. 4.14-4.15 with `pattern_footprint`), their p cos-weighted mean of the radiance times the
+//   lobe's directional albedo for this view (lobe_sampling.glsl ESTIMATE_ALBEDO, the table of
+//   lobe_albedo.glsl; viewer/lobe_albedo.py says why: Eq. 4.25's bias grows with Kurt's alpha), or
+//   for comparison weighted by Eq. 4.25 (WEIGHTS_EQ_4_25) or Eq. 4.24 (WEIGHTS_EQ_4_24). A lobe whose
+//   table is not its texel's (a metallic-roughness and an anisotropy texture at once) keeps Eq. 4.25.
+//   Transmission lobes and glass solids alike: the look's weight (volume.glsl) is part of the
+//   radiance averaged, the lobe's albedo holds its 1 - F.
 // - SPECULAR_QMC (still camera): `qmc_count` quasi-random importance samples (Eq. 4.5-4.8) per
 //   frame, the R2 sequence from sample `qmc_first` on, Cranley-Patterson rotated by a hash of the
 //   pixel and lobe, unfiltered look-ups, weights f cos / p (Eq. 4.4). The frames' mean (viewer/
@@ -28,7 +34,7 @@
 //   anisotropic ones; viewer/lobe_patterns.py), each sample at its own MIP level (4.5.3 per
 //   sample): its share A / n of the lobe's solid angle (Eq. 4.14-4.15) times the buffer's texels
 //   per steradian at its look-up, the Jacobian of the two-step projection (the planar Eq. 4.16;
-//   mirror_buffer.glsl); Eq. 4.25 weights. Split-sum keeps one level from the lobe's four extreme
+//   mirror_buffer.glsl); weighted as for cube maps. Split-sum keeps one level from the lobe's four extreme
 //   directions, which span an ellipse in the buffer (planar_lobe_lod).
 // - SPECULAR_QMC: importance samples as for cube maps, unfiltered; step 1 intersects the running
 //   mean of the planes that this pixel's samples were found in so far (all frames of the still
@@ -47,6 +53,7 @@
 #include "materials.glsl"
 #include "gbuffer_read.glsl"
 #include "lobe_sampling.glsl"
+#include "lobe_albedo.glsl"
 #include "cubemaps.glsl"
 #include "volume.glsl"
 #include "mirror_buffer.glsl"
@@ -105,6 +112,7 @@ struct SpecularPoint {
     MirrorCentre centre;  // the point's own look-up in that mirror buffer: P_R and its plane
     vec4 plane_sum_p;     // still camera: sum of the planes' positions so far, w: their count
     vec3 plane_sum_n;     // ... and of their normals
+    vec2 texel;           // the texel's metallic-roughness factor g and anisotropy strength s (lobe_albedo_at)
 };
 
 // Where sample wi (local frame) reads the object's cube map and what of that reaches the eye:
@@ -190,8 +198,9 @@ float pattern_sample_area(vec3 wo, Lobe lobe, ivec4 pattern) {
     return lobe_ellipse_area(wo, lobe) / float(n);
 }
 
-// Walkthrough: the regular pattern, MIP-filtered, normalised by Eq. 4.25 (or 4.24).
-vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
+// Walkthrough: the regular pattern, MIP-filtered, its weighted mean by `estimator` (lobe_sampling.glsl:
+// times the albedo by the caller for ESTIMATE_ALBEDO).
+vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern, int estimator) {
     float face = cube_map_face_size(sp.cube);
     float sample_area = pattern_sample_area(sp.wo, lobe, pattern);
     LobeSum sum = LobeSum(vec3(0.0), 0.0);
@@ -202,7 +211,7 @@ vec3 lobe_pattern_estimate(SpecularPoint sp, Lobe lobe, ivec4 pattern) {
         CubeLook look = cube_look(sp, wi, lobe);
         vec3 L = look_radiance(sp, look, cube_mip_level(sample_area, look.dir, face));
         specular_lookups += 1;
-        add_pattern_sample(sum, L, lobe_value(wi, sp.wo, lobe), lobe_pdf(wi, sp.wo, lobe), abs(wi.z));
+        add_pattern_sample(sum, L, lobe_value(wi, sp.wo, lobe), lobe_pdf(wi, sp.wo, lobe), abs(wi.z), estimator);
     }
     return lobe_sum_result(sum);
 }
@@ -307,11 +316,11 @@ void add_found_plane(inout SpecularPoint sp, MirrorSample ms) {
 
 // Walkthrough: the lobe's planar pattern, each sample at its own MIP level for its footprint
 // (pattern_sample_area: the second moment; A / n of Eq. 4.14-4.16 with the thesis' footprint) times
-// the projection's texels per steradian, Eq. 4.25 (4.24); step 1 in the running mean of the planes
+// the projection's texels per steradian, weighted by `estimator` as lobe_pattern_estimate; step 1 in the running mean of the planes
 // found (the pattern's centre sample first: P_R's plane). With A / n the samples of a wide lobe read
 // levels of 2-6, whose boxes mixed the sky beyond the room into the floor's reflection (measured:
 // docs/BENCHMARKS.md, "Issue 6: all methods, split-sum included", planar reflectors).
-vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern) {
+vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern, int estimator) {
     float sample_sr = pattern_sample_area(sp.wo, lobe, pattern);
     LobeSum sum = LobeSum(vec3(0.0), 0.0);
     MirrorSample ms;
@@ -323,7 +332,7 @@ vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern) {
         step_one_plane(sp, plane_p, plane_n);
         vec3 L = planar_filtered_lookup(sp, wi, plane_p, plane_n, sample_sr, ms);
         add_found_plane(sp, ms);
-        add_pattern_sample(sum, L, lobe_value(wi, sp.wo, lobe), lobe_pdf(wi, sp.wo, lobe), abs(wi.z));
+        add_pattern_sample(sum, L, lobe_value(wi, sp.wo, lobe), lobe_pdf(wi, sp.wo, lobe), abs(wi.z), estimator);
     }
     return lobe_sum_result(sum);
 }
@@ -398,19 +407,26 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
     ivec4 pattern = lobe_patterns[planar ? lobe_patterns[lobe_index].w : lobe_index];
     uvec2 rotation = pcg3d(sp.seed + uvec3(0u, 0u, uint(lobe_index))).xy;
     vec3 L;
-    if (planar) {
-        if (specular_mode == SPECULAR_QMC)
-            L = planar_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, false);
-        else if (specular_mode == SPECULAR_FILTERED_IS)
-            L = planar_importance_estimate(sp, lobe, 0u, pattern.y, R2_CENTRED, true);
-        else
-            L = planar_pattern_estimate(sp, lobe, pattern);
-    } else if (specular_mode == SPECULAR_QMC) {
-        L = lobe_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, false);
+    if (specular_mode == SPECULAR_QMC) {
+        L = planar ? planar_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, false)
+                   : lobe_importance_estimate(sp, lobe, uint(qmc_first), qmc_count, rotation, false);
     } else if (specular_mode == SPECULAR_FILTERED_IS) {
-        L = lobe_importance_estimate(sp, lobe, 0u, pattern.y, R2_CENTRED, true);
+        L = planar ? planar_importance_estimate(sp, lobe, 0u, pattern.y, R2_CENTRED, true)
+                   : lobe_importance_estimate(sp, lobe, 0u, pattern.y, R2_CENTRED, true);
     } else {
-        L = lobe_pattern_estimate(sp, lobe, pattern);
+        // The walkthrough: the albedo-normalised mean where the table holds the texel's lobe, else Eq. 4.25.
+        int estimator = ESTIMATOR_DEFAULT;
+        float albedo = 1.0;
+        if (estimator == ESTIMATE_ALBEDO) {
+            bool exact;
+            albedo = lobe_albedo_at(sp.wo, lobe_index, sp.texel.x, sp.texel.y, exact);
+#ifdef LOBE_ALBEDO_INEXACT
+            estimator = exact ? ESTIMATE_ALBEDO : ESTIMATE_EQ_4_25;
+#endif
+        }
+        L = planar ? planar_pattern_estimate(sp, lobe, pattern, estimator) : lobe_pattern_estimate(sp, lobe, pattern, estimator);
+        if (estimator == ESTIMATE_ALBEDO)
+            L *= albedo;
     }
     return lobe.ks.rgb * L;
 }
@@ -452,6 +468,7 @@ vec3 specular_radiance(Surface s, Material m, ivec2 pixel) {
     sp.mirror = mirror_slot_at(s);
     sp.plane_sum_p = vec4(0.0);
     sp.plane_sum_n = vec3(0.0);
+    sp.texel = vec2(s.mr.x, s.anisotropy);
     bool planes = sp.mirror >= 0 && specular_mode == SPECULAR_QMC;
     if (sp.mirror >= 0)
         sp.centre = mirror_centre(s.position, mirror_slots[sp.mirror].view_proj, sp.mirror);

@@ -5,10 +5,8 @@
 // planar_lobe_lod, planar_lookup), and calls `split_sum_estimate` for SPECULAR_SPLIT_SUM.
 
 // The prefiltered chains, one samplerCubeArray per size class of cubemaps.glsl (same class and
-// layer as the object's own map), and the albedo LUT: a layer per lobe, x the view azimuth in
-// [0, pi/2], y sqrt(cos theta_v), nodes at both ends.
+// layer as the object's own map); the albedo is the walkthrough's table (lobe_albedo.glsl).
 layout(binding = SPLIT_SUM_FIRST_UNIT) uniform samplerCubeArray split_sum_maps[CUBE_CLASSES];
-layout(binding = SPLIT_SUM_LUT_UNIT) uniform sampler2DArray split_sum_albedo;
 uniform float split_sum_levels[CUBE_CLASSES];  // levels of each class's prefiltered chain
 
 // The level holding roughness m: sqrt(m / M_MAX) (levels - 1), clamped (viewer/split_sum.py
@@ -27,17 +25,6 @@ vec3 split_sum_cube(CubeObject c, vec3 dir, float m) {
     return L;
 }
 
-// The lobe's directional albedo int f cos dw (without ks) for the local view wo (wo.z >= 0),
-// bilinear in (azimuth, sqrt(cos theta_v)); the lobe is symmetric in x and in y.
-float split_sum_lobe_albedo(vec3 wo, int lobe_index) {
-    vec2 a = abs(wo.xy);
-    float phi = a.x + a.y > 0.0 ? atan(a.y, a.x) : 0.0;
-    vec2 node = vec2(phi / (0.5 * PI), sqrt(clamp(wo.z, 0.0, 1.0)));
-    vec2 uv = (node * vec2(SPLIT_SUM_LUT_PHI - 1, SPLIT_SUM_LUT_COS - 1) + 0.5)
-              / vec2(SPLIT_SUM_LUT_PHI, SPLIT_SUM_LUT_COS);
-    return texture(split_sum_albedo, vec3(uv, float(lobe_index))).r;
-}
-
 // One lobe's split-sum estimate (without ks): prefiltered radiance at the lobe centre -- the
 // mirror direction, or the straight-through one for a transmission lobe -- times its albedo.
 // Cube maps: the centre direction through the bounding planes (section 4.4.1; engines' parallax-
@@ -45,7 +32,8 @@ float split_sum_lobe_albedo(vec3 wo, int lobe_index) {
 // the centre's projection into the mirror buffer, at the MIP level of the lobe's footprint there.
 vec3 split_sum_estimate(SpecularPoint sp, Lobe lobe, int lobe_index, bool planar) {
     vec3 centre = pattern_direction(sp.wo, vec2(1.0, 0.0), lobe);  // xi1 = 1: the lobe centre
-    float albedo = split_sum_lobe_albedo(sp.wo, lobe_index);
+    bool exact;  // the factor's albedo where the table is not the texel's: the best split-sum has
+    float albedo = lobe_albedo_at(sp.wo, lobe_index, sp.texel.x, sp.texel.y, exact);
     vec3 L;
     if (planar) {
         MirrorSample ms;

@@ -36,8 +36,9 @@ def test_buffer_bindings_are_distinct_and_shading_units_follow_the_fixed_ones():
         c = max(classes, 1)
         taken = [*fixed, *range(units["CUBE_FIRST_UNIT"], units["CUBE_FIRST_UNIT"] + c),
                  *(units[name] for name in gl_bindings.MIRROR_UNIT_NAMES),
-                 *range(units["SPLIT_SUM_FIRST_UNIT"], units["SPLIT_SUM_FIRST_UNIT"] + c), units["SPLIT_SUM_LUT_UNIT"]]
+                 *range(units["SPLIT_SUM_FIRST_UNIT"], units["SPLIT_SUM_FIRST_UNIT"] + c)]
         assert sorted(taken) == list(range(len(taken)))  # no unit twice, none skipped
+        assert units["UNIT_COUNT"] == len(taken)
 
 
 def test_scene_textures_past_the_limits_are_a_glint_error(ctx, tmp_path, monkeypatch):

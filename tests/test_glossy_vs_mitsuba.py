@@ -24,7 +24,6 @@ import numpy as np
 import pytest
 from test_capture_vs_mitsuba import object_ids
 
-from glint.bake.material_mapping import GltfPbr, map_pbr
 from glint.bake.gltf_loader import load_scene
 from glint.scenes.gltf_writer import GltfWriter, quad
 
@@ -125,60 +124,12 @@ def figures(image: np.ndarray, reference: np.ndarray, mask: np.ndarray) -> tuple
     return bias, float(np.abs(a - b).sum() / b.sum())
 
 
-def pattern_excess(kind: str, m: float, glossy: str, inside: np.ndarray) -> np.ndarray:
-    """Per pixel, what the walkthrough's estimator gives for uniform light over what the lobe
-    integral is: the Eq. 4.25 estimate of the lobe's regular pattern (viewer/lobe_patterns.py, the
-    numpy twin of the shader's patterns) for L = 1, over the lobe's directional albedo (4096
-    importance samples of core/bsdf.py, Eq. 4.4), at the pixel's view angle (its centre ray against
-    the floor's plane or the ball's sphere), over the pixels `inside`. It is above 1 towards grazing views: the normalised
-    estimator does not lose the part of the lobe that the horizon cuts off (for m 0.2: 1.03 at
-    normal view, 1.12 at 60 degrees, 1.5 at 80). 1 outside the `glossy` object, and for the
-    dielectric, whose image is mostly diffuse light. The walkthrough is compared with Mitsuba's
-    image times this: the estimator as the thesis defines it."""
-    from glint.core import bsdf
-    from glint.viewer import lobe_patterns as lp
-
-    excess = np.ones((SIZE, SIZE))
-    if kind != "metal":
-        return excess
-    cam = camera()
-    eye, forward, up = (np.asarray(a, np.float64) for a in (cam.eye, cam.forward, cam.up))
-    s = (np.arange(SIZE) + 0.5) / SIZE * 2 - 1
-    x, y = np.meshgrid(s, -s)
-    t = np.tan(cam.yfov / 2)
-    d = forward + x[..., None] * t * np.cross(forward, up) + y[..., None] * t * up
-    d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    if glossy == "Floor":
-        cos_o = -d[..., 1]
-    else:
-        oc = eye - np.array(BALL_CENTRE)
-        b = d @ oc
-        hit = eye + (-b - np.sqrt(np.maximum(b * b - (oc @ oc - BALL_RADIUS ** 2), 0.0)))[..., None] * d
-        cos_o = -np.sum((hit - BALL_CENTRE) / BALL_RADIUS * d, axis=-1)
-    c = np.clip(cos_o[inside], 1e-3, 1.0)
-    wo = np.stack([np.sqrt(1 - c * c), np.zeros_like(c), c], axis=-1)
-    planar = glossy == "Floor"
-    # the metal's lobes as the loader maps them (bake/material_mapping.py: fitted, Kurt's alpha ~ 1/2;
-    # the coloured metal's two lobes of one shape, F = 1 and F = (1 - cos)^5), weighted by mean ks
-    pattern, albedo = 0.0, 0.0
-    u = np.random.default_rng(0).random((4096, 2))
-    for lobe in map_pbr(GltfPbr(base_color=COPPER, metallic=1.0, roughness=float(np.sqrt(m))))[1]:
-        m, r0, alpha, k = lobe.mx, lobe.r0, lobe.alpha, float(np.mean(lobe.ks))
-        xi = lp.pattern_xi(lp.choose_pattern(m, m, planar), lp.samples_for_lobe(m, m, planar))
-        _, f, pdf, cos_i = lp.pattern_samples(wo, xi, m, m, r0, alpha, "reflect")
-        pattern = pattern + k * lp.pattern_estimate(np.ones(f.shape + (1,)), f, pdf, cos_i)[..., 0]
-        wi = bsdf.sample_lobe(wo[:, None], u[:, 0], u[:, 1], m, m, "reflect")
-        f = bsdf.lobe_value(wi, wo[:, None], m, m, r0, alpha, "reflect")
-        pdf = bsdf.lobe_pdf(wi, wo[:, None], m, m, "reflect")
-        ok = (wi[..., 2] > 0) & (pdf > 0)
-        albedo = albedo + k * np.where(ok, f * np.maximum(wi[..., 2], 0.0) / np.where(ok, pdf, 1.0), 0.0).mean(axis=-1)
-    excess[inside] = pattern / albedo
-    return excess
-
-
 def compare(tmp_path, kind: str, m: float, glossy: str) -> dict[str, tuple[float, float]]:
-    """(bias, block MAE) of the glossy object's region: the converged capture (32 still frames)
-    against Mitsuba (64 spp), the walkthrough against Mitsuba times `pattern_excess`."""
+    """(bias, block MAE) of the glossy object's region: the converged capture (32 still frames) and the
+    walkthrough against Mitsuba (64 spp). The walkthrough's estimate reads the lobe's albedo under
+    uniform light (viewer/lobe_albedo.py), so it is compared with Mitsuba as it is; with the thesis'
+    Eq. 4.25 it was compared with Mitsuba times that estimator's excess over the albedo, which grows
+    towards grazing views (x1.12 at 60 degrees, x1.5 at 80 for a metal lobe of m 0.2)."""
     path = write_scene(tmp_path / "scene.glb", kind, m, glossy)
     reference = mitsuba_image(path, spp=64)
     walkthrough, still = capture(path), capture(path, converge=32)
@@ -186,7 +137,7 @@ def compare(tmp_path, kind: str, m: float, glossy: str) -> dict[str, tuple[float
     mask = regions(path)[glossy]
     assert mask.sum() >= 300
     out = {"still": figures(still, reference, mask),
-           "walkthrough": figures(walkthrough, reference * pattern_excess(kind, m, glossy, mask)[..., None], mask)}
+           "walkthrough": figures(walkthrough, reference, mask)}
     for name, (bias, mae) in out.items():
         print(f"{kind} m {m} {glossy} {name}: bias {bias:+.4f}, block MAE {mae:.4f}")
     return out
@@ -201,17 +152,18 @@ def test_glossy_ball_matches_mitsuba(tmp_path, kind, m):
     """The ball (cube map): |bias| at most 2 % in both modes, block MAE at most 5 % (the
     dielectric's light-mapped diffuse part carries the draft bake's noise).
 
-    Measured (bias / MAE, still; walkthrough against Mitsuba x pattern_excess), in %, with the lobes
-    fitted to the glTF BRDF (issue 24: Kurt's alpha ~ 1/2; before, alpha = 0, the metal 0.2 ball read
-    +0.80 / 0.65 and +0.74 / 2.2):
-    dielectric 0.05: +0.15 / 3.3; +0.16 / 3.3.   dielectric 0.2: -0.77 / 1.9; -0.39 / 1.9.
-    metal 0.05: +0.28 / 0.39; +0.21 / 0.42.        metal 0.2: +1.48 / 0.82; +1.79 / 2.1.
+    Measured (bias / MAE, still; walkthrough against Mitsuba), in %, with the lobes fitted to the glTF
+    BRDF (issue 24: Kurt's alpha ~ 1/2; before, alpha = 0, the metal 0.2 ball read +0.80 / 0.65 and
+    +0.74 / 2.2):
+    dielectric 0.05: +0.15 / 3.3; -0.49 / 3.3.   dielectric 0.2: -0.77 / 1.9; +0.10 / 2.0.
+    metal 0.05: +0.28 / 0.39; +0.25 / 0.43.        metal 0.2: +1.48 / 0.82; +1.87 / 2.1.
+    (The walkthrough with the thesis' Eq. 4.25, before the albedo normalisation: -0.50 / 3.3,
+    +0.70 / 2.0, +0.37 / 0.45, +3.66 / 2.5 against Mitsuba as it is.)
     Deliberate bugs this catches (tried):
     - no Fresnel term (schlick_F = 1 in shaders/bsdf.glsl): the dielectric's bias +161 % (0.05)
       and +151 .. +159 % (0.2), both modes;
-    - Eq. 4.25's weight without its cosine (w = f in lobe_sampling.glsl add_pattern_sample):
-      metal 0.2 walkthrough bias -2.8 % (its raw excess over Mitsuba falls from 5.8 % to 2.1 %
-      while pattern_excess predicts 5.0 %)."""
+    - the walkthrough's Eq. 4.25 normalisation (Renderer weights="eq4.25"), which leans towards the
+      samples of large f cos / p: metal 0.2 walkthrough bias +3.66 %."""
     out = compare(tmp_path, kind, m, "Ball")
     for name, (bias, mae) in out.items():
         assert abs(bias) <= 0.02, (name, bias)
@@ -222,7 +174,7 @@ def test_glossy_ball_matches_mitsuba(tmp_path, kind, m):
 FLOOR_BOUNDS = {("dielectric", 0.05): ((0.04, 0.05), (0.04, 0.06)),
                 ("dielectric", 0.2): ((0.04, 0.05), (0.04, 0.06)),
                 ("metal", 0.05): ((0.04, 0.06), (0.07, 0.10)),
-                ("metal", 0.2): ((0.04, 0.20), (0.20, 0.30))}
+                ("metal", 0.2): ((0.04, 0.20), (0.14, 0.22))}
 
 
 @pytest.mark.slow
@@ -231,12 +183,16 @@ def test_glossy_floor_matches_mitsuba(tmp_path, kind, m):
     """The floor (mirror buffer): the bounds of FLOOR_BOUNDS. Measured (bias / MAE), in %:
     still: dielectric 0.05 +0.19 / 2.6, dielectric 0.2 +0.16 / 2.9, metal 0.05 -1.3 / 3.2,
     metal 0.2 +1.3 / 13.5 (the reference's noise: a rough metal reflecting a small bright panel at
-    64 spp); walkthrough against Mitsuba x pattern_excess: dielectric +0.6 / 2.8 and +1.0 / 2.7,
-    metal 0.05 +2.4 / 6.7 (+6.0 / 8.9 with the lobes fitted to the glTF BRDF, issue 24: Kurt's
-    alpha ~ 1/2, whose f cos / p grows towards the horizon, docs/SCENES.md "glTF materials: how
-    close"), metal 0.2 +13.2 / 20 (+11.4 / 18.7 fitted; the planar patterns' excess beyond
-    pattern_excess: their 10 samples of a wide lobe read the panel and the ball at separate,
-    finely filtered look-ups, ghosts that the bounds of this case allow; docs/BENCHMARKS.md).
+    64 spp); walkthrough against Mitsuba: dielectric +1.56 / 3.3 and +2.39 / 3.9, metal 0.05
+    +6.04 / 9.0, metal 0.2 +11.6 / 18.8. Before the albedo normalisation (Eq. 4.25, compared with
+    Mitsuba times that estimator's excess under uniform light): +1.41 / 3.0, +1.64 / 3.3,
+    +5.97 / 8.9, +11.4 / 18.7; against Mitsuba as it is +1.41 / 3.0, +1.64 / 3.3, +6.18 / 9.0,
+    +14.4 / 20.2. So the metal 0.05 floor's +6 % is not the normalisation (its lobe is narrow: the
+    excess was 1 % there) but the planar look-ups' (docs/SCENES.md "glTF materials: how close"); its
+    bound stays. Metal 0.2: the planar patterns' excess: their 10 samples of a wide lobe read the
+    panel and the ball at separate, finely filtered look-ups, ghosts that the bounds of this case
+    allow (docs/BENCHMARKS.md); its walkthrough bias bound is now 14 % (was 20 %), which Eq. 4.25
+    (+14.4 %) fails.
     Deliberate bugs this catches (tried):
     - mirror-buffer radiance x 0.92 (mirror_buffer.glsl mirror_radiance_at): the metal floor's
       still bias -9.2 % (m 0.05) and -6.8 % (m 0.2), past the 4 % bound;

@@ -8,15 +8,18 @@ Appendix B written without glint's mapping or model (issue 24), so a wrong mappi
 being reproduced in the reference.
 
 Metric: per pixel, |rendered - reference| / reference, the worst over the image, at view angles up
-to 80 degrees (the quad seen at 17, 60 and 74.5 degrees from its normal, +-5 degrees across the
-image). Threshold 3 % (issue 24), converged (1,024 quasi-random samples per pixel) and walkthrough
-(the regular pattern of Eq. 4.25) up to 60 degrees. The walkthrough at 74.5 degrees is held to what it
-measures, 6.3 % (metal, roughness 0.3) and 12.2 % (dielectric, roughness 0.4) too bright, an error of
-the estimator, not of the mapping (the converged image is within 3 % there): the pattern's Eq. 4.25
-normalisation, sum f cos (f cos / p) / sum f cos, leans towards the samples whose weight f cos / p
-is large, and with Kurt's alpha near 1/2 (the fitted lobes') f carries (cos_i cos_o)^-alpha, which
-the pdf of Eq. 4.9 does not, so the weight grows towards the horizon (docs/SCENES.md, "glTF
-materials: how close"). Metals of base colour 1, dielectrics of base colour 0.5: their
+to 80 degrees (the quad seen at 17, 60, 74.5 and 76.2 degrees from its normal, +-5 degrees across the
+image: 12-81 degrees). Threshold 3 % (issue 24), converged (1,024 quasi-random samples per pixel) and
+walkthrough (the regular pattern, its mean radiance times the lobe's albedo: viewer/lobe_albedo.py)
+alike; the walkthrough measures within 1.1 % (docs/SCENES.md, "glTF materials: how close").
+
+Bug the walkthrough half catches: the thesis' Eq. 4.25 normalisation (Renderer(weights="eq4.25"), the
+walkthrough's estimator before), sum f cos (f cos / p) / sum f cos, which leans towards the samples
+whose weight f cos / p is large: with Kurt's alpha near 1/2 (the fitted lobes') f carries
+(cos_i cos_o)^-alpha, which the pdf of Eq. 4.9 does not, so the weight grows towards the horizon.
+It fails here: 6.3 % (metal, roughness 0.3) and 12.2 % (dielectric, roughness 0.4) too bright at
+74.5 degrees, 15 % at 76.2. A table read at the wrong view or the wrong lobe fails as well.
+Metals of base colour 1, dielectrics of base colour 0.5: their
 diffuse part is kd/pi times the light map's irradiance, which under radiance 1 from everywhere is pi
 (the light-map page holds E = pi), so it reads kd.
 
@@ -36,7 +39,7 @@ from glint.core.gltf_brdf import GltfMaterialParams, directional_albedo
 from glint.viewer.renderer import Renderer
 
 SIZE = (8, 8)
-THETAS = (0.3, 1.05, 1.3)  # radians: 17, 60, 74.5 degrees (+-5 across the image: at most 79.5)
+THETAS = (0.3, 1.05, 1.3, 1.33)  # radians: 17, 60, 74.5, 76.2 degrees (+-5 across the image: at most 81.2)
 MATERIALS = {  # name: glTF factors
     "metal, roughness 0.05": dict(base_color=(1.0, 1.0, 1.0), metallic=1.0, roughness=0.05),
     "metal, roughness 0.3": dict(base_color=(1.0, 1.0, 1.0), metallic=1.0, roughness=0.3),
@@ -44,7 +47,6 @@ MATERIALS = {  # name: glTF factors
     "dielectric, roughness 0.4": dict(base_color=(0.5, 0.5, 0.5), metallic=0.0, roughness=0.4),
 }
 RTOL = 0.03
-WALKTHROUGH_RTOL = {0.3: RTOL, 1.05: RTOL, 1.3: 0.13}  # module docstring
 
 
 def gltf_bake(path, factors: dict):
@@ -84,7 +86,7 @@ def test_walkthrough_gltf_furnace_reads_the_specification_albedo(ctx, tmp_path, 
     with Renderer(ctx, gltf_bake(tmp_path / "b", MATERIALS[name])) as r:
         r.render(camera, *SIZE)
         linear = r.read_linear()
-    np.testing.assert_allclose(linear[..., :3].mean(axis=-1), expected, rtol=WALKTHROUGH_RTOL[theta])
+    np.testing.assert_allclose(linear[..., :3].mean(axis=-1), expected, rtol=RTOL)
 
 
 def test_the_old_mapping_fails_this_furnace():

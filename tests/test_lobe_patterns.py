@@ -310,7 +310,7 @@ ESTIMATOR = """
         vec3 wi = pattern_direction(wo, vec2(xi[2 * k], xi[2 * k + 1]), lobe);
         float cos_i = lobe_is_transmit(lobe) ? -wi.z : wi.z;
         vec3 L = scale * vec3(1.0 + wi.x * wi.x, 1.0 + wi.y, 2.0 - wi.z);   // a smooth test environment
-        add_pattern_sample(s, L, lobe_value(wi, wo, lobe), lobe_pdf(wi, wo, lobe), cos_i);
+        add_pattern_sample(s, L, lobe_value(wi, wo, lobe), lobe_pdf(wi, wo, lobe), cos_i, EST);
     }
     result = lobe_sum_result(s);
 """
@@ -320,9 +320,11 @@ def environment(wi, scale):
     return scale[..., None, None] * np.stack([1 + wi[..., 0] ** 2, 1 + wi[..., 1], 2 - wi[..., 2]], -1)
 
 
-@pytest.mark.parametrize("weights,define", [("4.25", {}), ("4.24", {"WEIGHTS_EQ_4_24": 1})])
+@pytest.mark.parametrize("weights,define", [("4.25", {"EST": "ESTIMATE_EQ_4_25"}), ("4.24", {"EST": "ESTIMATE_EQ_4_24"}),
+                                            ("mean", {"EST": "ESTIMATE_ALBEDO"})])
 def test_glsl_estimator_matches_numpy(weights, define):
-    """The whole walkthrough estimate of one lobe: pattern, lobe values, pdf, horizon drop, Eq. 4.24/4.25."""
+    """The whole walkthrough estimate of one lobe: pattern, lobe values, pdf, horizon drop, Eq. 4.24/4.25,
+    and the albedo-normalised estimate's weighted mean (without its A)."""
     n = 7
     table = np.concatenate([P.pattern_xi(kind, n) for kind in ("ring", "line_x", "line_y")])
     rows = []
@@ -363,11 +365,14 @@ def test_no_nan_or_inf_for_degenerate_inputs():
         A = lobe_ellipse_area(wo, lobe);
         level = cube_mip_level(A, wi, 128.0) + cube_mip_level(0.0, vec3(0.0), 128.0);
         ilevel = importance_mip_level(lobe_pdf(wi, wo, lobe), 7, 128.0) + importance_mip_level(0.0, 0, 128.0);
-        LobeSum s = LobeSum(vec3(0.0), 0.0);
-        add_pattern_sample(s, vec3(1e30), lobe_value(wi, wo, lobe), lobe_pdf(wi, wo, lobe), abs(wi.z));
-        add_pattern_sample(s, vec3(1.0), 1e27, 1e20, 1.0);
-        add_pattern_sample(s, vec3(1.0), 1e-30, 1e-30, 1e-30);
-        result = lobe_sum_result(s) + lobe_sum_result(LobeSum(vec3(0.0), 0.0));""",
+        result = lobe_sum_result(LobeSum(vec3(0.0), 0.0));
+        for (int k = ESTIMATE_ALBEDO; k <= ESTIMATE_EQ_4_24; ++k) {  // every estimator
+            LobeSum s = LobeSum(vec3(0.0), 0.0);
+            add_pattern_sample(s, vec3(1e30), lobe_value(wi, wo, lobe), lobe_pdf(wi, wo, lobe), abs(wi.z), k);
+            add_pattern_sample(s, vec3(1.0), 1e27, 1e20, 1.0, k);
+            add_pattern_sample(s, vec3(1.0), 1e-30, 1e-30, 1e-30, k);
+            result += lobe_sum_result(s);
+        }""",
               {"wi": 3, "A": 1, "level": 1, "ilevel": 1, "result": 3},
               wo=rows[:, 0:3], shape=rows[:, 3:7], xi=rows[:, 7:9], ks=ks)
     for name, values in out.items():

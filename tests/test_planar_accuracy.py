@@ -44,12 +44,15 @@ def cast_radiance(P, d, rects):
     return L
 
 
-# Bounds on the median and 75th percentile of the relative error. Measured with one level per
-# lobe (the ellipse of its extremes): 0.44 / 0.56; a level per sample for A / n of the lobe:
-# 0.24 / 0.33; per sample for the second-moment footprint (shipped): 0.138 / 0.247. (An uncapped
+# Bounds on the median and 75th percentile of the relative error. Measured with Eq. 4.25's weights:
+# one level per lobe (the ellipse of its extremes): 0.44 / 0.56; a level per sample for A / n of
+# the lobe: 0.24 / 0.33; per sample for the second-moment footprint: 0.138 / 0.247. (An uncapped
 # guard band, s = 6.8, gave 0.13 / 0.21 with A / n but 0.22 / 0.34 with the moment: its buffer is
-# 3.4x coarser, and 7 samples at fine levels alias on the checker; the cap is what ships.)
-MEDIAN_BOUND, UPPER_BOUND = 0.18, 0.28
+# 3.4x coarser, and 7 samples at fine levels alias on the checker; the cap is what ships.) With the
+# albedo-normalised estimate (viewer/lobe_albedo.py, shipped): 0.063 / 0.110; the bounds (were 0.18
+# / 0.28) now fail Eq. 4.25 (Renderer(weights="eq4.25"), whose excess towards the horizon the
+# black sky above the wall does not cancel).
+MEDIAN_BOUND, UPPER_BOUND = 0.09, 0.15
 
 
 def test_wide_lobe_walkthrough_against_a_ray_cast_integral(ctx, tmp_path):

@@ -236,7 +236,7 @@ def test_classes_over_the_texture_units_are_resampled_with_one_warning(tmp_path,
     from glint.viewer.gl_bindings import shading_units
 
     ctx = glsl_eval.context()
-    monkeypatch.setitem(ctx.info, "GL_MAX_COMPUTE_TEXTURE_IMAGE_UNITS", shading_units(1)["SPLIT_SUM_LUT_UNIT"] + 1)
+    monkeypatch.setitem(ctx.info, "GL_MAX_COMPUTE_TEXTURE_IMAGE_UNITS", shading_units(1)["UNIT_COUNT"])
     assert gl_limits(ctx)["max_classes"] == 1
     (tmp_path / "cubemaps").mkdir()
     colours = np.array([[0.1, 0.2, 0.3], [1.0, 0.5, 0.0], [0.0, 0.7, 0.2]])

@@ -336,7 +336,7 @@ def gl_limits(ctx: moderngl.Context) -> dict:
     units = min(int(info.get("GL_MAX_COMPUTE_TEXTURE_IMAGE_UNITS", 16)),
                 int(info.get("GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS", 16)))
     max_classes = 1
-    while shading_units(max_classes + 1)["SPLIT_SUM_LUT_UNIT"] < units:
+    while shading_units(max_classes + 1)["UNIT_COUNT"] <= units:
         max_classes += 1
     return {"per_class": max(int(info.get("GL_MAX_ARRAY_TEXTURE_LAYERS", 2048)) // 6, 1),
             "max_classes": max_classes, "max_face": int(info.get("GL_MAX_CUBE_MAP_TEXTURE_SIZE", 16384))}

@@ -38,9 +38,11 @@ DRAW_COMMAND_BINDING = 15   # cull.comp: the indirect draw commands it writes
 DRAW_STATE_BINDING = 16     # cull.comp: why each object was drawn or not
 DRAW_HIDDEN_BINDING = 17    # cull.comp: per object, 1 = left out
 OBJECT_LOD_BINDING = 18     # cull.comp: per object its levels of detail (viewer/gpu_meshes.py OBJECT_LOD_DTYPE)
-DRAW_BATCH_BINDING = 19     # compact.comp: per texture batch its first command and count
-DRAW_COMPACT_BINDING = 20   # compact.comp: the drawn commands, packed per batch
-DRAW_COUNT_BINDING = 21     # compact.comp: per batch how many it packed (the draws' count)
+LOBE_ALBEDO_BINDING = 19    # lobe_albedo.glsl: per lobe its layers of the albedo table (viewer/lobe_albedo.py)
+LOBE_ALBEDO_TABLE_BINDING = 20  # lobe_albedo.glsl: the table's values, layer by layer
+DRAW_BATCH_BINDING = 21     # compact.comp: per texture batch its first command and count
+DRAW_COMPACT_BINDING = 22   # compact.comp: the drawn commands, packed per batch
+DRAW_COUNT_BINDING = 23     # compact.comp: per batch how many it packed (the draws' count)
 
 # -- raster passes over the bake's meshes (raster_surface.glsl: G-buffer and mirror passes) -----------
 LIGHTMAP_UNIT = 0
@@ -102,9 +104,10 @@ def mirror_units(first_unit: int) -> dict[str, int]:
 def shading_units(cube_classes: int) -> dict[str, int]:
     """The shading programs' scene-dependent units, from SHADING_CUBE_UNIT on, with C =
     max(cube_classes, 1) (cubemaps.glsl's sampler arrays have at least one element): the cube-map
-    classes, the mirror buffers' arrays, the split-sum prefiltered classes and its albedo LUT."""
+    classes, the mirror buffers' arrays and the split-sum prefiltered classes; UNIT_COUNT: how many
+    units that is (the lobes' albedo table is a storage buffer: viewer/lobe_albedo.py)."""
     c = max(int(cube_classes), 1)
     mirror = SHADING_CUBE_UNIT + c
     split_sum = mirror + len(MIRROR_UNIT_NAMES)
     return {"CUBE_FIRST_UNIT": SHADING_CUBE_UNIT, **mirror_units(mirror), "SPLIT_SUM_FIRST_UNIT": split_sum,
-            "SPLIT_SUM_LUT_UNIT": split_sum + c}
+            "UNIT_COUNT": split_sum + c}

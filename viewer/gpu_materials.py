@@ -6,6 +6,9 @@ shader storage buffers (std430), re-uploaded whole when a material changes (`set
   the MAT_*, LOBE_* constants below as defines (viewer/gpu_scene.py `shader_defines`).
 - Per lobe how a metallic-roughness texture changes it (`LOBE_MR`, LOBE_MR_BINDING; core/scene.py
   Lobe.mr), read by shaders/materials.glsl and specular.glsl `lobe_at_pixel`.
+- Per lobe its directional albedo (viewer/lobe_albedo.py `LobeAlbedo`: a texture array and its rows,
+  LOBE_ALBEDO_BINDING), rebuilt with the lobes (an edit computes only the lobes it changed): the
+  walkthrough's albedo-normalised estimate and split-sum's albedo factor.
 - Lobe sampling patterns (section 4.4.3): the (xi1, xi2) positions of every lobe's regular
   patterns (viewer/lobe_patterns.py) in one buffer (PATTERN_BINDING), and per lobe (offset, count)
   in another (`PATTERN_DTYPE`, LOBE_PATTERN_BINDING), both read by shaders/specular.glsl: one
@@ -30,6 +33,7 @@ from glint.viewer.gl_bindings import (
     PATTERN_BINDING,
 )
 from glint.viewer.gpu_textures import GpuTextures, clean
+from glint.viewer.lobe_albedo import LobeAlbedo
 from glint.viewer.lobe_patterns import choose_pattern, pattern_xi, samples_for_lobe
 
 MATERIAL_FLAGS = {
@@ -103,6 +107,7 @@ class GpuMaterials:
         self.material_buffer = self.lobe_buffer = self.lobe_mr_buffer = None
         self.pattern_buffer = self.lobe_pattern_buffer = None
         self.lobe_samples: int | None = None
+        self.albedo = LobeAlbedo(ctx, gl)
         self._upload()
 
     def _textured(self, i: int, m: Material) -> int:
@@ -155,13 +160,14 @@ class GpuMaterials:
         (`lobe_samples`), (re)uploaded whole: the lobe rows of a material follow those before it, so
         a material whose lobe count changes moves every later one."""
         mats = np.zeros(max(len(self.materials), 1), MATERIAL_DTYPE)
-        lobe_rows, lobe_mr = [], []
+        lobe_rows, lobe_mr, lobe_aniso = [], [], []
         for i, m in enumerate(self.materials):
             row, rows, mr = self._material_rows(i, m)
             row["info"][2] = len(lobe_rows)
             mats[i] = row
             lobe_rows += rows
             lobe_mr += mr
+            lobe_aniso += [bool(self._texture_flags[i] & MATERIAL_FLAGS["MAT_ANISOTROPY_TEXTURE"])] * len(rows)
         self.material_table = mats
         self.lobe_table = np.array(lobe_rows, LOBE_DTYPE) if lobe_rows else np.zeros(1, LOBE_DTYPE)
         self.lobe_count = len(lobe_rows)
@@ -172,6 +178,7 @@ class GpuMaterials:
             self.material_buffer = self.ctx.buffer(mats.tobytes())
             self.lobe_buffer = self.ctx.buffer(self.lobe_table.tobytes())
             self.lobe_mr_buffer = self.ctx.buffer(np.array(lobe_mr or [0], np.int32).tobytes())
+        self.albedo.update(self.lobe_table, lobe_mr, lobe_aniso)
         self.set_lobe_samples(self.lobe_samples)
 
     def set_material(self, index: int, material: Material) -> None:
@@ -182,6 +189,16 @@ class GpuMaterials:
             raise GlintError(f"no material {index} (the scene has {len(self.materials)})")
         self.materials[index] = checked_material(material).to_json()
         self._upload()
+
+    @property
+    def albedo_defines(self) -> dict:
+        """shaders/lobe_albedo.glsl's defines; LOBE_ALBEDO_INEXACT only where a material has both a
+        metallic-roughness and an anisotropy texture (its lobes' tables are the factor's: Eq. 4.25 for
+        them), fixed with the textures for the renderer's life: elsewhere the walkthrough's estimator is
+        a constant the shader compiler folds."""
+        both = MATERIAL_FLAGS["MAT_MR_TEXTURE"] | MATERIAL_FLAGS["MAT_ANISOTROPY_TEXTURE"]
+        inexact = any(flags & both == both for flags in self._texture_flags)
+        return {**self.albedo.defines(), **({"LOBE_ALBEDO_INEXACT": 1} if inexact else {})}
 
     def emissive(self) -> np.ndarray:
         """Per material whether it emits (MAT_EMISSIVE)."""
@@ -222,7 +239,7 @@ class GpuMaterials:
             self.lobe_pattern_buffer = self.ctx.buffer(table.tobytes())
 
     def bind(self) -> None:
-        """The material, lobe and LOBE_MR buffers."""
+        """The material, lobe and LOBE_MR buffers (the albedo table's: `albedo.bind`)."""
         self.material_buffer.bind_to_storage_buffer(MATERIAL_BINDING)
         self.lobe_buffer.bind_to_storage_buffer(LOBE_BINDING)
         self.lobe_mr_buffer.bind_to_storage_buffer(LOBE_MR_BINDING)
@@ -236,3 +253,4 @@ class GpuMaterials:
         for buf in (self.material_buffer, self.lobe_buffer, self.lobe_mr_buffer, self.pattern_buffer,
                     self.lobe_pattern_buffer):
             buf.release()
+        self.albedo.release()

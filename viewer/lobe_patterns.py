@@ -4,7 +4,8 @@ The walkthrough estimate of a lobe takes n samples at fixed positions (xi1, xi2)
 pattern, made here (`pattern_xi`) and uploaded once; the shader maps them into each
 pixel's lobe by Eq. 4.12-4.13 (`pattern_direction`), filters each look-up at the MIP level
 of Eq. 4.16-4.17 for the footprint of `pattern_footprint_area` (the lobe's second moment;
-the thesis' A / n of Eq. 4.14-4.15 for transmission lobes), and weights them by Eq. 4.25 (or 4.24). Every function of
+the thesis' A / n of Eq. 4.14-4.15 for transmission lobes), and weights them: their p cos-weighted mean
+of the radiance times the lobe's albedo (the default, viewer/lobe_albedo.py), or Eq. 4.25 (4.24). Every function of
 lobe_sampling.glsl has its float64 numpy twin below, written from the thesis, with the
 BSDF itself from core/bsdf.py; tests/test_lobe_patterns.py holds the two equal.
 
@@ -289,7 +290,7 @@ def importance_mip_level(pdf, n, face_size):
     return np.clip(0.5 * np.log2(omega_s / omega_p), 0.0, np.log2(face_size))
 
 
-# ----------------------------------------------------------------------------- Eq. 4.23-4.25
+# ----------------------------------------------------------------------------- Eq. 4.23-4.25, the mean
 
 def pattern_estimate(L, f, pdf, cos_i, weights="4.25"):
     """The normalised estimate of the specular integral from one pattern, shape (..., 3).
@@ -300,6 +301,8 @@ def pattern_estimate(L, f, pdf, cos_i, weights="4.25"):
       "4.23": sum L cos f / sum p
       "4.24": sum L cos^2 f / sum p cos
       "4.25": sum L cos^2 f^2 / p / sum f cos
+      "mean": sum L p cos / sum p cos, the walkthrough's default times the lobe's albedo A
+              (shaders/lobe_sampling.glsl ESTIMATE_ALBEDO; viewer/lobe_albedo.py)
     """
     L = np.asarray(L, dtype=float)
     f, pdf, cos_i = (np.asarray(a, dtype=float) for a in (f, pdf, cos_i))
@@ -312,8 +315,10 @@ def pattern_estimate(L, f, pdf, cos_i, weights="4.25"):
         num, den = cos_i ** 2 * f, pdf * cos_i
     elif weights == "4.25":
         num, den = cos_i ** 2 * f ** 2 / safe_pdf, f * cos_i
+    elif weights == "mean":
+        num, den = pdf * cos_i, pdf * cos_i
     else:
-        raise ValueError(f"weights must be '4.23', '4.24' or '4.25', got {weights!r}")
+        raise ValueError(f"weights must be '4.23', '4.24', '4.25' or 'mean', got {weights!r}")
     total = den.sum(axis=-1)
     out = np.sum(num[..., None] * L, axis=-2) / np.where(total > 0, total, 1.0)[..., None]
     return np.where((total > 0)[..., None], out, 0.0)

@@ -60,12 +60,13 @@ from glint.viewer.timing import PassTimer
 MAX_SUPERSAMPLE = 8
 MODES = ("walkthrough", "converge", "auto")
 # -- the product's walkthrough and the comparison methods --------------------------------------------
-# The product estimates lobes with the thesis' regular patterns (Eq. 4.10-4.25) and Eq. 4.25's weights:
-# the defaults, what `glint view` shows. The others are comparison methods, for `glint bench --methods`
+# The product estimates lobes with the thesis' regular patterns (Eq. 4.10-4.17), their weighted mean of the
+# radiance normalised by the lobe's directional albedo (viewer/lobe_albedo.py; Eq. 4.25's normalisation
+# was biased, more so with Kurt's alpha): the defaults, what `glint view` shows. The others are comparison methods, for `glint bench --methods`
 # and `glint capture --walkthrough-method / --weights` (docs/BENCHMARKS.md): Colbert and Krivanek's
 # filtered importance sampling with as many samples, the split-sum prefiltered cube maps of game
 # engines (viewer/split_sum.py; prefiltered when the renderer is made, stats["split_sum"]["prefilter_ms"])
-# and Eq. 4.24's weights (viewer/passes/shading.py WEIGHTS). They stay here, not in bench/: each is a
+# and the thesis' Eq. 4.25 and 4.24 weights (viewer/passes/shading.py WEIGHTS). They stay here, not in bench/: each is a
 # variant of the specular pass (shaders/specular.glsl) that only the renderer can run.
 WALKTHROUGH_METHODS = {"patterns": "SPECULAR_PATTERNS", "filtered-importance": "SPECULAR_FILTERED_IS",
                        "split-sum": "SPECULAR_SPLIT_SUM"}
@@ -78,13 +79,13 @@ FOOTPRINTS = {"moment": 0, "thesis": 1, "moment-all": 2}
 
 class Renderer:
     def __init__(self, ctx: moderngl.Context, bake, supersample: int = 1, exposure: float = 0.0, *,
-                 lobe_samples: int | None = None, weights: str = "eq4.25", walkthrough: str = "patterns",
+                 lobe_samples: int | None = None, weights: str = "albedo", walkthrough: str = "patterns",
                  samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
                  blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto",
                  footprint: str = "moment", timing: bool = True, small_objects: float = 0.0,
                  display: bool = True, lod: float = 0.0):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
-        width); weights: "eq4.25" or "eq4.24" (walkthrough); walkthrough: a key of
+        width); weights: "albedo" (the default), "eq4.25" or "eq4.24" (the walkthrough's estimator); walkthrough: a key of
         WALKTHROUGH_METHODS (anything but the defaults is a comparison method, above); samples_per_frame, max_frames, blend_frames: the still camera's
         (viewer/progressive.py); mirror_budget: mirror passes per frame at most (planar
         reflectors, viewer/reflectors.py; 0: none, planar objects show their diffuse part);
@@ -398,6 +399,7 @@ class Renderer:
             "skipped": skipped,
             "specular": specular,
             "mirror": mirror,
+            "lobe_albedo": self.scene.material_buffers.albedo.describe(),
             **({"split_sum": self.split_sum.describe()} if self.split_sum is not None else {}),
         }
 

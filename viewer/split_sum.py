@@ -32,15 +32,10 @@ levels: level(m) = sqrt(m / M_MAX) (levels - 1), clamped to the chain, read tril
 An anisotropic lobe is prefiltered as the isotropic one of m = sqrt(mx my), as engines do
 (the chain has one roughness per level); only the albedo factor knows its anisotropy.
 
-Albedo (`albedo_lut`): per lobe of the scene, its directional albedo int f cos dw (Eq. 3.4-3.5,
-Fresnel, shadowing, transmission and all) by glint.core.bsdf.lobe_albedo (ALBEDO_SAMPLES quasi-random
-importance samples) on a grid of LUT_COS values of sqrt(cos theta_v) (dense towards grazing,
-where it changes fastest) by LUT_PHI view azimuths in [0, pi/2] (the lobe is symmetric under
-x -> -x and y -> -y, so that quarter is all there is), read bilinearly. Per lobe rather than a
-shared (cos_v, m) table per alpha because that is exact for the scene's own r0, alpha and
-anisotropy (a shared table cannot hold the azimuth dependence of an anisotropic lobe), for
-the price of a few hundred albedos per lobe when the renderer is made (`albedo_ms`). Schlick's
-Fresnel being linear in r0, a shared table would store r0 A + B; per lobe it stores the sum.
+Albedo: the lobes' table of viewer/lobe_albedo.py, which the walkthrough's albedo-normalised pattern
+estimate reads too (built with the materials, always; per lobe rather than a shared (cos_v, m)
+table per alpha because that is exact for the scene's own r0, alpha and anisotropy, and over the
+texel's roughness for lobes that follow a metallic-roughness texture).
 
 Planar reflectors have a mirror buffer, not a cube map: what engines do for glossy planar
 reflections, one look-up of the buffer at the lobe centre's projection (shaders/
@@ -48,10 +43,10 @@ mirror_buffer.glsl's two-step projection) at the MIP level of the lobe's footpri
 ellipse, section 4.5.3, over one sample), times the same albedo. Transmission lobes look up
 around the transmitted direction in the cube map, with their own albedo, as the other methods.
 
-    split = SplitSum(ctx, scene)   # GpuScene: prefilters every cube map, builds the LUT
-    split.defines(first_unit, lut_unit)  # shaders/split_sum.glsl's defines (SPLIT_SUM on)
-    split.bind(program, first_unit, lut_unit)
-    split.describe()               # prefilter_ms, albedo_ms, levels ... (renderer.stats["split_sum"])
+    split = SplitSum(ctx, scene)   # GpuScene: prefilters every cube map
+    split.defines(first_unit)      # shaders/split_sum.glsl's defines (SPLIT_SUM on)
+    split.bind(program, first_unit)
+    split.describe()               # prefilter_ms, levels ... (renderer.stats["split_sum"])
 """
 from __future__ import annotations
 
@@ -61,7 +56,6 @@ import time
 import moderngl
 import numpy as np
 
-from glint.core import bsdf
 from glint.viewer.gl import GL, GL_RGBA16F, GL_RGBA32F, GL_WRITE_ONLY
 from glint.viewer.gl_bindings import PREFILTER_CUBE_UNIT, PREFILTER_IMAGE
 from glint.viewer.gpu_scene import shader_defines
@@ -71,8 +65,6 @@ PREFILTER_SAMPLES = 64    # importance samples per texel of level 1, doubled per
 PREFILTER_SAMPLES_MAX = 512  # ... up to this: wider lobes on fewer texels (converged: see tests)
 LOWEST_FACE = 4           # texels per side of the chain's last level
 M_MAX = 1.0               # the roughness of the last level
-LUT_COS, LUT_PHI = 32, 8  # albedo grid: sqrt(cos theta_v) x view azimuth in [0, pi/2]
-ALBEDO_SAMPLES = 4096     # per albedo (glint.core.bsdf.lobe_albedo)
 
 
 def level_count(face_size: int) -> int:
@@ -90,50 +82,13 @@ def level_samples(level: int, samples: int = PREFILTER_SAMPLES) -> int:
     return 1 if level == 0 else min(samples << (level - 1), max(PREFILTER_SAMPLES_MAX, samples))
 
 
-def lut_views() -> np.ndarray:
-    """(LUT_COS, LUT_PHI, 3) unit view directions of the albedo grid's nodes (local frame): row i at
-    sqrt(cos theta) = i / (LUT_COS - 1), column j at phi = j / (LUT_PHI - 1) pi / 2."""
-    cos = (np.arange(LUT_COS) / (LUT_COS - 1)) ** 2
-    phi = np.arange(LUT_PHI) / (LUT_PHI - 1) * (np.pi / 2)
-    c, p = np.meshgrid(cos, phi, indexing="ij")
-    s = np.sqrt(np.maximum(1.0 - c * c, 0.0))
-    return np.stack([s * np.cos(p), s * np.sin(p), c], axis=-1)
-
-
-def albedo_lut(lobe_table: np.ndarray, samples: int = ALBEDO_SAMPLES) -> np.ndarray:
-    """(lobes, LUT_COS, LUT_PHI) float32: each lobe's directional albedo (without ks) at the grid's
-    views. Lobes with the same parameters are computed once; isotropic ones for one azimuth."""
-    views = lut_views()
-    out = np.zeros((max(len(lobe_table), 1), LUT_COS, LUT_PHI), np.float32)
-    done: dict[tuple, np.ndarray] = {}
-    for k, row in enumerate(lobe_table):
-        mx, my, r0, alpha = (float(x) for x in row["shape"])
-        kind = "transmit" if int(round(float(row["ks"][3]))) == 1 else "reflect"
-        key = (mx, my, r0, alpha, kind)
-        if key not in done:
-            iso = max(mx, bsdf.M_MIN) == max(my, bsdf.M_MIN)
-            wo = views[:, :1] if iso else views
-            a = bsdf.lobe_albedo(wo, mx, my, r0, alpha, kind, n=samples)
-            done[key] = np.broadcast_to(a, (LUT_COS, LUT_PHI))
-        out[k] = done[key]
-    return np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0)
-
-
 class SplitSum:
-    """Prefiltered cube-map arrays (one per size class of viewer/cubemaps.py, same layers) and the
-    per-lobe albedo LUT of a GpuScene."""
+    """Prefiltered cube-map arrays (one per size class of viewer/cubemaps.py, same layers) of a GpuScene."""
 
     def __init__(self, ctx, scene, samples: int = PREFILTER_SAMPLES):
         self.ctx = ctx
         self.samples = int(samples)
         cubes = scene.cubemaps
-        started = time.perf_counter()
-        lut = albedo_lut(scene.lobe_table[:scene.lobe_count])
-        self.albedo_ms = (time.perf_counter() - started) * 1e3
-        self.lut = ctx.texture_array((LUT_PHI, LUT_COS, lut.shape[0]), 1, np.ascontiguousarray(lut).tobytes(),
-                                     dtype="f4")
-        self.lut.filter = (moderngl.LINEAR, moderngl.LINEAR)
-        self.lut.repeat_x = self.lut.repeat_y = False
         self.classes = cubes.classes
         self.levels = [level_count(c.size) for c in self.classes]
         self.textures: list[int] = []
@@ -181,16 +136,13 @@ class SplitSum:
         return name
 
     # -- shading ----------------------------------------------------------------------------------
-    def defines(self, first_unit: int, lut_unit: int) -> dict:
+    def defines(self, first_unit: int) -> dict:
         """shaders/split_sum.glsl: the prefiltered classes on units first_unit .. first_unit + C - 1
-        (C = CUBE_CLASSES, at least 1), the albedo LUT on lut_unit (viewer/gl_bindings.py
-        `shading_units`), the LUT's shape."""
-        return {"SPLIT_SUM": 1, "SPLIT_SUM_FIRST_UNIT": int(first_unit), "SPLIT_SUM_LUT_UNIT": int(lut_unit),
-                "SPLIT_SUM_LUT_COS": LUT_COS, "SPLIT_SUM_LUT_PHI": LUT_PHI, "SPLIT_SUM_M_MAX": float(M_MAX)}
+        (C = CUBE_CLASSES, at least 1; viewer/gl_bindings.py `shading_units`)."""
+        return {"SPLIT_SUM": 1, "SPLIT_SUM_FIRST_UNIT": int(first_unit), "SPLIT_SUM_M_MAX": float(M_MAX)}
 
-    def bind(self, program, first_unit: int, lut_unit: int) -> None:
-        """Bind the prefiltered arrays and the LUT as `defines(first_unit, lut_unit)` told the shader."""
-        self.lut.use(lut_unit)
+    def bind(self, program, first_unit: int) -> None:
+        """Bind the prefiltered arrays as `defines(first_unit)` told the shader."""
         if not self.classes:
             return
         self._gl.bind_cube_arrays(first_unit, self.textures)
@@ -206,12 +158,11 @@ class SplitSum:
         return self._gl.read_cube_array(self.textures[k], level, out, f"level {level} of split-sum class {k}")
 
     def describe(self) -> dict:
-        return {"prefilter_ms": round(self.prefilter_ms, 3), "albedo_ms": round(self.albedo_ms, 3),
+        return {"prefilter_ms": round(self.prefilter_ms, 3),
                 "levels": [{"face_size": c.size, "levels": n,
                             "roughness": [round(level_roughness(k, n), 6) for k in range(n)],
                             "samples": [level_samples(k, self.samples) for k in range(n)]}
-                           for c, n in zip(self.classes, self.levels)],
-                "albedo_lut": [LUT_COS, LUT_PHI], "albedo_samples": ALBEDO_SAMPLES}
+                           for c, n in zip(self.classes, self.levels)]}
 
     def release(self) -> None:
         if self._gl is not None:
@@ -220,4 +171,3 @@ class SplitSum:
         for program in self._programs.values():
             program.release()
         self._programs = {}
-        self.lut.release()

@@ -44,7 +44,10 @@ from glint.viewer.shader_source import LOCAL_SIZE, compute_program, dispatch, se
 # shaders/gbuffer_read.glsl
 GBUFFER_UNITS = {"shade": GB_SHADE_UNIT, "frame": GB_FRAME_UNIT, "depth": GB_DEPTH_UNIT}
 SPECULAR_MODES = {"SPECULAR_PATTERNS": 0, "SPECULAR_QMC": 1, "SPECULAR_FILTERED_IS": 2, "SPECULAR_SPLIT_SUM": 3}
-WEIGHTS = ("eq4.25", "eq4.24")  # Eq. 4.25 (the thesis' choice) or Eq. 4.24 for the walkthrough estimate
+# The walkthrough's pattern estimate (shaders/lobe_sampling.glsl): the lobe's albedo times the pattern's
+# p cos-weighted mean of the radiance (the default; viewer/lobe_albedo.py says why), or for comparison
+# the thesis' Eq. 4.25 or Eq. 4.24.
+WEIGHTS = ("albedo", "eq4.25", "eq4.24")
 WORK_HEADER = 8  # uints before the tile list (shaders/specular.glsl SpecularWork)
 
 
@@ -56,7 +59,7 @@ def scene_units(scene) -> dict:
 class ShadingPass:
     name = "shading"
 
-    def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "eq4.25", mirror=None,
+    def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "albedo", mirror=None,
                  split_sum=None):
         """defines: shader_defines() with the mirror buffers' units of scene_units(scene); mirror: the
         frame's MirrorPasses (None: no planar reflectors are shaded); split_sum: a
@@ -68,12 +71,13 @@ class ShadingPass:
         self.mirror = mirror
         self.units = scene_units(scene)
         extra = {**scene.cubemaps.defines(self.units["CUBE_FIRST_UNIT"]), **SPECULAR_MODES}
-        if weights == "eq4.24":
-            extra["WEIGHTS_EQ_4_24"] = 1
+        if weights != "albedo":
+            extra["WEIGHTS_EQ_4_24" if weights == "eq4.24" else "WEIGHTS_EQ_4_25"] = 1
+        extra.update(scene.material_buffers.albedo_defines)
         self.split_sum = split_sum
         if split_sum is not None:
-            extra.update(split_sum.defines(self.units["SPLIT_SUM_FIRST_UNIT"], self.units["SPLIT_SUM_LUT_UNIT"]))
-        last = self.units["SPLIT_SUM_LUT_UNIT"] if split_sum is not None else self.units["MIRROR_NORMAL_UNIT"]
+            extra.update(split_sum.defines(self.units["SPLIT_SUM_FIRST_UNIT"]))
+        last = self.units["UNIT_COUNT"] - 1 if split_sum is not None else self.units["MIRROR_NORMAL_UNIT"]
         check_compute_texture_units(ctx, last + 1, f"shading this scene (cube maps of {len(scene.cubemaps.classes)} "
                                                    f"face sizes{', split-sum' if split_sum is not None else ''})")
         self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
@@ -123,6 +127,7 @@ class ShadingPass:
             gbuffer[name].use(unit)
         self.scene.bind_materials()
         self.scene.bind_specular()
+        self.scene.material_buffers.albedo.bind()
         if self.mirror is not None:
             self.mirror.bind()
         self.work.bind_to_storage_buffer(SPECULAR_WORK_BINDING)
@@ -157,7 +162,7 @@ class ShadingPass:
         set_uniforms(program, specular_mode=SPECULAR_MODES[mode], qmc_first=int(qmc_first), qmc_count=int(qmc_count))
         self.cube_maps_bound = self.scene.cubemaps.bind(program, self.units["CUBE_FIRST_UNIT"])
         if self.split_sum is not None:
-            self.split_sum.bind(program, self.units["SPLIT_SUM_FIRST_UNIT"], self.units["SPLIT_SUM_LUT_UNIT"])
+            self.split_sum.bind(program, self.units["SPLIT_SUM_FIRST_UNIT"])
         self.radiance.bind_to_image(RADIANCE_IMAGE, read=True, write=True)
         self.planes[0].bind_to_image(MIRROR_PLANE_POSITION_IMAGE, read=True, write=True)
         self.planes[1].bind_to_image(MIRROR_PLANE_NORMAL_IMAGE, read=True, write=True)
