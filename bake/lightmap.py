@@ -42,7 +42,6 @@ baked for (E = 0 exactly). Both are counted per object for the bake's statistics
 from __future__ import annotations
 
 import time
-import warnings
 from contextlib import nullcontext
 from dataclasses import dataclass
 
