@@ -74,11 +74,9 @@ def stitch(tracer: RayTracer, images: list[np.ndarray], baked: list[np.ndarray],
     if len(points) < 2 or not np.isfinite(sizes).all():
         return out
     radius = STITCH_RADIUS * sizes
-    tree = cKDTree(points)
-    pairs = tree.query_pairs(float(radius.max()), output_type="ndarray")
-    if not len(pairs):
+    i, j = near_pairs(points, radius)
+    if not len(i):
         return out
-    i, j = pairs[:, 0], pairs[:, 1]
     d = np.linalg.norm(points[i] - points[j], axis=1)
     r = np.minimum(radius[i], radius[j])
     # the same surface: normals that agree, and each sample close to the other's tangent plane (a sofa's
@@ -100,6 +98,22 @@ def stitch(tracer: RayTracer, images: list[np.ndarray], baked: list[np.ndarray],
         sel = rows[:, 0] == k
         out[k][rows[sel, 1], rows[sel, 2]] = stitched[sel]
     return out
+
+
+def near_pairs(points: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j), i < j, sorted: every pair of `points` closer than both their radii, found per point
+    within its own radius. One search radius for all (the largest texel's) made a scene of 10,000
+    small boxes on a large floor ask for billions of pairs (std::bad_alloc)."""
+    near = cKDTree(points).query_ball_point(points, radius, return_sorted=False)
+    counts = np.fromiter((len(n) for n in near), np.int64, len(near))
+    i = np.repeat(np.arange(len(points), dtype=np.int64), counts)
+    j = np.fromiter((k for n in near for k in n), np.int64, int(counts.sum()))
+    keep = j > i
+    i, j = i[keep], j[keep]
+    d = np.linalg.norm(points[i] - points[j], axis=1)
+    keep = d <= radius[j]  # within both radii: j's ball holds i too
+    order = np.lexsort((j[keep], i[keep]))
+    return i[keep][order], j[keep][order]
 
 
 def _touching(tracer: RayTracer, a, b, n, object_a, object_b) -> np.ndarray:

@@ -132,3 +132,25 @@ def test_no_line_where_two_meshes_of_one_floor_meet(tmp_path):
     print(f"across the seam: mean {difference.mean():.4f}, max {difference.max():.4f}")
     assert difference.mean() <= 0.02
     assert difference.max() <= 0.04
+
+
+def test_near_pairs_search_each_point_in_its_own_radius():
+    """`near_pairs` gives exactly the brute-force pairs closer than both radii (random points, radii
+    over three orders of magnitude), and a set of 60,000 tiny texels beside one huge one returns at
+    once. Deliberate bug this catches (tried): the search before it, one radius for all (the
+    largest): the 60,000 points ask for ~1.8e9 pairs (std::bad_alloc after 54 s; found baking the 10,000-box
+    room of scenes/stress.py)."""
+    from glint.bake.seams import near_pairs
+
+    rng = np.random.default_rng(25)
+    points = rng.random((600, 3))
+    radius = 10.0 ** rng.uniform(-3, 0, 600) * 0.3
+    i, j = near_pairs(points, radius)
+    d = np.linalg.norm(points[:, None] - points[None], axis=-1)
+    bi, bj = np.nonzero((d < np.minimum(radius[:, None], radius[None])) & np.triu(np.ones_like(d, bool), 1))
+    assert len(bi) > 50 and np.array_equal(i, bi) and np.array_equal(j, bj)
+    many = rng.random((60_000, 3))
+    sizes = np.full(60_000, 1e-3)
+    sizes[0] = 10.0  # one texel as large as the scene
+    i, j = near_pairs(many, sizes)
+    assert len(i) < 10 * len(many)
