@@ -12,8 +12,11 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   height-correlated Smith, Schlick) is not Eq. 3.4, and with Kurt's alpha = 0 a narrow lobe's
   directional albedo falls like F cos(theta_o), so floors lost most of their reflection at the
   angles a walkthrough sees them. Each lobe's (ks, m, r0, alpha) is read from the table of
-  bake/gltf_fit_table.py: the section 3.3 lobe fitted (thesis 3.4.1) to glTF's specular BRDF with
-  Schlick's Fresnel of normal-incidence reflectance f0, at roughness r (`FitTable.specular_lobe`).
+  bake/gltf_fit_table.py: the section 3.3 lobes fitted (thesis 3.4.1) to glTF's specular BRDF with
+  Schlick's Fresnel of normal-incidence reflectance f0, at roughness r (`FitTable.specular_lobes`):
+  one lobe, or two where one Beckmann lobe cannot follow GGX's long tail (rough rows: a narrow and a
+  wide lobe). Every rule below that emits "one lobe" of the table emits each of that row's lobes,
+  with the same weights (and, with a metallicRoughnessTexture, the same m scaling).
   How close the result is: docs/SCENES.md, "glTF materials: how close".
 - Diffuse: kd = b * (1 - M) * (1 - t) * share(f0), where share is what glTF's fresnel_mix leaves
   to the diffuse term (0.953 for f0 = 0.04; with KHR_materials_specular's factor s, 1 - s (1 -
@@ -163,12 +166,14 @@ def dielectric_f0(p: GltfPbr) -> float:
     return float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
 
 
-def _fitted(lobe_of, roughness: float, weight, m_scale: float = 1.0) -> tuple:
-    """(ks (3,), m, r0, alpha) of the fitted lobe `lobe_of(roughness)`, ks times `weight`, m times
-    `m_scale`."""
-    lobe = lobe_of(float(np.clip(roughness, 0.0, 1.0)))
-    m = float(np.clip(lobe.m * m_scale, M_MIN, 1.0))
-    return _rgb3(np.asarray(weight, np.float64) * lobe.ks), m, lobe.r0, lobe.alpha
+def _fitted(lobes_of, roughness: float, weight, m_scale: float = 1.0) -> list[tuple]:
+    """[(ks (3,), m, r0, alpha)] of each fitted lobe of `lobes_of(roughness)` (one or two), ks times
+    `weight`, m times `m_scale`."""
+    out = []
+    for lobe in lobes_of(float(np.clip(roughness, 0.0, 1.0))):
+        m = float(np.clip(lobe.m * m_scale, M_MIN, 1.0))
+        out.append((_rgb3(np.asarray(weight, np.float64) * lobe.ks), m, lobe.r0, lobe.alpha))
+    return out
 
 
 def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
@@ -212,12 +217,12 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
     if f0 > 0 and s > 0:
         if volume:  # a glass solid's entry interface: Kurt's alpha 1/2 (module docstring)
             m = beckmann_m(factor)
-            lobe = Lobe("reflect", _rgb3(dielectric * s), *anisotropic(m), f0, INTERFACE_ALPHA, mr)
+            layer = [Lobe("reflect", _rgb3(dielectric * s), *anisotropic(m), f0, INTERFACE_ALPHA, mr)]
         else:
-            ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, f0), fitted, dielectric * s, m_scale)
-            lobe = Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr)
+            layer = [Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr) for ks, m, r0, alpha
+                     in _fitted(lambda r: table.specular_lobes(r, f0), fitted, dielectric * s, m_scale)]
         if not rough:
-            lobes.append(lobe)
+            lobes += layer
         else:  # a rough dielectric is diffuse: its layer's reflection joins kd, grey (module docstring),
             # never past 1 (glTF's white rough dielectric reflects more than it receives: Appendix B)
             kd = np.maximum(kd, np.minimum(kd + dielectric * s * table.specular_albedo_at(fitted, f0), 1.0))
@@ -227,16 +232,16 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
     # metal's other channels stay below white at grazing angles (never above: no channel gains energy)
     brightest = float(np.max(base))
     if brightest > 0:
-        ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, brightest), fitted,
-                                   base / brightest * metal_ks, m_scale)
-        lobes.append(Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr and "metal"))
+        for ks, m, r0, alpha in _fitted(lambda r: table.specular_lobes(r, brightest), fitted,
+                                        base / brightest * metal_ks, m_scale):
+            lobes.append(Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr and "metal"))
     if t > 0:
         lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), *anisotropic(beckmann_m(factor)), f0,
                           INTERFACE_ALPHA if volume else 0.0, mr))
     if p.clearcoat > 0 and not (p.clearcoat_roughness >= diffuse_roughness and t == 0.0):
-        ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, CLEARCOAT_R0), p.clearcoat_roughness,
-                                   p.clearcoat)
-        lobes.append(Lobe("reflect", ks, m, m, r0, alpha))
+        for ks, m, r0, alpha in _fitted(lambda r: table.specular_lobes(r, CLEARCOAT_R0), p.clearcoat_roughness,
+                                        p.clearcoat):
+            lobes.append(Lobe("reflect", ks, m, m, r0, alpha))
     lobes = [lobe for lobe in lobes if max(lobe.ks) > 0]
     emission = np.asarray(p.emissive, np.float64)[:3] * p.emissive_strength
     return kd.astype(np.float32), lobes, np.clip(emission, 0.0, None).astype(np.float32)

@@ -348,18 +348,20 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     # Smooth dielectric: diffuse base x fresnel_mix's share + one white lobe, the table's for f0 0.04.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.5, 0.4, 0.3), metallic=0, roughness=0.2))
     np.testing.assert_allclose(kd, np.array([0.5, 0.4, 0.3]) * share, rtol=1e-6)
-    (lobe,) = lobes
-    fitted = table.specular_lobe(0.2, 0.04)
+    (lobe,) = lobes  # one lobe: the table's row f0 0.04, roughness 0.2 has no second one
+    (fitted,) = table.specular_lobes(0.2, 0.04)
     assert lobe.kind == "reflect" and lobe.ks == pytest.approx((fitted.ks,) * 3)
     assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == lobe.my == pytest.approx(fitted.m)
     assert 0.85 * 0.04 <= lobe.r0 <= 1.15 * 0.04 and 0.3 < lobe.alpha < 0.6  # Kurt's alpha: not 0
-    # Metal: no diffuse; the table's lobe for f0 = the brightest channel, ks carrying the colour.
+    # Metal: no diffuse; the table's lobes for f0 = the brightest channel (two at roughness 0.7: the
+    # narrow one and the wide one of GGX's tail), ks carrying the colour.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.9, 0.6, 0.2), metallic=1, roughness=0.7))
     np.testing.assert_allclose(kd, 0)
-    (lobe,) = lobes
-    fitted = table.specular_lobe(0.7, 0.9)
-    assert lobe.ks == pytest.approx(tuple(fitted.ks * c / 0.9 for c in (0.9, 0.6, 0.2)))
-    assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == pytest.approx(fitted.m)
+    fitted_lobes = table.specular_lobes(0.7, 0.9)
+    assert len(lobes) == len(fitted_lobes) == 2 and fitted_lobes[0].m < fitted_lobes[1].m
+    for lobe, fitted in zip(lobes, fitted_lobes):
+        assert lobe.ks == pytest.approx(tuple(fitted.ks * c / 0.9 for c in (0.9, 0.6, 0.2)))
+        assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == pytest.approx(fitted.m)
     # Rough dielectric (Blender's default 0.5): no lobe, its albedo joins kd (never past 1); a lower
     # threshold moves the line.
     kd, lobes, _ = map_pbr(GltfPbr(metallic=0, roughness=0.5))
@@ -372,19 +374,23 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(1, 1, 1), metallic=0, roughness=0.6,
                                    transmission=1.0, ior=1.33))
     np.testing.assert_allclose(kd, 0)
-    assert [lb.kind for lb in lobes] == ["reflect", "transmit"]
     r0 = (0.33 / 2.33) ** 2
-    assert lobes[0].r0 == pytest.approx(table.specular_lobe(0.6, r0).r0) and lobes[1].r0 == pytest.approx(r0)
-    assert lobes[1].mx == pytest.approx(0.36) and lobes[1].ks == (1, 1, 1)
-    # Anisotropic brushed metal: mx = m + (1 - m) s^2 along the tangent, my = m.
-    _, (lobe,), _ = map_pbr(GltfPbr(metallic=1, roughness=0.3, anisotropy=0.5))
-    m = table.specular_lobe(0.3, 1.0).m
-    assert lobe.my == pytest.approx(m) and lobe.mx == pytest.approx(m + (1 - m) * 0.25)
+    reflect = table.specular_lobes(0.6, r0)
+    assert [lb.kind for lb in lobes] == ["reflect"] * len(reflect) + ["transmit"]
+    assert [lb.r0 for lb in lobes[:-1]] == pytest.approx([lb.r0 for lb in reflect])
+    assert lobes[-1].r0 == pytest.approx(r0)
+    assert lobes[-1].mx == pytest.approx(0.36) and lobes[-1].ks == (1, 1, 1)
+    # Anisotropic brushed metal: mx = m + (1 - m) s^2 along the tangent, my = m (every lobe of the row).
+    _, aniso, _ = map_pbr(GltfPbr(metallic=1, roughness=0.3, anisotropy=0.5))
+    fitted_lobes = table.specular_lobes(0.3, 1.0)
+    assert len(aniso) == len(fitted_lobes)
+    for lobe, fitted in zip(aniso, fitted_lobes):
+        assert lobe.my == pytest.approx(fitted.m) and lobe.mx == pytest.approx(fitted.m + (1 - fitted.m) * 0.25)
     # Mirror: m at the table's floor; half metal: two lobes weighted by metallic.
     _, lobes, _ = map_pbr(GltfPbr(base_color=(1, 0, 0), metallic=0.5, roughness=0.0))
     assert [lb.r0 for lb in lobes] == [pytest.approx(0.04, rel=0.15), pytest.approx(1.0, rel=0.15)]
-    assert lobes[0].ks == pytest.approx((0.5 * table.specular_lobe(0.0, 0.04).ks,) * 3)
-    assert lobes[1].ks == pytest.approx((0.5 * table.specular_lobe(0.0, 1.0).ks, 0, 0))
+    assert lobes[0].ks == pytest.approx((0.5 * table.specular_lobes(0.0, 0.04)[0].ks,) * 3)
+    assert lobes[1].ks == pytest.approx((0.5 * table.specular_lobes(0.0, 1.0)[0].ks, 0, 0))
     assert lobes[0].mx == 1e-4
 
 
@@ -399,7 +405,7 @@ def test_material_extensions_read_from_gltf(tmp_path):
     table = fit_table()  # KHR_materials_specular 0.5: the layer's Fresnel halved, the diffuse share 1 - F / 2
     np.testing.assert_allclose(mat.kd, [0.2 * (1 - 0.5 * (1 - table.diffuse_share(1 / 9)))] * 3, rtol=1e-6)
     refl, trans = mat.lobes
-    fitted = table.specular_lobe(0.1, 1 / 9)
+    (fitted,) = table.specular_lobes(0.1, 1 / 9)
     assert refl.ks == pytest.approx((0.5 * fitted.ks,) * 3) and refl.r0 == pytest.approx(fitted.r0)
     assert trans.ks == pytest.approx((0.8, 0.8, 0.8)) and trans.kind == "transmit" and trans.r0 == pytest.approx(1 / 9)
     assert refl.mx == pytest.approx(1.0) and refl.my == pytest.approx(fitted.m)
