@@ -377,5 +377,8 @@ def test_gltf_controls_say_what_they_replace_before_they_do():
     for line in announced:
         if line.startswith("lobe 0 "):
             field, values = line[len("lobe 0 "):].split(": ")
-            assert f"{float(getattr(after[0], field)):.3g}" == values.split(" -> ")[1]
+            value = getattr(after[0], field)  # ks is RGB: the panel's notes show "[a, b, c]"
+            shown_value = ("[" + ", ".join(f"{float(v):.3g}" for v in value) + "]" if isinstance(value, (list, tuple))
+                           else f"{float(value):.3g}")
+            assert shown_value == values.split(" -> ")[1]
     assert panel.gltf_changes() == []  # now the mapping's own material: nothing more to replace

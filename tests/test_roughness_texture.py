@@ -66,13 +66,19 @@ def test_loader_and_mapping_read_the_texture_linear_and_keep_the_lobes_it_needs(
     np.testing.assert_allclose(mat.metallic_roughness_texture[0, :, 1], [G_LOW / 255, G_HIGH / 255] * 2, atol=1e-6)
     np.testing.assert_allclose(mat.metallic_roughness_texture[0, :, 2], [0.0, 0.5] * 2, atol=1e-6)
     np.testing.assert_allclose(mat.kd, np.array(BASE) * SHARE, rtol=1e-6)
-    assert [(lobe.mr, lobe.r0) for lobe in mat.lobes] == [("dielectric", pytest.approx(0.04, rel=0.15)),
-                                                         ("metal", pytest.approx(BASE[0], rel=0.15))]
-    np.testing.assert_allclose(mat.lobes[1].ks, np.array(BASE) / BASE[0] * mat.lobes[1].ks[0], rtol=1e-6)
+    # each layer is one or two lobes (the fitted table's rows at the texture's mean roughness: two
+    # there, the narrow one and GGX's tail), their r0 within the fit's 0.85 .. 1.15 x f0
+    kinds = [lobe.mr for lobe in mat.lobes]
+    assert kinds in (["dielectric", "metal"], ["dielectric"] * 2 + ["metal"] * 2), kinds
+    for lobe in mat.lobes:
+        f0 = 0.04 if lobe.mr == "dielectric" else BASE[0]
+        assert 0.85 * f0 - 1e-9 <= lobe.r0 <= 1.15 * f0 + 1e-9, lobe
+        if lobe.mr == "metal":
+            np.testing.assert_allclose(lobe.ks, np.array(BASE) / BASE[0] * lobe.ks[0], rtol=1e-6)
     assert not any("metallicRoughnessTexture" in m for m in scene.warnings)
     assert scene.objects[0].role == "planar"
     plain = load_scene(write_bar_scene(tmp_path / "plain.glb", None, metallic=0.5))
-    assert [lobe.mr for lobe in plain.materials[0].lobes] == [""]
+    assert {lobe.mr for lobe in plain.materials[0].lobes} == {""}
     dropped = 0.5 * fit_table().specular_albedo_at(1.0, 0.04)  # roughness 1: the dielectric lobe joins kd, grey
     np.testing.assert_allclose(plain.materials[0].kd, np.array(BASE) * 0.5 * SHARE + dropped, rtol=1e-6)
 
