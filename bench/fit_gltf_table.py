@@ -16,15 +16,17 @@ least squares). What the table holds and how it is read: bake/gltf_fit_table.py.
   interpolates only between rows of one solution. Following one solution instead (each row's search
   started from its neighbour's) kept the narrow lobe to roughness 1, 15 % off the albedo there;
 - a second lobe, the tail (bake/brdf_fit.py's joint two-lobe search; lobe 1 kept the narrow one),
-  where one Beckmann lobe cannot follow GGX's long tail: a row of roughness >= TWO_LOBES_FROM (0.2)
+  where one Beckmann lobe cannot follow GGX's long tail: a row of roughness TWO_LOBES (0.2 to 0.7)
   gets it when the two-lobe fit's error is at most TWO_LOBES_GAIN (2/3) of the one-lobe fit's;
   elsewhere one lobe (every lobe costs the viewer samples per pixel; below 0.2 the smooth metal floor
   already reads Mitsuba's within 1 % bias). Lobe 2's m is searched in TAIL_M: from 4 r^2 (at most
   0.5) to 1, its r0 in lobe 1's range. A tail lobe, not the narrower second lobe the fit's error
   alone prefers (m2 ~ 2 m1; error 3.9e-5 against 5.9e-5 for the white metal at roughness 0.3): with
   that one the glTF metal floor of roughness 0.3 stayed 14 % dark against Mitsuba, with the tail
-  lobe 1-3 % (docs/BENCHMARKS.md, issue 24). Roughness 1 gains little: lobe 1 is already at m = 1,
-  the widest Beckmann lobe the fit allows (docs/SCENES.md, "glTF materials: how close");
+  lobe 1-3 % (docs/BENCHMARKS.md, issue 24). Above 0.7 one lobe: lobe 1 is already near m = 1, the
+  widest Beckmann lobe the fit allows, the gain is small and patchy (white metal at 0.8 two lobes,
+  0.7 and 0.9 of f0 one), and between a two-lobe row and a one-lobe row whose lobe 1 differs (m 0.52
+  and 0.83) a grey 0.9 metal of roughness 0.8 read 6 % bright at normal view (docs/SCENES.md);
 - below FITTED[0] (GGX alpha 0.0025) the lobe is a mirror at any screen resolution, and narrower
   than the fit's quadrature resolves (its directional albedo came out 10 % low at roughness 0): those
   rows keep FITTED[0]'s ks, r0 and alpha, with m scaled by (r / FITTED[0])^2 (Beckmann m ~ GGX alpha);
@@ -66,7 +68,7 @@ R0_RANGE = (0.85, 1.15)  # times f0, at most 1
 # Beckmann m searched within these factors of r^2 (GGX alpha): unbounded, the roughest white metal
 # row went to m 0.11 with alpha 0.75 while its neighbour kept m 0.93 (the same albedo, another shape).
 M_RANGE = (0.5, 2.0)
-TWO_LOBES_FROM = 0.2  # rows of this roughness and above try lobe 2 (module docstring) ...
+TWO_LOBES = (0.2, 0.7)  # rows of roughness in this range try lobe 2 (module docstring) ...
 TWO_LOBES_GAIN = 2.0 / 3.0  # ... and keep it when the two-lobe fit's error is at most this share of one lobe's
 TAIL_M = (4.0, 0.5)  # lobe 2's m from min(4 r^2, 0.5) to 1 (module docstring)
 DIFFUSE_DEGREES = tuple(range(0, 81, 5))
@@ -97,7 +99,7 @@ def fit_row(params: GltfMaterialParams, r0_range: tuple[float, float]) -> tuple[
     bounds = dict(method="multistart", diffuse=False, r0_range=r0_range,
                   m_range=(M_RANGE[0] * r * r, M_RANGE[1] * r * r), ks_max=1.0)
     result = one = fit(data, lobes=1, **bounds)
-    if r >= TWO_LOBES_FROM:
+    if TWO_LOBES[0] <= r <= TWO_LOBES[1]:
         two = fit(data, lobes=2, wide_m_range=(min(TAIL_M[0] * r * r, TAIL_M[1]), 1.0), **bounds)
         if len(two.lobes) == 2 and two.error <= TWO_LOBES_GAIN * one.error:
             result = two
@@ -110,7 +112,7 @@ def fit_row(params: GltfMaterialParams, r0_range: tuple[float, float]) -> tuple[
 
 def with_mirrors(rows: list[np.ndarray]) -> np.ndarray:
     """FITTED's rows with MIRRORS' in front (module docstring)."""
-    first = rows[0]  # (2, 4): one lobe at FITTED[0] (below TWO_LOBES_FROM)
+    first = rows[0]  # (2, 4): one lobe at FITTED[0] (below TWO_LOBES)
     mirrors = []
     for r in MIRRORS:
         row = first.copy()
@@ -203,7 +205,7 @@ def report(table: FitTable, lines: list[str], command: str) -> str:
     return (f"# The glTF BRDF fitted by the section 3.3 model\n\nMade by `{command}` (bench/fit_gltf_table.py; "
             "what the columns mean: its docstring). Directional albedo: the fitted lobe by core/bsdf.py "
             "`lobe_albedo` against core/gltf_brdf.py `directional_albedo` (grey mean), the row's lobes summed. "
-            f"A row of roughness >= {TWO_LOBES_FROM} has lobe 2 (the tail) where the two-lobe fit's error is at most "
+            f"A row of roughness {TWO_LOBES[0]} to {TWO_LOBES[1]} has lobe 2 (the tail) where the two-lobe fit's error is at most "
             f"{TWO_LOBES_GAIN:.2f} of the one-lobe fit's (the column `fit error`: one lobe / shipped); the last column: "
             "the worst albedo miss on the fit's quadrature (0-80 degrees), one-lobe fit / shipped row.\n\n"
             f"Diffuse share (kd = base colour x share): {shares}.\n\n" + head + "\n".join(lines) + "\n")

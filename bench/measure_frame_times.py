@@ -84,11 +84,11 @@ def main() -> None:
                 for size in sizes:
                     for mode in ("walkthrough", "converge"):
                         r = time_view(renderer, camera, size, args.frames, args.warmup, mode)
-                        r.update(scene=scene, camera=cam["name"], size=f"{size[0]}x{size[1]}", supersample=ss,
+                        r.update(scene=scene, camera=cam.name, size=f"{size[0]}x{size[1]}", supersample=ss,
                                  mode=mode)
                         rows.append(r)
                         passes = " ".join(f"{k}={v:.2f}" for k, v in r["passes_ms"].items())
-                        print(f"{scene:17s} {cam['name'][:14]:14s} {r['size']:>9s} {ss:2d} {mode:11s} "
+                        print(f"{scene:17s} {cam.name[:14]:14s} {r['size']:>9s} {ss:2d} {mode:11s} "
                               f"{r['gpu_total_ms']:9.2f} {r['wall_ms_per_frame']:8.2f}  {passes}", flush=True)
                 renderer.release()
     device = describe(ctx)
