@@ -23,7 +23,7 @@ least squares). What the table holds and how it is read: bake/gltf_fit_table.py.
   0.5) to 1, its r0 in lobe 1's range. A tail lobe, not the narrower second lobe the fit's error
   alone prefers (m2 ~ 2 m1; error 3.9e-5 against 5.9e-5 for the white metal at roughness 0.3): with
   that one the glTF metal floor of roughness 0.3 stayed 14 % dark against Mitsuba, with the tail
-  lobe 1-3 % (docs/BENCHMARKS.md, issue 24). Above 0.7 one lobe: lobe 1 is already near m = 1, the
+  lobe 1.5 % (converged) and 3.7 % (walkthrough) (docs/BENCHMARKS.md, issue 24). Above 0.7 one lobe: lobe 1 is already near m = 1, the
   widest Beckmann lobe the fit allows, the gain is small and patchy (white metal at 0.8 two lobes,
   0.7 and 0.9 of f0 one), and between a two-lobe row and a one-lobe row whose lobe 1 differs (m 0.52
   and 0.83) a grey 0.9 metal of roughness 0.8 read 6 % bright at normal view (docs/SCENES.md);
@@ -37,8 +37,8 @@ least squares). What the table holds and how it is read: bake/gltf_fit_table.py.
 
 The report lists, per row, the fit's error, the directional albedo of the fitted lobes by core/bsdf.py
 against the reference's at 0, 45, 60, 70 and 80 degrees, and the worst miss of the one-lobe fit beside
-that of the row as shipped. Takes about 15 minutes (144 one-lobe fits of a few seconds, two-lobe fits of
-about 10 s where the one-lobe fit misses).
+that of the row as shipped. Takes about 25 minutes with --jobs 2 on the 2-core machine under load (144
+one-lobe fits of a few seconds, 72 two-lobe fits of 5 to 30 s).
 """
 from __future__ import annotations
 
