@@ -158,19 +158,22 @@ def pattern_excess(kind: str, m: float, glossy: str, inside: np.ndarray) -> np.n
     c = np.clip(cos_o[inside], 1e-3, 1.0)
     wo = np.stack([np.sqrt(1 - c * c), np.zeros_like(c), c], axis=-1)
     planar = glossy == "Floor"
-    # the metal's lobe as the loader maps it (bake/material_mapping.py: fitted, Kurt's alpha ~ 1/2)
-    (lobe,) = map_pbr(GltfPbr(base_color=COPPER, metallic=1.0, roughness=float(np.sqrt(m))))[1]
-    m, r0, alpha = lobe.mx, lobe.r0, lobe.alpha
-    xi = lp.pattern_xi(lp.choose_pattern(m, m, planar), lp.samples_for_lobe(m, m, planar))
-    _, f, pdf, cos_i = lp.pattern_samples(wo, xi, m, m, r0, alpha, "reflect")
-    pattern = lp.pattern_estimate(np.ones(f.shape + (1,)), f, pdf, cos_i)[..., 0]
-    u = np.random.default_rng(0).random((4096, 2))
-    wi = bsdf.sample_lobe(wo[:, None], u[:, 0], u[:, 1], m, m, "reflect")
-    f = bsdf.lobe_value(wi, wo[:, None], m, m, r0, alpha, "reflect")
-    pdf = bsdf.lobe_pdf(wi, wo[:, None], m, m, "reflect")
-    ok = (wi[..., 2] > 0) & (pdf > 0)
-    albedo = np.where(ok, f * np.maximum(wi[..., 2], 0.0) / np.where(ok, pdf, 1.0), 0.0).mean(axis=-1)
-    excess[inside] = pattern / albedo
+    # the metal's lobes as the loader maps them (bake/material_mapping.py: fitted, Kurt's alpha ~ 1/2;
+    # from roughness 0.2 two, GGX's tail the second): the estimates and the albedos summed, ks-weighted
+    pattern_sum = albedo_sum = 0.0
+    for lobe in map_pbr(GltfPbr(base_color=COPPER, metallic=1.0, roughness=float(np.sqrt(m))))[1]:
+        ks, lm, r0, alpha = float(np.mean(lobe.ks)), lobe.mx, lobe.r0, lobe.alpha
+        xi = lp.pattern_xi(lp.choose_pattern(lm, lm, planar), lp.samples_for_lobe(lm, lm, planar))
+        _, f, pdf, cos_i = lp.pattern_samples(wo, xi, lm, lm, r0, alpha, "reflect")
+        pattern_sum = pattern_sum + ks * lp.pattern_estimate(np.ones(f.shape + (1,)), f, pdf, cos_i)[..., 0]
+        u = np.random.default_rng(0).random((4096, 2))
+        wi = bsdf.sample_lobe(wo[:, None], u[:, 0], u[:, 1], lm, lm, "reflect")
+        f = bsdf.lobe_value(wi, wo[:, None], lm, lm, r0, alpha, "reflect")
+        pdf = bsdf.lobe_pdf(wi, wo[:, None], lm, lm, "reflect")
+        ok = (wi[..., 2] > 0) & (pdf > 0)
+        albedo_sum = albedo_sum + ks * np.where(ok, f * np.maximum(wi[..., 2], 0.0) / np.where(ok, pdf, 1.0),
+                                                0.0).mean(axis=-1)
+    excess[inside] = pattern_sum / albedo_sum
     return excess
 
 
