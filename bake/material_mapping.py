@@ -171,7 +171,10 @@ def _fitted(lobes_of, roughness: float, weight, m_scale: float = 1.0) -> list[tu
     `weight`, m times `m_scale`."""
     out = []
     for lobe in lobes_of(float(np.clip(roughness, 0.0, 1.0))):
-        m = float(np.clip(lobe.m * m_scale, M_MIN, 1.0))
+        # no cap at 1: with a metallicRoughnessTexture the viewer's per-texel m' = m G^2 must give the
+        # table's m where G is the mean, and the tail lobe's m (up to 1) over mean(G)^2 exceeds 1 (capped,
+        # a uniform texture of G 0.6 rendered 37 % off its factors); Eq. 3.3 holds for any m > 0
+        m = float(max(lobe.m * m_scale, M_MIN))
         out.append((_rgb3(np.asarray(weight, np.float64) * lobe.ks), m, lobe.r0, lobe.alpha))
     return out
 
