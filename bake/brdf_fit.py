@@ -31,10 +31,19 @@ each of log m, r0 and alpha, then the box shrunk to +-one step around the best, 
 `multistart`: a coarse grid's best few points polished by L-BFGS-B (scipy.optimize.minimize).
 `multistart` is the default: it recovered 20 of 20 random known lobes in 2.1 s a fit, the
 hierarchical search 17 of 20 (its misses trade r0 against alpha at the same albedo) in 4.2 s.
-Two lobes are fitted in turn (thesis 3.4.1): lobe 1, then lobe 2 with lobe 1's shape fixed (its
-ks solved again with lobe 2's), then lobe 1 again with lobe 2's shape fixed. Which search finds
-the global minimum how often and how fast: docs/BENCHMARKS.md, "Fitting the material model".
-Deterministic: fixed grids and nodes, no random numbers.
+Two lobes (`two_lobe="joint"`, the default with `multistart`): lobe 1 alone first (the one-lobe
+fit); then lobe 2 on the residual: with lobe 1's shape fixed (every ks solved again with lobe 2's), a
+grid over lobe 2's (r0, alpha) at each of TWO_LOBE_M values of its m, wider than lobe 1's; and a grid
+over both widths (the joint optimum's lobe 1 is often narrower than the one-lobe fit's); the residual
+grid's best and the best others (TWO_LOBE_STARTS in all) polished jointly over both shapes (six
+parameters, L-BFGS-B). The polish keeps lobe 1 the narrow one: lobe 2's log m is
+lobe 1's plus d >= 0, so the pair is ordered and a table of fitted rows interpolates lobe by lobe.
+As the residual grid's best start has the one-lobe optimum's shape (NNLS may switch lobe 2 off), the
+two-lobe error is never above the one-lobe error. `two_lobe="in-turn"` (and the hierarchical search) fit them
+in turn as the thesis does (3.4.1): lobe 1, then lobe 2 with lobe 1's shape fixed, then lobe 1
+again with lobe 2's; it stops short of the joint optimum (docs/BENCHMARKS.md, "Fitting the material
+model": how often each recovers a known two-lobe BRDF). Which search finds the global minimum how
+often and how fast: the same section. Deterministic: fixed grids and nodes, no random numbers.
 """
 from __future__ import annotations
 
@@ -338,6 +347,97 @@ def _multistart(search: _Search, kind: str) -> np.ndarray:
     return best
 
 
+TWO_LOBE_M = 8  # lobe 2's m values of the residual search, log-spaced from lobe 1's to its range's top
+TWO_LOBE_GRID = 5  # lobe 2's r0 and alpha values at each m
+TWO_LOBE_STARTS = 3  # starts polished jointly: the residual search's best and the best others
+TWO_LOBE_MIN_STEP = math.log(1.5)  # lobe 2's m at least 1.5 x lobe 1's in the residual grid (it is the wide one)
+TWO_LOBE_MODES = ("joint", "in-turn")
+
+
+def _two_lobes_joint(search: _Search, m2_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(lobe 1, lobe 2) as (log m, r0, alpha), lobe 1 the narrow one (module docstring)."""
+    from scipy.optimize import minimize
+
+    problem = search.problem
+    search.fixed = []
+    first = _multistart(search, "reflect")
+    lo2, hi2 = math.log(m2_range[0]), math.log(m2_range[1])
+    # the joint parameters q = (log m1, r0_1, alpha_1, d, r0_2, alpha_2), log m2 = log m1 + d (d >= 0)
+    bounds = np.concatenate([search.bounds, [[0.0, max(hi2 - search.bounds[0, 0], 1e-6)]],
+                             search.bounds[1:]])
+
+    def unpack(q):
+        m2 = float(np.clip(q[0] + q[3], lo2, hi2))
+        return q[:3], np.array([m2, q[4], q[5]])
+
+    def pack(p1, p2):
+        return np.clip(np.concatenate([p1, [p2[0] - p1[0]], p2[1:]]), bounds[:, 0], bounds[:, 1])
+
+    # starts (a): the residual, lobe 2 over a grid of (log m, r0, alpha) with lobe 1's shape fixed at the
+    # one-lobe optimum; NNLS may switch lobe 2 off, so the best of these is no worse than one lobe
+    search.fixed = [problem.lobe_columns("reflect", *_params(first))[0]]
+    grid_m = np.linspace(min(max(first[0] + TWO_LOBE_MIN_STEP, lo2), hi2), hi2, TWO_LOBE_M)
+    r0s = np.linspace(search.bounds[1, 0], search.bounds[1, 1], TWO_LOBE_GRID)
+    alphas = np.linspace(search.bounds[2, 0], search.bounds[2, 1], TWO_LOBE_GRID)
+    cand = np.stack([a.ravel() for a in np.meshgrid(grid_m, r0s, alphas, indexing="ij")], axis=-1)
+    e, _ = search.evaluate("reflect", cand)
+    search.fixed = []
+    residual = [(float(e[k]), pack(first, cand[k])) for k in np.argsort(e)[:TWO_LOBE_STARTS]]
+    # starts (b): both widths over a grid (the optimum's lobe 1 is often narrower than one lobe alone),
+    # r0 and alpha_1 of the one-lobe optimum, alpha_2 at three values
+    pairs = []
+    for m1 in np.linspace(search.bounds[0, 0], search.bounds[0, 1], TWO_LOBE_GRID - 1):
+        for m2 in np.linspace(lo2, hi2, TWO_LOBE_M):
+            if m2 >= m1 + TWO_LOBE_MIN_STEP or m2 >= hi2:
+                for a2 in np.linspace(search.bounds[2, 0], search.bounds[2, 1], 3):
+                    pairs.append(pack(np.array([m1, first[1], first[2]]), np.array([m2, first[1], a2])))
+    pair_e = _joint_errors(problem, [unpack(q) for q in pairs], search)
+    grid = [(float(pair_e[k]), pairs[k]) for k in np.argsort(pair_e)[:TWO_LOBE_STARTS]]
+    starts = residual[:1] + sorted(residual[1:] + grid, key=lambda s: s[0])[:TWO_LOBE_STARTS]
+
+    cache: dict[int, tuple[tuple, np.ndarray]] = {}
+
+    def column(slot, p):  # a finite-difference step moves one lobe: the other's column is reused
+        key = tuple(float(v) for v in p)
+        if slot not in cache or cache[slot][0] != key:
+            cache[slot] = key, problem.lobe_columns("reflect", *_params(p))[0]
+        return cache[slot][1]
+
+    def error(q):
+        p1, p2 = unpack(q)
+        cols = np.stack([problem.diffuse, column(0, p1), column(1, p2)])
+        search.evaluations += 1
+        if search.progress:
+            search.progress(1)
+        return float(problem.solve(cols[None])[1][0])
+
+    # the polish sees the error relative to the one-lobe fit's: L-BFGS-B's tolerances are absolute below
+    # 1, and errors of 1e-4 .. 1e-8 stopped it at its first steps
+    norm = max(residual[0][0], 1e-300)
+    best, best_e = None, np.inf
+    for e0, q0 in starts:
+        res = minimize(lambda q: error(q) / norm, q0, method="L-BFGS-B", bounds=bounds, options={"maxiter": 200})
+        q, f = (res.x, res.fun * norm) if res.fun * norm <= e0 else (q0, e0)
+        if f < best_e:
+            best, best_e = q, f
+    return unpack(best)
+
+
+def _joint_errors(problem: _Problem, shapes: list, search: _Search, chunk: int = 24) -> np.ndarray:
+    """The error of each pair of reflect-lobe shapes ((log m, r0, alpha) x 2), every ks solved."""
+    out = []
+    for start in range(0, len(shapes), chunk):
+        part = shapes[start:start + chunk]
+        c1 = problem.lobe_columns("reflect", *(np.exp([p[0][0] for p in part]), [p[0][1] for p in part],
+                                               [p[0][2] for p in part]))
+        c2 = problem.lobe_columns("reflect", *(np.exp([p[1][0] for p in part]), [p[1][1] for p in part],
+                                               [p[1][2] for p in part]))
+        d = np.broadcast_to(problem.diffuse[None], c1.shape)
+        out.append(problem.solve(np.stack([d, c1, c2], axis=1))[1])
+        search.evaluations += len(part)
+    return np.concatenate(out) if out else np.zeros(0)
+
+
 def expected_evaluations(lobes: int, transmission: bool, method: str = "hierarchical") -> int | None:
     """Candidates a fit evaluates (for a progress bar): known ahead for the hierarchical search only."""
     if method != "hierarchical":
@@ -349,13 +449,16 @@ def expected_evaluations(lobes: int, transmission: bool, method: str = "hierarch
 def fit(data: BrdfData, lobes: int = 1, *, method: str = METHODS[0],
         progress: Callable[[int], None] | None = None, albedo_weight: float = ALBEDO_WEIGHT,
         diffuse: bool = True, r0_range: tuple[float, float] = (0.0, 1.0), m_range: tuple[float, float] = M_RANGE,
-        ks_max: float | None = None) -> FitResult:
+        ks_max: float | None = None, two_lobe: str = TWO_LOBE_MODES[0],
+        wide_m_range: tuple[float, float] = M_RANGE) -> FitResult:
     """Fit kd and `lobes` (1 or 2) reflection lobes, plus a transmission lobe when the data has
     transmission (module docstring). `diffuse=False`: kd is held at 0 (a metal). `r0_range`,
     `m_range`: where Schlick's r0 and Beckmann's m are searched (known physics, e.g. a metal's r0 near 1,
     keeps the search from trading r0 against ks: the albedo alone cannot tell a large ks of a small r0
     from the reverse). `ks_max`: the lobes' ks at most this (glint clamps ks to 1 where it renders and
-    bakes, bake/validate.py): the search then finds the shape that needs no more. Deterministic."""
+    bakes, bake/validate.py): the search then finds the shape that needs no more. `two_lobe`: how two
+    lobes are searched (module docstring; "joint" with the multistart search only), `wide_m_range`:
+    where the joint search looks for lobe 2's m (never below lobe 1's). Deterministic."""
     if lobes not in (1, 2):
         raise GlintError(f"--lobes must be 1 or 2, not {lobes}")
     if method not in METHODS:
@@ -365,11 +468,17 @@ def fit(data: BrdfData, lobes: int = 1, *, method: str = METHODS[0],
     search = _Search(problem, progress)
     search.bounds[0] = np.log(np.clip(m_range, M_RANGE[0], M_RANGE[1]))
     search.bounds[1] = np.clip(r0_range, 0.0, 1.0)
+    if two_lobe not in TWO_LOBE_MODES:
+        raise GlintError(f"two-lobe search must be one of {', '.join(TWO_LOBE_MODES)}, not {two_lobe!r}")
     find = _hierarchical if method == "hierarchical" else _multistart
     slots = [_Slot("reflect") for _ in range(lobes)] + ([_Slot("transmit")] if data.transmission else [])
-    order = [0] if lobes == 1 else [0, 1] + [0, 1] * (ROUNDS - 1)
-    order += [len(slots) - 1] if data.transmission else []
     found: dict[int, np.ndarray] = {}
+    joint = lobes == 2 and method == "multistart" and two_lobe == "joint"
+    if joint:
+        wide = (max(wide_m_range[0], M_RANGE[0]), min(wide_m_range[1], M_RANGE[1]))
+        found[0], found[1] = _two_lobes_joint(search, wide)
+    order = [0] if lobes == 1 else ([] if joint else [0, 1] + [0, 1] * (ROUNDS - 1))
+    order += [len(slots) - 1] if data.transmission else []
     for s in order:
         search.fixed = [problem.lobe_columns(slots[o].kind, *_params(found[o]))[0]
                         for o in sorted(found) if o != s]

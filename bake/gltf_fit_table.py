@@ -10,23 +10,31 @@ shipped as gltf_fit_table.npz next to this module; loading a scene only interpol
 
 The table holds, for glTF roughness r on the grid `roughness` and normal-incidence reflectance f0 on
 the grid `f0`:
-- `specular`: (F, R, 4) one reflect lobe (ks, m, r0, alpha) fitted to glTF's specular BRDF weighted
-  by Schlick's Fresnel with that f0 alone (kd held at 0). It is a dielectric's specular layer (f0 from
-  its ior: 0.04 for glTF's default 1.5) and, as glTF's conductor_fresnel is the same Schlick term
-  with f0 = base colour, a grey metal of that base colour (f0 = 1: a white metal).
+- `specular`: (F, R, 2, 4) one or two reflect lobes (ks, m, r0, alpha) fitted to glTF's specular BRDF
+  weighted by Schlick's Fresnel with that f0 alone (kd held at 0). It is a dielectric's specular layer
+  (f0 from its ior: 0.04 for glTF's default 1.5) and, as glTF's conductor_fresnel is the same Schlick
+  term with f0 = base colour, a grey metal of that base colour (f0 = 1: a white metal). Lobe 1 is the
+  narrow one; lobe 2, wider, follows GGX's long tail that one Beckmann lobe cannot (issue 24), and is
+  there only in the rows where it pays (bench/fit_gltf_table.py, `TWO_LOBES`); elsewhere its ks is 0
+  (its shape a copy of lobe 1's), and `specular_lobes` leaves it out: every lobe costs the viewer
+  samples per pixel.
 - `specular_albedo`: (F, R) that BRDF's albedo by the reference under uniform light (directional
   albedo weighted by cos(theta_o) over the hemisphere): what a rough dielectric's dropped lobe adds
   to kd (bake/material_mapping.py), the light it would have reflected of a diffuse room's.
 - `diffuse`: (F,) the share of the base colour that fresnel_mix leaves to the diffuse term,
   averaged over view angles 0-80 degrees (it hardly depends on the angle: 0.960 to 0.944 for f0 0.04,
   and not on the roughness): kd = base colour x `diffuse`.
-Between two rows, in r and then in f0: where both rows are one solution of the fit (their alpha within
-SAME_ALPHA, their m in the ratio r^2 predicts within a factor 2), each parameter is interpolated
-linearly (m through sqrt(m), about linear in r as m ~ r^2). Rough rows have two solutions of similar
-error (a narrow lobe with alpha ~ 0.5, a wide one with alpha ~ 0.2 and a large ks) and neighbouring
-rows may hold different ones; a lobe halfway between the two is neither, so there the nearer row's
-lobe is taken, its ks scaled to the interpolated albedo (`specular_albedo`). How well the table
-matches the reference, per material and view angle: docs/bench/gltf-fit/table.md.
+Between two rows, in r and then in f0: where both rows have two lobes (the narrow and the wide one:
+ordered, so lobe k of one row is lobe k of the other), each lobe's parameters are interpolated
+linearly (m through sqrt(m), about linear in r as m ~ r^2). Otherwise, where lobe 1 of both rows is
+one solution of the fit (their alpha within SAME_ALPHA, their m in the ratio r^2 predicts within a
+factor 2), lobe 1's parameters are interpolated linearly and lobe 2 keeps the shape of the row that
+has it, its ks going linearly to 0 towards the row without: continuous across the boundary between
+one- and two-lobe rows. One-lobe rough rows have two solutions of similar error (a narrow lobe with
+alpha ~ 0.5, a wide one with alpha ~ 0.2 and a large ks) and neighbouring rows may hold different
+ones; a lobe halfway between the two is neither, so there the nearer row's lobes are taken, their ks
+scaled to the interpolated albedo (`specular_albedo`). How well the table matches the reference, per
+material and view angle: docs/bench/gltf-fit/table.md.
 """
 from __future__ import annotations
 
@@ -39,7 +47,8 @@ import numpy as np
 from glint.core.errors import GlintError
 
 TABLE_FILE = "gltf_fit_table.npz"
-FORMAT = 1
+FORMAT = 2  # 2: two lobes per row (issue 24)
+LOBES = 2  # lobes per row of `specular`
 
 
 @dataclass(frozen=True)
@@ -56,29 +65,31 @@ class FittedLobe:
 class FitTable:
     roughness: np.ndarray  # (R,) increasing, 0 ... 1
     f0: np.ndarray  # (F,) increasing, up to 1
-    specular: np.ndarray  # (F, R, 4) ks, m, r0, alpha
+    specular: np.ndarray  # (F, R, LOBES, 4) ks, m, r0, alpha; lobe 1 the narrow one, lobe 2's ks 0 where absent
     specular_albedo: np.ndarray  # (F, R)
     diffuse: np.ndarray  # (F,)
 
-    def specular_lobe(self, roughness: float, f0: float) -> FittedLobe:
-        """The lobe of glTF's specular BRDF with Schlick's Fresnel of normal-incidence reflectance f0;
-        below the grid's first f0, its row with r0 scaled by f0 / f0_row (the fitted r0 follows f0)."""
+    def specular_lobes(self, roughness: float, f0: float) -> tuple[FittedLobe, ...]:
+        """The lobes (one or two, the narrow one first) of glTF's specular BRDF with Schlick's Fresnel
+        of normal-incidence reflectance f0; below the grid's first f0, its row with r0 scaled by
+        f0 / f0_row (the fitted r0 follows f0). A lobe whose ks is 0 is left out."""
         i, j, t = _bracket(self.f0, f0)
         a, albedo_a = self._along_roughness(i, roughness)
         b, albedo_b = self._along_roughness(j, roughness)
-        lobe = _between(a, b, t, albedo_a, albedo_b, 1.0)
+        lobes = _between(a, b, t, albedo_a, albedo_b, 1.0)
         row = float(np.clip(f0, self.f0[0], self.f0[-1]))
         if row != f0:
-            lobe = FittedLobe(lobe.ks, lobe.m, float(np.clip(lobe.r0 * f0 / row, 0.0, 1.0)), lobe.alpha)
-        return lobe
+            lobes = tuple(FittedLobe(lb.ks, lb.m, float(np.clip(lb.r0 * f0 / row, 0.0, 1.0)), lb.alpha)
+                          for lb in lobes)
+        return tuple(lb for lb in lobes if lb.ks > 0.0) or lobes[:1]
 
-    def _along_roughness(self, f: int, roughness: float) -> tuple[FittedLobe, float]:
-        """Row f0[f]'s lobe at `roughness`, and its albedo."""
+    def _along_roughness(self, f: int, roughness: float) -> tuple[tuple[FittedLobe, ...], float]:
+        """Row f0[f]'s lobes at `roughness` (LOBES of them, ks 0 where absent), and their albedo."""
         k, l, u = _bracket(self.roughness, roughness)
-        a, b = (FittedLobe(*map(float, self.specular[f, n])) for n in (k, l))
+        a, b = (tuple(FittedLobe(*map(float, lobe)) for lobe in self.specular[f, n]) for n in (k, l))
         albedo_a, albedo_b = self.specular_albedo[f, k], self.specular_albedo[f, l]
         r_a, r_b = self.roughness[k], self.roughness[l]
-        m_ratio = (r_b / r_a) ** 2 if r_a > 0 else b.m / a.m  # the rows below FITTED[0] scale m so
+        m_ratio = (r_b / r_a) ** 2 if r_a > 0 else b[0].m / a[0].m  # the rows below FITTED[0] scale m so
         return _between(a, b, u, albedo_a, albedo_b, m_ratio), float((1 - u) * albedo_a + u * albedo_b)
 
     def specular_albedo_at(self, roughness: float, f0: float) -> float:
@@ -106,18 +117,26 @@ FIELDS = ("roughness", "f0", "specular", "specular_albedo", "diffuse")
 SAME_ALPHA = 0.15  # two rows whose alpha differ by more are two solutions (module docstring)
 
 
-def _between(a: FittedLobe, b: FittedLobe, t: float, albedo_a: float, albedo_b: float, m_ratio: float
-             ) -> FittedLobe:
-    """The lobe a fraction t from row a to row b (module docstring); `m_ratio`: b.m / a.m expected of
-    one solution."""
-    one_solution = abs(a.alpha - b.alpha) <= SAME_ALPHA and 0.5 <= (b.m / a.m) / m_ratio <= 2.0
-    if one_solution:
-        root_m = (1 - t) * np.sqrt(a.m) + t * np.sqrt(b.m)
-        return FittedLobe(float((1 - t) * a.ks + t * b.ks), float(root_m * root_m),
-                          float((1 - t) * a.r0 + t * b.r0), float((1 - t) * a.alpha + t * b.alpha))
+def _lerp(a: FittedLobe, b: FittedLobe, t: float) -> FittedLobe:
+    """Each parameter linearly, m through sqrt(m) (about linear in r: m ~ r^2)."""
+    root_m = (1 - t) * np.sqrt(a.m) + t * np.sqrt(b.m)
+    return FittedLobe(float((1 - t) * a.ks + t * b.ks), float(root_m * root_m),
+                      float((1 - t) * a.r0 + t * b.r0), float((1 - t) * a.alpha + t * b.alpha))
+
+
+def _between(a: tuple[FittedLobe, ...], b: tuple[FittedLobe, ...], t: float, albedo_a: float, albedo_b: float,
+             m_ratio: float) -> tuple[FittedLobe, ...]:
+    """The lobes a fraction t from row a to row b (module docstring; lobe 2 has ks 0 where a row has
+    one lobe); `m_ratio`: b.m / a.m of lobe 1 expected of one solution."""
+    (a1, a2), (b1, b2) = a, b
+    if a2.ks > 0 and b2.ks > 0:  # two ordered lobes on both sides: lobe by lobe
+        return _lerp(a1, b1, t), _lerp(a2, b2, t)
+    if abs(a1.alpha - b1.alpha) <= SAME_ALPHA and 0.5 <= (b1.m / a1.m) / m_ratio <= 2.0:  # one solution
+        wide = a2 if a2.ks > 0 else b2  # the shape of the row that has lobe 2, its ks to 0 at the other
+        return _lerp(a1, b1, t), FittedLobe(float((1 - t) * a2.ks + t * b2.ks), wide.m, wide.r0, wide.alpha)
     near, albedo_near = (a, albedo_a) if t < 0.5 else (b, albedo_b)
-    albedo = (1 - t) * albedo_a + t * albedo_b
-    return FittedLobe(float(near.ks * albedo / max(albedo_near, 1e-9)), near.m, near.r0, near.alpha)
+    scale = ((1 - t) * albedo_a + t * albedo_b) / max(albedo_near, 1e-9)
+    return tuple(FittedLobe(float(lb.ks * scale), lb.m, lb.r0, lb.alpha) for lb in near)
 
 
 def _bracket(grid: np.ndarray, x: float) -> tuple[int, int, float]:

@@ -106,7 +106,18 @@ def stage_versions() -> dict:
     made with others is redone (the stage hashes include them too); core/skipped.py VERSION_NAMES
     names them."""
     return {"format": FORMAT_VERSION, "geometry": GEOMETRY_VERSION, "transport": TRANSPORT_VERSION,
-            "cubemap": CUBEMAP_VERSION}
+            "cubemap": CUBEMAP_VERSION, "gltf_table": gltf_table_version()}
+
+
+def gltf_table_version() -> str:
+    """The shipped glTF fit table's content (bake/gltf_fit_table.py), short: a new table maps the same glTF
+    file to other lobes, which the scene's content hash (the file's bytes) does not see, so a bake made
+    with another table is not up to date (its manifest would keep the old lobes)."""
+    from importlib import resources
+
+    from glint.bake.gltf_fit_table import TABLE_FILE
+
+    return hashlib.sha256(resources.files("glint.bake").joinpath(TABLE_FILE).read_bytes()).hexdigest()[:12]
 
 
 def object_hashes(obj) -> dict:

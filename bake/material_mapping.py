@@ -12,8 +12,11 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   height-correlated Smith, Schlick) is not Eq. 3.4, and with Kurt's alpha = 0 a narrow lobe's
   directional albedo falls like F cos(theta_o), so floors lost most of their reflection at the
   angles a walkthrough sees them. Each lobe's (ks, m, r0, alpha) is read from the table of
-  bake/gltf_fit_table.py: the section 3.3 lobe fitted (thesis 3.4.1) to glTF's specular BRDF with
-  Schlick's Fresnel of normal-incidence reflectance f0, at roughness r (`FitTable.specular_lobe`).
+  bake/gltf_fit_table.py: the section 3.3 lobes fitted (thesis 3.4.1) to glTF's specular BRDF with
+  Schlick's Fresnel of normal-incidence reflectance f0, at roughness r (`FitTable.specular_lobes`):
+  one lobe, or two where one Beckmann lobe cannot follow GGX's long tail (rough rows: a narrow and a
+  wide lobe). Every rule below that emits "one lobe" of the table emits each of that row's lobes,
+  with the same weights (and, with a metallicRoughnessTexture, the same m scaling).
   How close the result is: docs/SCENES.md, "glTF materials: how close".
 - Diffuse: kd = b * (1 - M) * (1 - t) * share(f0), where share is what glTF's fresnel_mix leaves
   to the diffuse term (0.953 for f0 = 0.04; with KHR_materials_specular's factor s, 1 - s (1 -
@@ -24,7 +27,9 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   white at grazing, per channel. The fitted lobe is the table's for f0 = max(b), its ks times M;
   Schlick's F being linear in r0, a coloured metal gets two lobes of that one shape whose sum has
   r0_c = r0 b_c / max(b) in each channel (`metal_lobes`): ks r0_c with r0 = 1 and ks (1 - r0_c)
-  with r0 = 0. A grey metal keeps one lobe, ks b / max(b) with the fitted r0.
+  with r0 = 0. A grey metal keeps one lobe, ks b / max(b) with the fitted r0. A row's tail lobe
+  (the second, wide one) is not split: ks b / max(b) with its fitted r0 (a coloured rough metal
+  gets three lobes, not four).
 - Transmission (t > 0): one transmit lobe (Eq. 3.5, thin surface), ks = b * (1 - M) * t,
   m = max(r^2, 1e-4), r0 = f0, alpha = 0; Eq. 3.5's (1 - F) factor plays glTF's Fresnel weighting.
 - Clearcoat (c > 0): one more reflect lobe, the table's for f0 = 0.04 at roughness r_c, its ks
@@ -171,12 +176,17 @@ def dielectric_f0(p: GltfPbr) -> float:
     return float(np.clip(fresnel_r0(max(p.ior, 1.0)) * np.mean(p.specular_color), 0.0, 1.0))
 
 
-def _fitted(lobe_of, roughness: float, weight, m_scale: float = 1.0) -> tuple:
-    """(ks (3,), m, r0, alpha) of the fitted lobe `lobe_of(roughness)`, ks times `weight`, m times
-    `m_scale`."""
-    lobe = lobe_of(float(np.clip(roughness, 0.0, 1.0)))
-    m = float(np.clip(lobe.m * m_scale, M_MIN, 1.0))
-    return _rgb3(np.asarray(weight, np.float64) * lobe.ks), m, lobe.r0, lobe.alpha
+def _fitted(lobes_of, roughness: float, weight, m_scale: float = 1.0) -> list[tuple]:
+    """[(ks (3,), m, r0, alpha)] of each fitted lobe of `lobes_of(roughness)` (one or two), ks times
+    `weight`, m times `m_scale`."""
+    out = []
+    for lobe in lobes_of(float(np.clip(roughness, 0.0, 1.0))):
+        # no cap at 1: with a metallicRoughnessTexture the viewer's per-texel m' = m G^2 must give the
+        # table's m where G is the mean, and the tail lobe's m (up to 1) over mean(G)^2 exceeds 1 (capped,
+        # a uniform texture of G 0.6 rendered 37 % off its factors); Eq. 3.3 holds for any m > 0
+        m = float(max(lobe.m * m_scale, M_MIN))
+        out.append((_rgb3(np.asarray(weight, np.float64) * lobe.ks), m, lobe.r0, lobe.alpha))
+    return out
 
 
 def metal_lobes(ks, m: tuple[float, float], r0: float, alpha: float, tint, mr: str) -> list[Lobe]:
@@ -236,12 +246,12 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
     if f0 > 0 and s > 0:
         if volume:  # a glass solid's entry interface: Kurt's alpha 1/2 (module docstring)
             m = beckmann_m(factor)
-            lobe = Lobe("reflect", _rgb3(dielectric * s), *anisotropic(m), f0, INTERFACE_ALPHA, mr)
+            layer = [Lobe("reflect", _rgb3(dielectric * s), *anisotropic(m), f0, INTERFACE_ALPHA, mr)]
         else:
-            ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, f0), fitted, dielectric * s, m_scale)
-            lobe = Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr)
+            layer = [Lobe("reflect", ks, *anisotropic(m), r0, alpha, mr) for ks, m, r0, alpha
+                     in _fitted(lambda r: table.specular_lobes(r, f0), fitted, dielectric * s, m_scale)]
         if not rough:
-            lobes.append(lobe)
+            lobes += layer
         else:  # a rough dielectric is diffuse: its layer's reflection joins kd, grey (module docstring),
             # never past 1 (glTF's white rough dielectric reflects more than it receives: Appendix B)
             kd = np.maximum(kd, np.minimum(kd + dielectric * s * table.specular_albedo_at(fitted, f0), 1.0))
@@ -249,15 +259,22 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
     # incidence, white at grazing; the lobes are the table's for f0 = max(b) (module docstring)
     brightest = float(np.max(base))
     if brightest > 0:
-        ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, brightest), fitted, metal_ks, m_scale)
-        lobes += metal_lobes(ks, anisotropic(m), r0, alpha, base / brightest, mr and "metal")
+        # the narrow lobe split per channel (`metal_lobes`); a tail lobe (rough rows, bake/gltf_fit_table.py)
+        # keeps ks b / max(b): four lobes would double the viewer's cost for a coloured rough metal
+        fits = _fitted(lambda r: table.specular_lobes(r, brightest), fitted, metal_ks, m_scale)
+        for k, (ks, m, r0, alpha) in enumerate(fits):
+            if k == 0:
+                lobes += metal_lobes(ks, anisotropic(m), r0, alpha, base / brightest, mr and "metal")
+            else:
+                lobes.append(Lobe("reflect", _rgb3(np.asarray(ks) * base / brightest), *anisotropic(m), r0, alpha,
+                                  mr and "metal"))
     if t > 0:
         lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), *anisotropic(beckmann_m(factor)), f0,
                           INTERFACE_ALPHA if volume else 0.0, mr))
     if p.clearcoat > 0 and not (p.clearcoat_roughness >= diffuse_roughness and t == 0.0):
-        ks, m, r0, alpha = _fitted(lambda r: table.specular_lobe(r, CLEARCOAT_R0), p.clearcoat_roughness,
-                                   p.clearcoat)
-        lobes.append(Lobe("reflect", ks, m, m, r0, alpha))
+        for ks, m, r0, alpha in _fitted(lambda r: table.specular_lobes(r, CLEARCOAT_R0), p.clearcoat_roughness,
+                                        p.clearcoat):
+            lobes.append(Lobe("reflect", ks, m, m, r0, alpha))
     lobes = [lobe for lobe in lobes if max(lobe.ks) > 0]
     emission = np.asarray(p.emissive, np.float64)[:3] * p.emissive_strength
     return kd.astype(np.float32), lobes, np.clip(emission, 0.0, None).astype(np.float32)

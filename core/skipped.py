@@ -112,7 +112,7 @@ def sidecar_changes(old: dict | None, new: dict | None) -> list[str]:
 
 # What each entry of the manifest's `inputs.versions` (bake/hashing.py stage_versions) is, in a stale line.
 VERSION_NAMES = {"format": "bake format", "geometry": "unwrap version", "transport": "light-map integrator version",
-                 "cubemap": "cube-map renderer version"}
+                 "cubemap": "cube-map renderer version", "gltf_table": "glTF material fit table"}
 
 
 def version_changes(old: Manifest, new: Manifest) -> list[str]:

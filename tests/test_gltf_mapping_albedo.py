@@ -8,18 +8,20 @@ from the specification, with none of glint's model or mapping in it.
 
 Metric: per channel, |glint - reference| / reference at view angles 0, 30, 60, 70 and 80 degrees.
 Threshold 3 % where the model can follow the specification:
-- dielectrics below `diffuse_roughness` (0.5), any base colour (their lobe is kept);
-- grey metals (base colours 1, 0.9, 0.5, 0.2) up to roughness 0.4;
+- dielectrics below `diffuse_roughness` (0.5), any base colour (their lobes are kept);
+- grey metals (base colours 1, 0.9, 0.5, 0.2) up to roughness 0.7 (from 0.2 to 0.7 the table's rows
+  have a second lobe, GGX's tail: worst 2.1 %; with one lobe 3.9 % at 0.5 and 5.6 % at 0.7);
 - coloured metals (orange, gold, copper, blue) up to roughness 0.1: two lobes of one shape give each
   channel its own Schlick r0 (`metal_lobes`).
 Where it cannot, the bound asserted is the measured one, and docs/SCENES.md ("glTF materials: how
 close") says why:
-- rough metals: a Beckmann lobe with Kurt's alpha follows GGX's albedo to 3.9 % at roughness 0.5,
-  5.6 % at 0.7 (between two table rows of different solutions) and 4.5 % at 1 (at 70-80 degrees);
-- rough coloured metals: the two lobes take the fitted shape (m, alpha) of the brightest channel,
-  and the dimmer channels' Fresnel rise towards grazing follows a Beckmann shape less well the
-  rougher the lobe (orange (0.8, 0.5, 0.2): 2.6 % at roughness 0.2, 6.2 % at 0.3, 21 % at 0.5, at 80
-  degrees in the blue channel; one lobe, before: 57 % at roughness 0.05);
+- rougher metals, one lobe (lobe 1 is near m = 1, the widest Beckmann lobe): 3.6 % at roughness 0.8
+  and 4.5 % at 1 (at 70-80 degrees);
+- rough coloured metals: the narrow lobe's two parts take the fitted shape (m, alpha) of the
+  brightest channel, and the dimmer channels' Fresnel rise towards grazing follows a Beckmann shape
+  less well the rougher the lobe; the tail lobe keeps the colour (orange (0.8, 0.5, 0.2): 9.3 % at
+  roughness 0.2, 4.1 % at 0.3, 2.4 % at 0.5, 6.5 % at 0.7, at 80 degrees in the blue channel; one
+  lobe, before: 57 % at roughness 0.05);
 - rough dielectrics (r >= 0.5): the lobe is dropped (a diffuse wall, no cube map) and its mean
   albedo joins kd, so the specification's rise towards grazing is lost (25 % at 80 degrees for
   a base colour of 0.2).
@@ -41,7 +43,7 @@ ANGLES = (0, 30, 60, 70, 80)
 RTOL = 0.03
 SAMPLES = 1 << 12  # the reference's albedo converges to 0.1 % (core/gltf_brdf.py docstring: 0.03 % at 2^14)
 DIELECTRIC_ROUGHNESS = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.45)
-METAL_ROUGHNESS = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4)
+METAL_ROUGHNESS = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
 COLOURS = ((0.9, 0.9, 0.9), (0.8, 0.5, 0.2), (0.2, 0.2, 0.2))
 GREYS = (1.0, 0.9, 0.5, 0.2)
 COLOURED_METALS = ((0.8, 0.5, 0.2), (1.0, 0.78, 0.34), (0.95, 0.64, 0.54), (0.2, 0.2, 0.8))
@@ -71,18 +73,20 @@ def follows_the_specification() -> list[tuple[str, float]]:
 def test_lobes_follow_the_specification_albedo():
     """Bugs it catches: Kurt's alpha = 0 for glTF lobes (the rule before issue 24: a smooth metal 66 %
     low at 70 degrees), a metal's r0 left at 1 (grey 0.2 metal: 0.2 at grazing instead of ~1), kd not
-    multiplied by fresnel_mix's diffuse share (+4 % for a white dielectric), a coloured metal as one
-    lobe whose ks carries the colour (the rule before `metal_lobes`: orange 57 % low at 80 degrees)."""
+    multiplied by fresnel_mix's diffuse share (+4 % for a white dielectric), the one-lobe table of
+    5d9521f (rough metals 3.9 % at roughness 0.5, 5.6 % at 0.7, grey 0.9: tried), a coloured metal as
+    one lobe whose ks carries the colour (the rule before `metal_lobes`: orange 57 % low at 80
+    degrees)."""
     misses = follows_the_specification()
     assert not misses, "\n".join(f"{m}: {100 * e:.1f} %" for m, e in misses)
 
 
 @pytest.mark.parametrize("factors, bound", [
-    (dict(base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.5), 0.045),
-    (dict(base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.7), 0.06),
+    (dict(base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.8), 0.04),
     (dict(base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=1.0), 0.05),
-    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.3), 0.07),
-    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.5), 0.22),
+    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.2), 0.10),
+    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.5), 0.03),
+    (dict(base_color=(0.8, 0.5, 0.2), metallic=1.0, roughness=0.7), 0.07),
     (dict(base_color=(0.2, 0.2, 0.2), metallic=0.0, roughness=0.5), 0.27),
     (dict(base_color=(0.8, 0.5, 0.2), metallic=0.0, roughness=0.8), 0.13),
 ])

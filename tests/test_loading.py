@@ -346,27 +346,30 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     table = fit_table()
     share = table.diffuse_share(0.04)
     # Smooth dielectric: diffuse base x fresnel_mix's share + one white lobe, the table's for f0 0.04.
-    kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.5, 0.4, 0.3), metallic=0, roughness=0.2))
+    kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.5, 0.4, 0.3), metallic=0, roughness=0.15))
     np.testing.assert_allclose(kd, np.array([0.5, 0.4, 0.3]) * share, rtol=1e-6)
-    (lobe,) = lobes
-    fitted = table.specular_lobe(0.2, 0.04)
+    (lobe,) = lobes  # one lobe: below roughness 0.2 no row of the table has a second one
+    (fitted,) = table.specular_lobes(0.15, 0.04)
     assert lobe.kind == "reflect" and lobe.ks == pytest.approx((fitted.ks,) * 3)
     assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == lobe.my == pytest.approx(fitted.m)
     assert 0.85 * 0.04 <= lobe.r0 <= 1.15 * 0.04 and 0.3 < lobe.alpha < 0.6  # Kurt's alpha: not 0
-    # Metal: no diffuse; the table's lobe for f0 = the brightest channel. A coloured metal: two lobes of
-    # its shape, F = 1 and F = (1 - cos)^5, weighted per channel so that each has Schlick's r0 = f0
-    # scaled by its colour; a grey metal: one lobe.
+    # Metal: no diffuse; the table's lobes for f0 = the brightest channel (two at roughness 0.7: the
+    # narrow one and the wide one of GGX's tail). A coloured metal: the narrow lobe as two lobes of its
+    # shape, F = 1 and F = (1 - cos)^5, weighted per channel so that each has Schlick's r0 = f0 scaled
+    # by its colour; the tail lobe with ks carrying the colour. A grey metal: the table's lobes.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.9, 0.6, 0.2), metallic=1, roughness=0.7))
     np.testing.assert_allclose(kd, 0)
-    fitted = table.specular_lobe(0.7, 0.9)
-    r0_c = np.array([fitted.r0 * c / 0.9 for c in (0.9, 0.6, 0.2)])
-    np.testing.assert_allclose([(lb.r0, lb.mx, lb.alpha) for lb in lobes], [(1.0, fitted.m, fitted.alpha),
-                                                                            (0.0, fitted.m, fitted.alpha)])
-    np.testing.assert_allclose(lobes[0].ks, fitted.ks * r0_c, rtol=1e-6)
-    np.testing.assert_allclose(lobes[1].ks, fitted.ks * (1 - r0_c), rtol=1e-6)
-    (lobe,) = map_pbr(GltfPbr(base_color=(0.6, 0.6, 0.6), metallic=1, roughness=0.7))[1]
-    fitted = table.specular_lobe(0.7, 0.6)
-    assert lobe.ks == pytest.approx((fitted.ks,) * 3) and lobe.r0 == pytest.approx(fitted.r0)
+    narrow, tail = table.specular_lobes(0.7, 0.9)
+    assert narrow.m < tail.m
+    r0_c = np.array([narrow.r0 * c / 0.9 for c in (0.9, 0.6, 0.2)])
+    np.testing.assert_allclose([(lb.r0, lb.mx, lb.alpha) for lb in lobes],
+                               [(1.0, narrow.m, narrow.alpha), (0.0, narrow.m, narrow.alpha), (tail.r0, tail.m, tail.alpha)])
+    np.testing.assert_allclose(lobes[0].ks, narrow.ks * r0_c, rtol=1e-6)
+    np.testing.assert_allclose(lobes[1].ks, narrow.ks * (1 - r0_c), rtol=1e-6)
+    np.testing.assert_allclose(lobes[2].ks, [tail.ks * c / 0.9 for c in (0.9, 0.6, 0.2)], rtol=1e-6)
+    grey = map_pbr(GltfPbr(base_color=(0.6, 0.6, 0.6), metallic=1, roughness=0.7))[1]
+    for lobe, fitted in zip(grey, table.specular_lobes(0.7, 0.6), strict=True):
+        assert lobe.ks == pytest.approx((fitted.ks,) * 3) and lobe.r0 == pytest.approx(fitted.r0)
     # Rough dielectric (Blender's default 0.5): no lobe, its albedo joins kd (never past 1); a lower
     # threshold moves the line.
     kd, lobes, _ = map_pbr(GltfPbr(metallic=0, roughness=0.5))
@@ -374,25 +377,30 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     np.testing.assert_allclose(kd, min(share + table.specular_albedo_at(0.5, 0.04), 1.0), rtol=1e-6)
     kd, _, _ = map_pbr(GltfPbr(base_color=(0.5, 0.5, 0.5), metallic=0, roughness=0.5))
     np.testing.assert_allclose(kd, 0.5 * share + table.specular_albedo_at(0.5, 0.04), rtol=1e-6)
-    assert len(map_pbr(GltfPbr(metallic=0, roughness=0.5), diffuse_roughness=0.8)[1]) == 1
+    assert len(map_pbr(GltfPbr(metallic=0, roughness=0.5), diffuse_roughness=0.8)[1]) == len(
+        table.specular_lobes(0.5, 0.04)) == 2  # the layer's row has a second lobe (GGX's tail)
     # Frosted glass, ior 1.33: no diffuse, reflect + transmit lobes; the transmit lobe m = r^2, r0 = f0.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(1, 1, 1), metallic=0, roughness=0.6,
                                    transmission=1.0, ior=1.33))
     np.testing.assert_allclose(kd, 0)
-    assert [lb.kind for lb in lobes] == ["reflect", "transmit"]
     r0 = (0.33 / 2.33) ** 2
-    assert lobes[0].r0 == pytest.approx(table.specular_lobe(0.6, r0).r0) and lobes[1].r0 == pytest.approx(r0)
-    assert lobes[1].mx == pytest.approx(0.36) and lobes[1].ks == (1, 1, 1)
-    # Anisotropic brushed metal: mx = m + (1 - m) s^2 along the tangent, my = m.
-    _, (lobe,), _ = map_pbr(GltfPbr(metallic=1, roughness=0.3, anisotropy=0.5))
-    m = table.specular_lobe(0.3, 1.0).m
-    assert lobe.my == pytest.approx(m) and lobe.mx == pytest.approx(m + (1 - m) * 0.25)
+    reflect = table.specular_lobes(0.6, r0)
+    assert [lb.kind for lb in lobes] == ["reflect"] * len(reflect) + ["transmit"]
+    assert [lb.r0 for lb in lobes[:-1]] == pytest.approx([lb.r0 for lb in reflect])
+    assert lobes[-1].r0 == pytest.approx(r0)
+    assert lobes[-1].mx == pytest.approx(0.36) and lobes[-1].ks == (1, 1, 1)
+    # Anisotropic brushed metal: mx = m + (1 - m) s^2 along the tangent, my = m (every lobe of the row).
+    _, aniso, _ = map_pbr(GltfPbr(metallic=1, roughness=0.3, anisotropy=0.5))
+    fitted_lobes = table.specular_lobes(0.3, 1.0)
+    assert len(aniso) == len(fitted_lobes)
+    for lobe, fitted in zip(aniso, fitted_lobes):
+        assert lobe.my == pytest.approx(fitted.m) and lobe.mx == pytest.approx(fitted.m + (1 - fitted.m) * 0.25)
     # Mirror: m at the table's floor; half metal: two lobes weighted by metallic.
     _, lobes, _ = map_pbr(GltfPbr(base_color=(1, 0, 0), metallic=0.5, roughness=0.0))
     # (a red metal: F = 1 for red alone, and (1 - cos)^5 whitening every channel towards grazing)
     assert [lb.r0 for lb in lobes] == [pytest.approx(0.04, rel=0.15), 1.0, 0.0]
-    assert lobes[0].ks == pytest.approx((0.5 * table.specular_lobe(0.0, 0.04).ks,) * 3)
-    red = table.specular_lobe(0.0, 1.0)
+    assert lobes[0].ks == pytest.approx((0.5 * table.specular_lobes(0.0, 0.04)[0].ks,) * 3)
+    (red,) = table.specular_lobes(0.0, 1.0)
     assert lobes[1].ks == pytest.approx((0.5 * red.ks * red.r0, 0, 0))
     assert lobes[2].ks == pytest.approx((0.5 * red.ks * (1 - red.r0), 0.5 * red.ks, 0.5 * red.ks))
     assert lobes[0].mx == 1e-4
@@ -409,7 +417,7 @@ def test_material_extensions_read_from_gltf(tmp_path):
     table = fit_table()  # KHR_materials_specular 0.5: the layer's Fresnel halved, the diffuse share 1 - F / 2
     np.testing.assert_allclose(mat.kd, [0.2 * (1 - 0.5 * (1 - table.diffuse_share(1 / 9)))] * 3, rtol=1e-6)
     refl, trans = mat.lobes
-    fitted = table.specular_lobe(0.1, 1 / 9)
+    (fitted,) = table.specular_lobes(0.1, 1 / 9)
     assert refl.ks == pytest.approx((0.5 * fitted.ks,) * 3) and refl.r0 == pytest.approx(fitted.r0)
     assert trans.ks == pytest.approx((0.8, 0.8, 0.8)) and trans.kind == "transmit" and trans.r0 == pytest.approx(1 / 9)
     assert refl.mx == pytest.approx(1.0) and refl.my == pytest.approx(fitted.m)
@@ -440,7 +448,8 @@ def test_sidecar_diffuse_roughness_threshold(tmp_path):
     w = quad_writer(roughness=0.5, metallic=0.0)
     assert load_scene(write(w, tmp_path)).objects[0].role == "diffuse"
     scene = load_scene(write(w, tmp_path, sidecar="[bake]\ndiffuse_roughness = 0.9\n"))
-    assert len(scene.materials[0].lobes) == 1 and scene.objects[0].role == "planar"
+    assert len(scene.materials[0].lobes) == len(fit_table().specular_lobes(0.5, 0.04)) == 2  # GGX's tail: 2
+    assert scene.objects[0].role == "planar"
     assert scene.bake_settings == {"diffuse_roughness": 0.9}
 
 

@@ -231,12 +231,13 @@ def test_gltf_controls_use_the_handed_in_mapping(ctx, tmp_path):
         assert viewer.panel.set_gltf(base_color=[0.9, 0.6, 0.2], metallic=1.0, roughness=0.3)
         entry = viewer.edits.materials[0]
         assert entry.kd == [0.0, 0.0, 0.0]
-        fitted = fit_table().specular_lobe(0.3, 0.9)
-        assert [(lobe.r0, lobe.mx) for lobe in entry.lobes] == [(1.0, pytest.approx(fitted.m)),
-                                                                (0.0, pytest.approx(fitted.m))]
-        assert entry.lobes[0].ks == pytest.approx([fitted.ks * fitted.r0 * c / 0.9 for c in (0.9, 0.6, 0.2)])
+        narrow, *tail = fit_table().specular_lobes(0.3, 0.9)  # one or two (bake/gltf_fit_table.py)
+        assert len(entry.lobes) == 2 + len(tail)  # the narrow lobe split per channel (metal_lobes), the tail
+        assert [(lobe.r0, lobe.mx) for lobe in entry.lobes[:2]] == [(1.0, pytest.approx(narrow.m)),
+                                                                    (0.0, pytest.approx(narrow.m))]
+        assert entry.lobes[0].ks == pytest.approx([narrow.ks * narrow.r0 * c / 0.9 for c in (0.9, 0.6, 0.2)])
         assert viewer.panel.set_gltf(metallic=0.0)  # the other values as last set: roughness 0.3 stays
-        assert viewer.edits.materials[0].lobes[0].mx == pytest.approx(fit_table().specular_lobe(0.3, 0.04).m)
+        assert viewer.edits.materials[0].lobes[0].mx == pytest.approx(fit_table().specular_lobes(0.3, 0.04)[0].m)
         frames(wnd)
         assert np.isfinite(viewer.renderer.read_linear()).all()
     finally:
@@ -376,7 +377,10 @@ def test_gltf_controls_say_what_they_replace_before_they_do():
     for line in announced:
         if line.startswith("lobe 0 "):
             field, values = line[len("lobe 0 "):].split(": ")
-            assert f"{float(getattr(after[0], field)):.3g}" == values.split(" -> ")[1]
+            value = getattr(after[0], field)  # ks is RGB: the panel's notes show "[a, b, c]"
+            shown_value = ("[" + ", ".join(f"{float(v):.3g}" for v in value) + "]" if isinstance(value, (list, tuple))
+                           else f"{float(value):.3g}")
+            assert shown_value == values.split(" -> ")[1]
     assert panel.gltf_changes() == []  # now the mapping's own material: nothing more to replace
 
 
@@ -388,7 +392,7 @@ def test_a_gltf_material_shows_its_authors_factors_and_keeps_them():
     edit of kd by hand drops the factors (the material is no longer their mapping) and the controls
     fall back to the guess. Deliberate bug this catches (tried): the controls handing only base
     colour, metallic, roughness and transmission to the mapping -> ior 1.5 and no clearcoat lobe
-    after a roughness move (3 lobes instead of 4, the dielectric's r0 0.04 instead of 0.02)."""
+    after a roughness move (the clearcoat lobe gone, the dielectric's r0 0.04 instead of 0.02)."""
     from glint.bake.material_mapping import GltfPbr, map_pbr
     from glint.core.gltf_brdf import GltfMaterialParams
     from glint.view import pbr_mapping
@@ -405,7 +409,7 @@ def test_a_gltf_material_shows_its_authors_factors_and_keeps_them():
     assert panel.set_gltf(roughness=0.2)
     _, expected, _ = map_pbr(GltfPbr(**{**factors, "roughness": 0.2}))
     got = edits.materials[0].lobes
-    assert len(got) == len(expected) == 4  # dielectric, the coloured metal's two, clearcoat
+    assert len(got) == len(expected) >= 4  # dielectric, the coloured metal's two (and tails), clearcoat
     for a, b in zip(got, expected):
         np.testing.assert_allclose([*a.ks, a.mx, a.r0, a.alpha], [*b.ks, b.mx, b.r0, b.alpha], rtol=1e-6)
     assert edits.materials[0].gltf.ior == 1.33 and panel.gltf()["roughness"] == 0.2

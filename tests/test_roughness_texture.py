@@ -66,15 +66,22 @@ def test_loader_and_mapping_read_the_texture_linear_and_keep_the_lobes_it_needs(
     np.testing.assert_allclose(mat.metallic_roughness_texture[0, :, 1], [G_LOW / 255, G_HIGH / 255] * 2, atol=1e-6)
     np.testing.assert_allclose(mat.metallic_roughness_texture[0, :, 2], [0.0, 0.5] * 2, atol=1e-6)
     np.testing.assert_allclose(mat.kd, np.array(BASE) * SHARE, rtol=1e-6)
-    # a coloured metal: two lobes of one shape, F = 1 and F = (1 - cos)^5 (material_mapping.metal_lobes)
-    assert [(lobe.mr, lobe.r0) for lobe in mat.lobes] == [("dielectric", pytest.approx(0.04, rel=0.15)),
-                                                         ("metal", 1.0), ("metal", 0.0)]
-    np.testing.assert_allclose(mat.lobes[1].ks, np.array(BASE) / BASE[0] * mat.lobes[1].ks[0], rtol=1e-6)
-    assert mat.lobes[1].ks[0] == pytest.approx(BASE[0], rel=0.15)  # ks r0, r0 ~ f0 = the brightest channel
+    # each layer is one or two lobes (the fitted table's rows at the texture's mean roughness: the
+    # narrow one and, on rough rows, GGX's tail); the coloured metal's narrow lobe is two of one shape,
+    # F = 1 and F = (1 - cos)^5 (material_mapping.metal_lobes)
+    kinds = [lobe.mr for lobe in mat.lobes]
+    dielectric = [lobe for lobe in mat.lobes if lobe.mr == "dielectric"]
+    metal = [lobe for lobe in mat.lobes if lobe.mr == "metal"]
+    assert kinds == ["dielectric"] * len(dielectric) + ["metal"] * len(metal), kinds
+    assert len(dielectric) in (1, 2) and len(metal) in (2, 3)
+    for lobe in dielectric:
+        assert 0.85 * 0.04 - 1e-9 <= lobe.r0 <= 1.15 * 0.04 + 1e-9, lobe
+    assert (metal[0].r0, metal[1].r0) == (1.0, 0.0)
+    np.testing.assert_allclose(metal[0].ks, np.array(BASE) / BASE[0] * metal[0].ks[0], rtol=1e-6)
     assert not any("metallicRoughnessTexture" in m for m in scene.warnings)
     assert scene.objects[0].role == "planar"
     plain = load_scene(write_bar_scene(tmp_path / "plain.glb", None, metallic=0.5))
-    assert [lobe.mr for lobe in plain.materials[0].lobes] == ["", ""]  # the coloured metal's two
+    assert {lobe.mr for lobe in plain.materials[0].lobes} == {""}
     dropped = 0.5 * fit_table().specular_albedo_at(1.0, 0.04)  # roughness 1: the dielectric lobe joins kd, grey
     np.testing.assert_allclose(plain.materials[0].kd, np.array(BASE) * 0.5 * SHARE + dropped, rtol=1e-6)
 
@@ -172,7 +179,8 @@ def test_uniform_texture_captures_as_the_factors_it_multiplies(tmp_path):
     the bake) against the factor path that the Mitsuba comparisons of the other tests hold. Mean
     |difference| over the floor (lower half) of the walkthrough image, at most 1 % of its mean.
     Measured: 0.03 %. Deliberate bugs this catches (tried): m' = m g instead of m g^2: 33 %;
-    roughness and metallic channels swapped: 42 %; kd not scaled by 1 - M' in the raster pass: 46 %."""
+    roughness and metallic channels swapped: 42 %; kd not scaled by 1 - M' in the raster pass: 46 %; the
+    mapping's m capped at 1 before the per-texel G^2 (the fitted tail lobe, m ~ 1, then 0.36): 37 %."""
     from glint.cli import main
     from glint.core.image_io import read_image
 

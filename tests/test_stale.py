@@ -164,6 +164,21 @@ def test_a_new_integrator_version_says_which(tmp_path, capsys, monkeypatch):
     assert json.loads((out / "manifest.json").read_text())["inputs"]["versions"]["transport"] == version
 
 
+def test_a_new_gltf_fit_table_makes_the_bake_stale(tmp_path, capsys, monkeypatch):
+    """A new glTF fit table (bake/gltf_fit_table.npz) maps the same glTF file to other lobes: the bake is
+    stale and says why, though the scene's files are the same bytes. Deliberate bug this catches
+    (tried): stage_versions without the table's version (the bake found up to date, its manifest
+    keeping the old table's lobes)."""
+    scene = write_room(tmp_path / "room.glb")
+    out = tmp_path / "room.bake"
+    bake(scene, out, capsys)
+    old = hashing.gltf_table_version()
+    monkeypatch.setattr(hashing, "gltf_table_version", lambda: "0123456789ab")
+    output = bake(scene, out, capsys)
+    assert f"glTF material fit table {old} -> 0123456789ab" in stale_line(output)
+    assert json.loads((out / "manifest.json").read_text())["inputs"]["versions"]["gltf_table"] == "0123456789ab"
+
+
 def test_a_manifest_without_inputs_stays_readable(tmp_path, capsys):
     """A bake dir written before `inputs` existed: up to date when nothing changed, and a changed
     setting is named as such, not as an older glint."""
