@@ -25,21 +25,22 @@ FACTORS = (dict(base_color=(1, 1, 1), metallic=1.0, roughness=0.5),
 
 def test_roughness_nodes_interpolate_the_texel_albedo_within_half_a_percent():
     """Metric: |linear interpolation between the ROUGHNESS_NODES nodes / exact albedo - 1| midway
-    between nodes (where it is worst), views 0-80 degrees, fitted glTF lobes; threshold 0.6 %
-    (measured 0.51 %). Bug it catches: too few nodes (9: 0.97 %, 5: 3.8 %; tried), or nodes that do
-    not follow lobe_at_pixel's m' = m g^2 (m' = m g: 20 % and more)."""
+    between nodes (where it is worst), views 0-80 degrees, every lobe of the fitted glTF rows (the
+    rough rows' tail lobe too); threshold 0.6 % (measured 0.41 %). Bug it catches: too few nodes (13:
+    1.16 % on the tail lobe of the dielectric 0.3, 17: 0.66 %; one-lobe rows, 9: 0.97 %, 5: 3.8 %;
+    tried), or nodes that do not follow lobe_at_pixel's m' = m g^2 (m' = m g: 20 % and more)."""
     wo = np.stack([np.sin(THETAS), 0 * THETAS, np.cos(THETAS)], -1)
     nodes = np.linspace(0.0, 1.0, LA.ROUGHNESS_NODES)
     worst = 0.0
     for factors in FACTORS:
-        (lobe,) = map_pbr(GltfPbr(**factors))[1]
-        table = np.array([bsdf.lobe_albedo(wo, *LA.roughness_variant(lobe.mx, lobe.my, g), lobe.r0, lobe.alpha,
-                                           "reflect") for g in nodes])
-        for g in (nodes[:-1] + nodes[1:]) / 2:
-            m = max(lobe.my * g * g, bsdf.M_MIN)  # the texel's lobe, isotropic (lobe_at_pixel)
-            exact = bsdf.lobe_albedo(wo, m, m, lobe.r0, lobe.alpha, "reflect")
-            interp = np.array([np.interp(g, nodes, table[:, j]) for j in range(len(THETAS))])
-            worst = max(worst, float(np.max(np.abs(interp / exact - 1))))
+        for lobe in map_pbr(GltfPbr(**factors))[1]:  # rough rows: the narrow lobe and GGX's tail
+            table = np.array([bsdf.lobe_albedo(wo, *LA.roughness_variant(lobe.mx, lobe.my, g), lobe.r0, lobe.alpha,
+                                               "reflect") for g in nodes])
+            for g in (nodes[:-1] + nodes[1:]) / 2:
+                m = max(lobe.my * g * g, bsdf.M_MIN)  # the texel's lobe, isotropic (lobe_at_pixel)
+                exact = bsdf.lobe_albedo(wo, m, m, lobe.r0, lobe.alpha, "reflect")
+                interp = np.array([np.interp(g, nodes, table[:, j]) for j in range(len(THETAS))])
+                worst = max(worst, float(np.max(np.abs(interp / exact - 1))))
     assert worst < 0.006, worst
 
 

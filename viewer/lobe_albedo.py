@@ -37,10 +37,12 @@ cube-map renders have no lobes (glint/cubemap_stage.py diffuse_view) and pay not
 Lobes whose width varies per texel (shaders/specular.glsl `lobe_at_pixel`):
 - a metallic-roughness texture (Lobe.mr; bake/material_mapping.py): m' = max(m g^2, M_MIN), g the
   texel's roughness factor in [0, 1], the anisotropy strength kept. Such a lobe gets
-  ROUGHNESS_NODES layers at g = 0, 1/12, ..., 1, interpolated linearly in g by the shader
-  (`AXIS_ROUGHNESS`); within 0.51 % of the exact albedo midway between the nodes for fitted glTF
-  lobes (metal roughness 0.5 and 0.8, dielectric 0.3) at views up to 80 degrees, against 0.97 %
-  with 9 nodes and 3.8 % with 5 (tests/test_lobe_albedo.py). Its cost: 13 tables instead of one.
+  ROUGHNESS_NODES layers at g = 0, 1/20, ..., 1, interpolated linearly in g by the shader
+  (`AXIS_ROUGHNESS`); within 0.41 % of the exact albedo midway between the nodes for fitted glTF
+  lobes (metal roughness 0.5 and 0.8, dielectric 0.3, each row's lobes) at views up to 80 degrees,
+  against 0.66 % with 17 nodes and 1.16 % with 13 (the tail lobe of the rough rows, m up to 1,
+  changes fastest near g = 0.2), 0.97 % with 9 for one-lobe rows (tests/test_lobe_albedo.py). Its
+  cost: 21 tables instead of one.
 - KHR_materials_anisotropy's texture: mx' = my + (mx - my) s^2, s the texel's strength in [0, 1]:
   ANISOTROPY_NODES layers over s (`AXIS_ANISOTROPY`; their accuracy between nodes is not measured).
 - both at once: the factor's table only, without the LOBE_ALBEDO_EXACT flag: the walkthrough keeps
@@ -67,7 +69,7 @@ from glint.viewer.gl_bindings import LOBE_ALBEDO_BINDING, LOBE_ALBEDO_TABLE_BIND
 
 LUT_COS, LUT_PHI = 32, 8  # albedo grid: sqrt(cos theta_v) x view azimuth in [0, pi/2]
 ALBEDO_SAMPLES = 4096     # per albedo (glint.core.bsdf.lobe_albedo)
-ROUGHNESS_NODES = 13      # g = 0 .. 1 for lobes that follow a metallic-roughness texture
+ROUGHNESS_NODES = 21      # g = 0 .. 1 for lobes that follow a metallic-roughness texture
 ANISOTROPY_NODES = 5      # s = 0 .. 1 for lobes of a material with an anisotropy texture
 CACHE_LAYERS = 4096       # layers kept per process (1 KiB each: 4 MiB)
 # shaders/lobe_albedo.glsl: what the row's z says about the layers (defines of the same names)
