@@ -17,7 +17,11 @@ least squares). What the table holds and how it is read: bake/gltf_fit_table.py.
   started from its neighbour's) kept the narrow lobe to roughness 1, 15 % off the albedo there;
 - a second lobe, the tail (bake/brdf_fit.py's joint two-lobe search; lobe 1 kept the narrow one),
   where one Beckmann lobe cannot follow GGX's long tail: a row of roughness TWO_LOBES (0.2 to 0.7)
-  gets it when the two-lobe fit's error is at most TWO_LOBES_GAIN (2/3) of the one-lobe fit's;
+  gets it when the two-lobe fit's error is at most TWO_LOBES_GAIN (2/3) of the one-lobe fit's and
+  its f0 is at least TWO_LOBES_F0 (0.2: metals; a dielectric's specular layer, f0 0.02-0.12, keeps
+  one lobe: the tail made its albedo 1.0 % instead of 1.2 % off the specification's, for a lobe of
+  samples per pixel more on every glossy floor and painted wall, and it took the staircase from
+  96.5 % to 95.1 % of blocks within half a stop: docs/BAKE.md);
   elsewhere one lobe (every lobe costs the viewer samples per pixel; below 0.2 the smooth metal floor
   already reads Mitsuba's within 1 % bias). Lobe 2's m is searched in TAIL_M: from 4 r^2 (at most
   0.5) to 1, its r0 in lobe 1's range. A tail lobe, not the narrower second lobe the fit's error
@@ -70,6 +74,7 @@ R0_RANGE = (0.85, 1.15)  # times f0, at most 1
 M_RANGE = (0.5, 2.0)
 TWO_LOBES = (0.2, 0.7)  # rows of roughness in this range try lobe 2 (module docstring) ...
 TWO_LOBES_GAIN = 2.0 / 3.0  # ... and keep it when the two-lobe fit's error is at most this share of one lobe's
+TWO_LOBES_F0 = 0.2  # ... and f0 is at least this: a dielectric's layer (f0 0.02-0.12) keeps one lobe (module docstring)
 TAIL_M = (4.0, 0.5)  # lobe 2's m from min(4 r^2, 0.5) to 1 (module docstring)
 DIFFUSE_DEGREES = tuple(range(0, 81, 5))
 HEMISPHERE_NODES = 12
@@ -99,7 +104,7 @@ def fit_row(params: GltfMaterialParams, r0_range: tuple[float, float]) -> tuple[
     bounds = dict(method="multistart", diffuse=False, r0_range=r0_range,
                   m_range=(M_RANGE[0] * r * r, M_RANGE[1] * r * r), ks_max=1.0)
     result = one = fit(data, lobes=1, **bounds)
-    if TWO_LOBES[0] <= r <= TWO_LOBES[1]:
+    if TWO_LOBES[0] <= r <= TWO_LOBES[1] and params.base_color[0] >= TWO_LOBES_F0:
         two = fit(data, lobes=2, wide_m_range=(min(TAIL_M[0] * r * r, TAIL_M[1]), 1.0), **bounds)
         if len(two.lobes) == 2 and two.error <= TWO_LOBES_GAIN * one.error:
             result = two

@@ -378,7 +378,7 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     kd, _, _ = map_pbr(GltfPbr(base_color=(0.5, 0.5, 0.5), metallic=0, roughness=0.5))
     np.testing.assert_allclose(kd, 0.5 * share + table.specular_albedo_at(0.5, 0.04), rtol=1e-6)
     assert len(map_pbr(GltfPbr(metallic=0, roughness=0.5), diffuse_roughness=0.8)[1]) == len(
-        table.specular_lobes(0.5, 0.04)) == 2  # the layer's row has a second lobe (GGX's tail)
+        table.specular_lobes(0.5, 0.04)) == 1  # a dielectric layer: one lobe (TWO_LOBES_F0)
     # Frosted glass, ior 1.33: no diffuse, reflect + transmit lobes; the transmit lobe m = r^2, r0 = f0.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(1, 1, 1), metallic=0, roughness=0.6,
                                    transmission=1.0, ior=1.33))
@@ -448,7 +448,7 @@ def test_sidecar_diffuse_roughness_threshold(tmp_path):
     w = quad_writer(roughness=0.5, metallic=0.0)
     assert load_scene(write(w, tmp_path)).objects[0].role == "diffuse"
     scene = load_scene(write(w, tmp_path, sidecar="[bake]\ndiffuse_roughness = 0.9\n"))
-    assert len(scene.materials[0].lobes) == len(fit_table().specular_lobes(0.5, 0.04)) == 2  # GGX's tail: 2
+    assert len(scene.materials[0].lobes) == len(fit_table().specular_lobes(0.5, 0.04)) == 1  # a dielectric layer: one lobe
     assert scene.objects[0].role == "planar"
     assert scene.bake_settings == {"diffuse_roughness": 0.9}
 
