@@ -21,7 +21,9 @@ in order, to the front of its range and writes their number to a buffer, and the
 that number on the GPU (viewer/gl.py `multi_draw_indirect_count`): the driver walks the draws that
 survived culling, not one command per object (at 10,000 objects a multi-draw of mostly empty
 commands cost the driver about 3 ms a frame on an H200: issue 27). The same pixels either way.
-Without the entry point, the multi-draw of every command as before.
+Without the entry point, the multi-draw of every command as before; so on a software renderer
+(llvmpipe), where the packing pass cost 2-3 % of the frame at 1,000-10,000 objects and saved
+nothing (docs/VIEWER.md), unless asked for.
 
 Reads: the scene's object table, vertex and index buffers. Writes: the framebuffer bound by the
 caller, and per region (with `indirect_count` also its packed commands and per-batch counts) (a draw that must not overwrite another's commands in the same frame: the
@@ -45,7 +47,7 @@ import moderngl
 import numpy as np
 
 from glint.viewer.camera import frustum_planes, gl_bytes
-from glint.viewer.gl import GL
+from glint.viewer.gl import GL, software_renderer
 from glint.viewer.gl_bindings import (
     ANISOTROPY_TEXTURE_UNIT,
     DRAW_BATCH_BINDING,
@@ -92,9 +94,10 @@ def batches(textures_of_material: list[tuple], materials: np.ndarray) -> tuple[n
 
 
 class DrawList:
-    def __init__(self, ctx: moderngl.Context, scene, defines: dict | None = None, indirect_count: bool = True):
-        """indirect_count: pack the drawn commands and let the GPU count them where the driver can
-        (False: every command goes to the driver, as where it cannot)."""
+    def __init__(self, ctx: moderngl.Context, scene, defines: dict | None = None, indirect_count: bool | None = None):
+        """indirect_count: pack the drawn commands and let the GPU count them (`can_count`: where the
+        driver can); None: unless the renderer is a software one (module docstring); False: every
+        command goes to the driver. The attribute may be switched between frames where `can_count`."""
         self.ctx = ctx
         self.scene = scene
         self._gl = GL(ctx)
@@ -107,9 +110,11 @@ class DrawList:
         self.order = order
         with self._gl.checked(f"upload the draw order of {self.count} objects"):
             self.order_buffer = ctx.buffer(np.ascontiguousarray(order if len(order) else np.zeros(1, np.int32)).tobytes())
-        self.indirect_count = bool(indirect_count and self.count and self._gl.MultiDrawElementsIndirectCount)
+        self.can_count = bool(self.count and self._gl.MultiDrawElementsIndirectCount)
+        wanted = not software_renderer(ctx) if indirect_count is None else indirect_count
+        self.indirect_count = bool(wanted and self.can_count)
         self.compact_program = self.batch_buffer = None
-        if self.indirect_count:
+        if self.can_count:
             self.compact_program = compute_program(ctx, "compact.comp", {**(defines or {}), **draw_defines()})
             table = np.array([(first, count) for first, count, _ in self.batches], np.int32)
             with self._gl.checked(f"upload the {len(table)} draw batches"):
@@ -136,7 +141,7 @@ class DrawList:
             self.command_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
             self.state_buffer = self.ctx.buffer(reserve=regions * n * 4)
             self.hidden_buffer = self.ctx.buffer(np.zeros(regions * n, np.uint32).tobytes())
-            if self.indirect_count:
+            if self.can_count:
                 self.compact_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
                 self.count_buffer = self.ctx.buffer(reserve=regions * len(self.batches) * 4)
         self._checked = set()
@@ -190,7 +195,7 @@ class DrawList:
         self.hidden_buffer.bind_to_storage_buffer(DRAW_HIDDEN_BINDING)
         self.cull_program.run(-(-n // CULL_GROUP))
         self.ctx.memory_barrier(moderngl.COMMAND_BARRIER_BIT | moderngl.SHADER_STORAGE_BARRIER_BIT)
-        if self.indirect_count:  # the drawn commands packed per batch, and counted (compact.comp)
+        if self.indirect_count and self.can_count:  # the drawn commands packed per batch, and counted (compact.comp)
             set_uniforms(self.compact_program, first_command=region * n, first_count=region * len(self.batches))
             self.batch_buffer.bind_to_storage_buffer(DRAW_BATCH_BINDING)
             self.compact_buffer.bind_to_storage_buffer(DRAW_COMPACT_BINDING)
@@ -210,7 +215,7 @@ class DrawList:
         scene.bind_materials()
         scene.lightmaps.use(LIGHTMAP_UNIT)
         vao = scene.vertex_array(program)
-        if not self.indirect_count:
+        if not (self.indirect_count and self.can_count):
             for first, count, textures in self.batches:
                 for unit, texture in zip(TEXTURE_UNITS, textures):
                     texture.use(unit)
