@@ -189,16 +189,17 @@ def _fitted(lobes_of, roughness: float, weight, m_scale: float = 1.0) -> list[tu
     return out
 
 
-def metal_lobes(ks, m: tuple[float, float], r0: float, alpha: float, tint, mr: str) -> list[Lobe]:
+def metal_lobes(ks, m: tuple[float, float], r0: float, alpha: float, tint, mr: str, split: bool = True) -> list[Lobe]:
     """A metal's reflect lobes from the fitted lobe (ks, m = (mx, my), r0, alpha) of its brightest
     channel, `tint` = b / max(b). Schlick's F = r0 (1 - w) + w, w = (1 - cos)^5, is linear in r0, so
     channel c's ks F(r0_c), r0_c = r0 tint_c, is ks r0_c F(1) + ks (1 - r0_c) F(0): two lobes of the
     one shape, ks r0_c with r0 = 1 (F = 1) and ks (1 - r0_c) with r0 = 0 (F = w). A grey metal
     (every channel within GREY_METAL of the brightest) keeps one lobe, ks tint with r0: a second
-    lobe costs the viewer a pattern per pixel, for at most GREY_METAL of the light at grazing."""
+    lobe costs the viewer a pattern per pixel, for at most GREY_METAL of the light at grazing.
+    `split` False: one lobe whatever the colour (a row's tail lobe, module docstring)."""
     tint = np.asarray(tint, np.float64)
     ks = np.asarray(ks, np.float64)
-    if float(np.min(tint)) >= 1.0 - GREY_METAL:
+    if not split or float(np.min(tint)) >= 1.0 - GREY_METAL:
         return [Lobe("reflect", _rgb3(ks * tint), *m, r0, alpha, mr)]
     r0_c = np.clip(r0 * tint, 0.0, 1.0)
     return [Lobe("reflect", _rgb3(ks * r0_c), *m, 1.0, alpha, mr),
@@ -263,11 +264,7 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
         # keeps ks b / max(b): four lobes would double the viewer's cost for a coloured rough metal
         fits = _fitted(lambda r: table.specular_lobes(r, brightest), fitted, metal_ks, m_scale)
         for k, (ks, m, r0, alpha) in enumerate(fits):
-            if k == 0:
-                lobes += metal_lobes(ks, anisotropic(m), r0, alpha, base / brightest, mr and "metal")
-            else:
-                lobes.append(Lobe("reflect", _rgb3(np.asarray(ks) * base / brightest), *anisotropic(m), r0, alpha,
-                                  mr and "metal"))
+            lobes += metal_lobes(ks, anisotropic(m), r0, alpha, base / brightest, mr and "metal", split=k == 0)
     if t > 0:
         lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), *anisotropic(beckmann_m(factor)), f0,
                           INTERFACE_ALPHA if volume else 0.0, mr))

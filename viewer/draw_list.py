@@ -113,12 +113,8 @@ class DrawList:
         self.can_count = bool(self.count and self._gl.MultiDrawElementsIndirectCount)
         wanted = not software_renderer(ctx) if indirect_count is None else indirect_count
         self.indirect_count = bool(wanted and self.can_count)
-        self.compact_program = self.batch_buffer = None
-        if self.can_count:
-            self.compact_program = compute_program(ctx, "compact.comp", {**(defines or {}), **draw_defines()})
-            table = np.array([(first, count) for first, count, _ in self.batches], np.int32)
-            with self._gl.checked(f"upload the {len(table)} draw batches"):
-                self.batch_buffer = ctx.buffer(table.tobytes())
+        self._defines = defines or {}
+        self.compact_program = self.batch_buffer = None  # made by the first counted cull (`_counting`)
         self.regions = 0
         self.command_buffer = self.state_buffer = self.hidden_buffer = None
         self.compact_buffer = self.count_buffer = None
@@ -141,7 +137,7 @@ class DrawList:
             self.command_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
             self.state_buffer = self.ctx.buffer(reserve=regions * n * 4)
             self.hidden_buffer = self.ctx.buffer(np.zeros(regions * n, np.uint32).tobytes())
-            if self.can_count:
+            if self.compact_program is not None:
                 self.compact_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
                 self.count_buffer = self.ctx.buffer(reserve=regions * len(self.batches) * 4)
         self._checked = set()
@@ -195,7 +191,7 @@ class DrawList:
         self.hidden_buffer.bind_to_storage_buffer(DRAW_HIDDEN_BINDING)
         self.cull_program.run(-(-n // CULL_GROUP))
         self.ctx.memory_barrier(moderngl.COMMAND_BARRIER_BIT | moderngl.SHADER_STORAGE_BARRIER_BIT)
-        if self.indirect_count and self.can_count:  # the drawn commands packed per batch, and counted (compact.comp)
+        if self._counting():  # the drawn commands packed per batch, and counted (compact.comp)
             set_uniforms(self.compact_program, first_command=region * n, first_count=region * len(self.batches))
             self.batch_buffer.bind_to_storage_buffer(DRAW_BATCH_BINDING)
             self.compact_buffer.bind_to_storage_buffer(DRAW_COMPACT_BINDING)
@@ -215,7 +211,7 @@ class DrawList:
         scene.bind_materials()
         scene.lightmaps.use(LIGHTMAP_UNIT)
         vao = scene.vertex_array(program)
-        if not (self.indirect_count and self.can_count):
+        if not self._counting():
             for first, count, textures in self.batches:
                 for unit, texture in zip(TEXTURE_UNITS, textures):
                     texture.use(unit)
@@ -230,6 +226,21 @@ class DrawList:
                 self._gl.multi_draw_indirect_count(program, vao, self.compact_buffer, first_command + first,
                                                    self.count_buffer, 4 * (first_count + b), count)
         self._checked.add(region)
+
+    def _counting(self) -> bool:
+        """Whether draws are packed and counted now; the first time, compact.comp, the batch table and
+        the packed commands' buffers are made (not at all where the counted draw stays off)."""
+        if not (self.indirect_count and self.can_count):
+            return False
+        if self.compact_program is None:
+            self.compact_program = compute_program(self.ctx, "compact.comp", {**self._defines, **draw_defines()})
+            table = np.array([(first, count) for first, count, _ in self.batches], np.int32)
+            n = max(self.count, 1)
+            with self._gl.checked(f"upload the {len(table)} draw batches and allocate their packed commands"):
+                self.batch_buffer = self.ctx.buffer(table.tobytes())
+                self.compact_buffer = self.ctx.buffer(reserve=self.regions * n * COMMAND_BYTES)
+                self.count_buffer = self.ctx.buffer(reserve=self.regions * len(self.batches) * 4)
+        return True
 
     def draw_counts(self, region: int = 0) -> np.ndarray:
         """(batches,) how many commands of each batch region's last draw handed the GPU (reads the
