@@ -54,6 +54,17 @@ float lobe_ellipse_area(vec3 wo, Lobe lobe) {
     return PI * uv.x * uv.y;
 }
 
+// The solid angle of the lobe's cap: the ellipse of Eq. 4.14 with its half-axes as chords
+// |c - w| = 2 sin(alpha / 2) instead of tan(alpha) (Lambert's equal-area projection, exact for a
+// round cap: 2 pi (1 - cos alpha)). The two agree to first order for narrow lobes; past 45 degrees
+// Eq. 4.15's area grows without bound (LOBE_TAN_MAX^2 pi), this one stays below 4 pi.
+float lobe_cap_solid_angle(vec3 wo, Lobe lobe) {
+    vec3 c = safe_normalize(pattern_direction(wo, vec2(1.0, 0.0), lobe), vec3(0.0));  // 0: no view, no cap
+    vec3 u = safe_normalize(pattern_direction(wo, vec2(0.0, 0.0), lobe), c);
+    vec3 v = safe_normalize(pattern_direction(wo, vec2(0.0, 0.25), lobe), c);
+    return PI * length(c - u) * length(c - v);
+}
+
 // MIP level of a cube-map sample of area `sample_area` (A' = A / n at unit distance) along
 // `dir_world` (any length), for faces of face_size^2 = N texels (Eq. 4.16-4.17):
 //   A'_cube = A' d^2 / cos(beta)   (Eq. 4.16), pixels = A'_cube N / 4   (Eq. 4.17), level = log4(pixels).

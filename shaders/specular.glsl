@@ -314,6 +314,17 @@ void add_found_plane(inout SpecularPoint sp, MirrorSample ms) {
     }
 }
 
+// The steradians one of n samples of `lobe` filters in a mirror buffer: `area` (Eq. 4.14-4.16's
+// A / n, or the second moment), at most its share of the lobe's cap, lobe_cap_solid_angle / n.
+// Eq. 4.15's area is a solid angle only for narrow lobes; for one wider than ~45 degrees it is
+// thousands of steradians, which sent every sample of a rough metal's tail lobe (m ~ 0.75) to the
+// buffer's last MIP level, the whole buffer's mean (tests/test_planar_accuracy.py: 0.53 of a ray
+// cast's light, 1.03 capped; docs/BENCHMARKS.md, "Issue 24: wide lobes in the mirror buffers").
+// Cube maps need no cap: their levels end at one face (cube_mip_level).
+float planar_sample_sr(float area, SpecularPoint sp, Lobe lobe, int n) {
+    return min(area, lobe_cap_solid_angle(sp.wo, lobe) / float(max(n, 1)));
+}
+
 // Walkthrough: the lobe's planar pattern, each sample at its own MIP level for its footprint
 // (pattern_sample_area: the second moment; A / n of Eq. 4.14-4.16 with the thesis' footprint) times
 // the projection's texels per steradian, weighted by `estimator` as lobe_pattern_estimate; step 1 in the running mean of the planes
@@ -321,7 +332,7 @@ void add_found_plane(inout SpecularPoint sp, MirrorSample ms) {
 // levels of 2-6, whose boxes mixed the sky beyond the room into the floor's reflection (measured:
 // docs/BENCHMARKS.md, "Issue 6: all methods, split-sum included", planar reflectors).
 vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern, int estimator) {
-    float sample_sr = pattern_sample_area(sp.wo, lobe, pattern);
+    float sample_sr = planar_sample_sr(pattern_sample_area(sp.wo, lobe, pattern), sp, lobe, pattern.y);
     LobeSum sum = LobeSum(vec3(0.0), 0.0);
     MirrorSample ms;
     for (int k = 0; k < pattern.y; ++k) {
@@ -345,7 +356,8 @@ vec3 planar_pattern_estimate(inout SpecularPoint sp, Lobe lobe, ivec4 pattern, i
 // whole buffer (measured: docs/BENCHMARKS.md, "What is measured", filtered-is).
 vec3 planar_importance_estimate(inout SpecularPoint sp, Lobe lobe, uint first, int count, uvec2 rotation,
                                 bool filtered) {
-    float sample_sr = filtered ? lobe_ellipse_area(sp.wo, lobe) / float(max(count, 1)) : 0.0;  // A' = A / n
+    float sample_sr = filtered ? planar_sample_sr(lobe_ellipse_area(sp.wo, lobe) / float(max(count, 1)), sp, lobe, count)
+                               : 0.0;  // A' = A / n
     vec3 sum = vec3(0.0);
     MirrorSample ms;
     for (int k = 0; k < count; ++k) {

@@ -211,6 +211,24 @@ def test_ellipse_area_by_hand():
     assert P.lobe_ellipse_area(np.array([0, 0, 1.0]), 1.0, 1.0, "reflect") == pytest.approx(np.pi * P.LOBE_TAN_MAX ** 2)
 
 
+def test_cap_solid_angle_by_hand():
+    """The cap's solid angle at normal incidence is 2 pi (1 - cos 2 theta_thresh) (a round cap whose
+    border lies 2 theta_thresh from n), for narrow lobes and for lobes past 90 degrees alike. Catches
+    the cap measured as Eq. 4.15's tangent-plane area (pi tan^2: 1.7x too large at m = 0.2, pi
+    LOBE_TAN_MAX^2 at m = 1)."""
+    n = np.array([0, 0, 1.0])
+    for m in (0.01, 0.2, 0.75, 1.0):
+        t = np.arctan(m * np.sqrt(np.log(100.0)))
+        for kind in ("reflect", "transmit"):
+            assert P.lobe_cap_solid_angle(n, m, m, kind) == pytest.approx(2 * np.pi * (1 - np.cos(2 * t)), rel=1e-9)
+    # anisotropic: the ellipse of the two chords, pi (2 sin tx) (2 sin ty)
+    tx, ty = np.arctan(0.02 * np.sqrt(np.log(100.0))), np.arctan(0.7 * np.sqrt(np.log(100.0)))
+    assert P.lobe_cap_solid_angle(n, 0.02, 0.7, "reflect") == pytest.approx(4 * np.pi * np.sin(tx) * np.sin(ty))
+    # narrow lobes: the same as Eq. 4.15's area to first order
+    assert P.lobe_cap_solid_angle(n, 0.01, 0.01, "reflect") == pytest.approx(
+        P.lobe_ellipse_area(n, 0.01, 0.01, "reflect"), rel=2e-3)
+
+
 def test_cube_mip_level_by_hand():
     n_texels = 256 ** 2
     # along a face normal: d = 1, cos(beta) = 1, so pixels = A' N / 4; 16 texels -> log4(16) = 2
@@ -246,10 +264,13 @@ def test_mip_levels_and_areas_match_numpy():
     pdf = f32(np.concatenate([10.0 ** rng.uniform(-3, 7, n - 2), [0.0, 1e30]]))
     count = f32(rng.choice([1, 7, 19], n))
     out = run("A = lobe_ellipse_area(wo, Lobe(ks, shape)); level = cube_mip_level(area, d, face);"
-              "ilevel = importance_mip_level(pdf, int(count), face);", {"A": 1, "level": 1, "ilevel": 1},
+              "ilevel = importance_mip_level(pdf, int(count), face); cap = lobe_cap_solid_angle(wo, Lobe(ks, shape));",
+              {"A": 1, "level": 1, "ilevel": 1, "cap": 1},
               wo=wo, ks=ks, shape=shape, area=area, d=d, face=face, pdf=pdf, count=count)
     want_a = numpy_by_kind(lambda w, s, k: P.lobe_ellipse_area(w, s[:, 0], s[:, 1], k), kind, wo, shape)
     np.testing.assert_allclose(out["A"], want_a, rtol=2e-4)
+    want_cap = numpy_by_kind(lambda w, s, k: P.lobe_cap_solid_angle(w, s[:, 0], s[:, 1], k), kind, wo, shape)
+    np.testing.assert_allclose(out["cap"], want_cap, rtol=2e-4, atol=1e-6)
     np.testing.assert_allclose(out["level"], P.cube_mip_level(area, d, face), rtol=0, atol=1e-4)
     np.testing.assert_allclose(out["ilevel"], P.importance_mip_level(pdf, count, face), rtol=0, atol=1e-4)
 
@@ -362,7 +383,7 @@ def test_no_nan_or_inf_for_degenerate_inputs():
     out = run("""
         Lobe lobe = Lobe(ks, shape);
         wi = pattern_direction(wo, xi, lobe);
-        A = lobe_ellipse_area(wo, lobe);
+        A = lobe_ellipse_area(wo, lobe) + lobe_cap_solid_angle(wo, lobe);
         level = cube_mip_level(A, wi, 128.0) + cube_mip_level(0.0, vec3(0.0), 128.0);
         ilevel = importance_mip_level(lobe_pdf(wi, wo, lobe), 7, 128.0) + importance_mip_level(0.0, 0, 128.0);
         result = lobe_sum_result(LobeSum(vec3(0.0), 0.0));

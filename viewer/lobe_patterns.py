@@ -241,6 +241,21 @@ def lobe_ellipse_area(wo, mx, my, kind):
     return np.pi * uv[..., 0] * uv[..., 1]
 
 
+def lobe_cap_solid_angle(wo, mx, my, kind):
+    """The solid angle of the lobe's cap (shaders/lobe_sampling.glsl): `lobe_ellipse_area` with its
+    half-axes as chords |c - w| = 2 sin(alpha / 2) of the unit sphere instead of tan(alpha)
+    (Lambert's equal-area projection; exact for a round cap, 2 pi (1 - cos alpha)). At most 4 pi,
+    where Eq. 4.15's area grows without bound past 45 degrees. The mirror buffers' samples filter
+    at most their share of it (shaders/specular.glsl planar_sample_sr)."""
+    def unit(v, fallback):  # the shader's safe_normalize
+        n = np.linalg.norm(v, axis=-1, keepdims=True)
+        return np.where(n > 1e-15, v / np.where(n > 1e-15, n, 1.0), fallback)
+    c = unit(pattern_direction(wo, 1.0, 0.0, mx, my, kind), 0.0)  # no view: no cap
+    u = unit(pattern_direction(wo, 0.0, 0.0, mx, my, kind), c)
+    v = unit(pattern_direction(wo, 0.0, 0.25, mx, my, kind), c)
+    return np.pi * np.linalg.norm(c - u, axis=-1) * np.linalg.norm(c - v, axis=-1)
+
+
 def pattern_footprint_area(xi, uv):
     """The area at unit distance that each sample of the pattern xi (n, 2) filters, from the lobe's
     second moment (module doc, "Footprint"; shaders/lobe_sampling.glsl pattern_footprint_area).
