@@ -50,9 +50,13 @@ def register() -> None:
     _registered.add(mi.variant())
 
 
-def bsdf_dict(p: GltfMaterialParams, two_sided: bool = False) -> dict:
-    """The plugin's mi.load_dict entry for a material."""
-    return {"type": PLUGIN, "params": params_json(p), "two_sided": two_sided}
+def bsdf_dict(p: GltfMaterialParams, two_sided: bool = False, base_color_texture: dict | None = None) -> dict:
+    """The plugin's mi.load_dict entry for a material; `base_color_texture`: a Mitsuba texture dict
+    of the base-colour texture's linear values (the factor is the params')."""
+    out = {"type": PLUGIN, "params": params_json(p), "two_sided": two_sided}
+    if base_color_texture is not None:
+        out["base_color_texture"] = base_color_texture
+    return out
 
 
 # -- core/gltf_brdf.py in drjit -----------------------------------------------------------------------
@@ -68,7 +72,6 @@ class _Maths:
         self.base = [float(c) for c in p.base_color]
         f0 = [min(ref.ior_f0(p.ior) * float(c), 1.0) * p.specular for c in p.specular_color]  # [SPEC]
         self.f0, self.f90 = f0, float(p.specular)
-        self.base_luma = sum(w * c for w, c in zip(LUMA, self.base))
         self.mi = mi
 
     # building blocks, as in core/gltf_brdf.py
@@ -141,9 +144,18 @@ class _Maths:
         f = self.vis_sep(l.z, v.z, dr.dot(h, l), dr.dot(h, v), alpha) * self.d_ggx(h, alpha)
         return dr.select(ok & (l.z < 0.0) & (v.z > 0.0), f, 0.0), h
 
+    def base_at(self, texel=None):
+        """The base colour (Color3f) and its luminance: the factor, times the base-colour texture's
+        linear texel where the material has one ([B.2]: baseColor = factor x texture)."""
+        base = self.mi.Color3f(self.base)
+        if texel is not None:
+            base = base * texel
+        return base, LUMA[0] * base[0] + LUMA[1] * base[1] + LUMA[2] * base[2]
+
     # the BRDF
-    def evaluate(self, l, v):
-        """core/gltf_brdf.py evaluate: f(l, v) without the cosine, Color3f."""
+    def evaluate(self, l, v, texel=None):
+        """core/gltf_brdf.py evaluate: f(l, v) without the cosine, Color3f (`texel`: the
+        base-colour texture's value at the hit, `base_at`)."""
         import drjit as dr
 
         mi, p = self.mi, self.p
@@ -154,7 +166,7 @@ class _Maths:
         f0 = mi.Color3f(self.f0)
         fres = f0 + (self.f90 - f0) * fw                                                # [SPEC]
         fmax = dr.maximum(dr.maximum(fres[0], fres[1]), fres[2])
-        base = mi.Color3f(self.base)
+        base, _ = self.base_at(texel)
         diffuse = dr.select(above, base * (1.0 / math.pi), mi.Color3f(0.0))             # [B.3.3]
         base_layer = (1.0 - p.transmission) * diffuse + p.transmission * (btdf * base)  # [TRANS]
         dielectric = fres * spec + (1.0 - fmax) * base_layer
@@ -166,20 +178,21 @@ class _Maths:
             material = (1.0 - w) * material + w * coat
         return dr.select(v.z > 0.0, material, mi.Color3f(0.0))
 
-    def probabilities(self, nv):
+    def probabilities(self, nv, texel=None):
         """core/gltf_brdf.py component_probabilities: [diffuse, specular, transmission, clearcoat]."""
         import drjit as dr
 
         p = self.p
+        _, base_luma = self.base_at(texel)
         nv = dr.clip(nv, 0.0, 1.0)
         fw = self.fresnel_w(nv)
         f0max = max(self.f0)
         f_diel = f0max + (self.f90 - f0max) * fw
-        f_metal = self.base_luma + (1.0 - self.base_luma) * fw
+        f_metal = base_luma + (1.0 - base_luma) * fw
         under = 1.0 - p.clearcoat * self.coat_fresnel(nv)
-        w = [(1 - p.metallic) * (1 - p.transmission) * self.base_luma * (1.0 - f_diel) * under,
+        w = [(1 - p.metallic) * (1 - p.transmission) * base_luma * (1.0 - f_diel) * under,
              ((1 - p.metallic) * f_diel + p.metallic * f_metal) * under,
-             (1 - p.metallic) * p.transmission * self.base_luma * (1.0 - f_diel) * under,
+             (1 - p.metallic) * p.transmission * base_luma * (1.0 - f_diel) * under,
              p.clearcoat * self.coat_fresnel(nv)]
         total = w[0] + w[1] + w[2] + w[3]
         ok = total > 0.0
@@ -193,11 +206,11 @@ class _Maths:
         pdf = self.g1(v.z, alpha) * self.d_ggx(h, alpha) / (4.0 * dr.maximum(v.z, NORM_MIN))
         return dr.select(ok & (l.z > 0.0) & (v.z > 0.0) & (dr.dot(v, h) > 0.0), pdf, 0.0)
 
-    def pdf(self, l, v):
+    def pdf(self, l, v, texel=None):
         """core/gltf_brdf.py pdf: the mixture's density."""
         import drjit as dr
 
-        prob = self.probabilities(v.z)
+        prob = self.probabilities(v.z, texel)
         out = prob[0] * dr.select((l.z > 0.0) & (v.z > 0.0), l.z * (1.0 / math.pi), 0.0)
         out = out + prob[1] * self.vndf_reflect_pdf(l, v, self.alpha)
         if self.p.transmission > 0.0:
@@ -233,13 +246,15 @@ def _plugin_class():
 
     class GltfPbrBSDF(mi.BSDF):
         """Properties: `params` (JSON of core/gltf_brdf.py GltfMaterialParams; bad values raise
-        glint's one-line GlintError), `two_sided` (bool, glTF's doubleSided)."""
+        glint's one-line GlintError), `two_sided` (bool, glTF's doubleSided), optionally
+        `base_color_texture` (a texture of linear values: baseColor = factor x texture, [B.2])."""
 
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
             self.params = GltfMaterialParams(**json.loads(props.get("params", "{}")))
             self.m = _Maths(self.params)
             self.two_sided = bool(props.get("two_sided", False))
+            self.base_texture = props.get_texture("base_color_texture") if "base_color_texture" in props else None
             sides = Flags.FrontSide | (Flags.BackSide if self.two_sided else Flags(0))
             self.m_components = [Flags.DiffuseReflection | sides, Flags.GlossyReflection | sides,
                                  Flags.GlossyTransmission | sides, Flags.GlossyReflection | sides]
@@ -254,10 +269,14 @@ def _plugin_class():
                 return w
             return mi.Vector3f(w.x, w.y, dr.select(si.wi.z < 0.0, -w.z, w.z))
 
+        def _texel(self, si, active):
+            return None if self.base_texture is None else self.base_texture.eval(si, active)
+
         def eval_pdf(self, ctx, si, wo, active=True):
             v, l = self._local(si, si.wi), self._local(si, wo)
-            f = self.m.evaluate(l, v)
-            pdf = self.m.pdf(l, v)
+            texel = self._texel(si, active)
+            f = self.m.evaluate(l, v, texel)
+            pdf = self.m.pdf(l, v, texel)
             return (dr.select(active, f * dr.abs(l.z), mi.Color3f(0.0)), dr.select(active, pdf, 0.0))
 
         def eval(self, ctx, si, wo, active=True):
@@ -270,7 +289,8 @@ def _plugin_class():
             m = self.m
             sample1 = mi.Float(sample1)  # a numpy scalar from a caller would make numpy bools below
             v = self._local(si, si.wi)
-            prob = m.probabilities(v.z)
+            texel = self._texel(si, active)
+            prob = m.probabilities(v.z, texel)
             # cosine-weighted, polar mapping as core/gltf_brdf.py (not Mitsuba's concentric one), so the
             # two map the same random numbers to the same directions (the twin test compares them)
             r = dr.sqrt(sample2.x)
@@ -288,8 +308,8 @@ def _plugin_class():
             transmit = (sample1 >= c2) & (sample1 < c3)
             l = m.normalize(l)[0]
             side = dr.select(transmit, l.z < 0.0, l.z > 0.0)  # as core/gltf_brdf.py: wrong side dropped
-            f = m.evaluate(l, v)
-            pdf = m.pdf(l, v)
+            f = m.evaluate(l, v, texel)
+            pdf = m.pdf(l, v, texel)
             ok = active & side & (pdf > 0.0) & (v.z > 0.0)
             bs = dr.zeros(mi.BSDFSample3f)
             bs.wo = self._local(si, l)  # the flip is its own inverse

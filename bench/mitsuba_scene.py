@@ -196,15 +196,16 @@ def sensor_dict(camera, width: int, height: int, spp: int = 16, seed: int = 0) -
 
 def gltf_reference(material) -> dict | None:
     """The glTF specification's BRDF (bench/mitsuba_gltf_bsdf.py; `register()` it first) for a material
-    the loader mapped from glTF factors and nothing changed (`Material.gltf`), untextured (the plugin
-    reads factors only):
+    the loader mapped from glTF factors and nothing changed (`Material.gltf`), with at most a
+    base-colour texture (the plugin's `base_color_texture`; it reads no other texture):
     the material as its author defined it, not glint's lobes. None for any other."""
-    textured = any(t is not None for t in (material.kd_texture, material.metallic_roughness_texture,
+    textured = any(t is not None for t in (material.metallic_roughness_texture,
                                            material.normal_texture, material.alpha_texture,
                                            material.emission_texture, material.anisotropy_texture))
     if material.gltf is None or textured or material.alpha_mode != "OPAQUE":
         return None
-    return mitsuba_gltf_bsdf.bsdf_dict(material.gltf, two_sided=bool(material.double_sided))
+    base = None if material.kd_texture is None else _bitmap(material.kd_texture, material)
+    return mitsuba_gltf_bsdf.bsdf_dict(material.gltf, two_sided=bool(material.double_sided), base_color_texture=base)
 
 
 def convert(scene: Scene, sensors: list[dict] = (), gltf: bool = False) -> tuple[dict, list[str]]:
@@ -219,7 +220,7 @@ def convert(scene: Scene, sensors: list[dict] = (), gltf: bool = False) -> tuple
     references = [gltf_reference(m) if gltf else None for m in scene.materials]
     if gltf:
         mitsuba_gltf_bsdf.register()
-        warnings += [f"material '{m.name}': glint's BSDF (no untextured glTF factors to render)"
+        warnings += [f"material '{m.name}': glint's BSDF (no glTF factors with at most a base-colour texture to render)"
                      for m, r in zip(scene.materials, references) if r is None]
     bsdfs = [mi.load_dict(r if r is not None else bsdf_dict(m)) for m, r in zip(scene.materials, references)]
     media = [mi.load_dict({"type": "homogeneous", "sigma_t": _rgb(m.absorption), "albedo": 0.0})

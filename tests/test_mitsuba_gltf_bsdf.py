@@ -103,6 +103,45 @@ def test_sample_equals_numpy(plugin, k):
 
 
 @pytest.mark.parametrize("k", [0, 1, 2])
+def test_base_color_texture_multiplies_the_factor(plugin, k):
+    """With a base-colour texture (two texels, nearest) the plugin's eval, pdf and sample at a hit on
+    either texel equal core/gltf_brdf.py's for base_color = factor x texel ([B.2]), to 1e-4 / 1e-3
+    relative. Caught (each once, on purpose): the texture ignored, the texel in place of the factor's
+    product, the component probabilities from the factor's luminance (the pdf and sample differ)."""
+    from dataclasses import replace
+
+    from glint.bench.mitsuba_scene import _bitmap
+
+    class Texture:  # what _bitmap reads of a material
+        kd_nearest = True
+
+    texels = np.array([[[0.9, 0.2, 0.1], [0.1, 0.5, 0.8]]], np.float32)  # 1 x 2: u < 0.5, u >= 0.5
+    p = MATERIALS[k]
+    b = mi.load_dict(plugin.bsdf_dict(p, base_color_texture=_bitmap(texels, Texture())))
+    rng = np.random.default_rng(40 + k)
+    ctx = mi.BSDFContext()
+    for u_coord, texel in ((0.25, texels[0, 0]), (0.75, texels[0, 1])):
+        q = replace(p, base_color=tuple(float(c) * float(t) for c, t in zip(p.base_color, texel)))
+        v, l, u = unit(rng, 60, upper=True), unit(rng, 60), rng.random((60, 3))
+        v = v[v[:, 2] > 0.05]
+        l, u = l[: len(v)], u[: len(v)]
+        ok = (np.linalg.norm(l + v, axis=1) > 0.1) & (np.linalg.norm(l * [1, 1, -1] + v, axis=1) > 0.1)
+        f_ref, pdf_ref = G.evaluate(q, l, v) * np.abs(l[:, 2:3]), G.pdf(q, l, v)
+        wi, w_ref, spdf_ref = G.sample(q, v, u[:, 0], u[:, 1], u[:, 2])
+        for i in range(len(v)):
+            si = interaction(v[i])
+            si.uv = mi.Point2f(u_coord, 0.5)
+            value, density = b.eval_pdf(ctx, si, mi.Vector3f(*map(float, l[i])))
+            if ok[i]:
+                np.testing.assert_allclose(np.array(value), f_ref[i], rtol=1e-4, atol=1e-6)
+                np.testing.assert_allclose(density, pdf_ref[i], rtol=1e-4, atol=1e-6)
+            bs, w = b.sample(ctx, si, float(u[i, 0]), mi.Point2f(float(u[i, 1]), float(u[i, 2])))
+            if spdf_ref[i] > 0.0:
+                np.testing.assert_allclose(bs.pdf, spdf_ref[i], rtol=1e-3)
+                np.testing.assert_allclose(np.array(w), w_ref[i], rtol=1e-3, atol=1e-5)
+
+
+@pytest.mark.parametrize("k", [0, 1, 2])
 def test_plugin_sampled_albedo_equals_numpy(plugin, k):
     """The directional albedo estimated with the plugin's own sample() weights (2048 Sobol points per
     view, another scramble than core/gltf_brdf.py's) equals directional_albedo within 1 % at 0, 45 and
