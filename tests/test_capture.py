@@ -9,6 +9,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import OpenImageIO as oiio
@@ -145,6 +146,12 @@ def test_stats_file(room, tmp_path):
     assert frame["skipped"]["objects_outside_view"] == ["Front", "Lamp", "Box"]
     assert frame["objects_drawn"] == 5 and frame["triangles"] == 10
     assert math.isclose(frame["camera"]["yfov_degrees"], math.degrees(1.0), rel_tol=1e-6)
+    # the bake's texel counts, as its manifest has them (the end-of-run line's moved and invalid too)
+    manifest = json.loads((Path(stats["bake_dir"]) / "manifest.json").read_text())["statistics"]["lightmaps"]
+    counts = stats["lightmap_texels"]
+    assert counts["texels"] > 0
+    for key in ("texels", "invalid_texels", "moved_texels", "refined_texels"):
+        assert isinstance(counts[key], int) and counts[key] == manifest[key], key
 
 
 # -- errors: one line, before any work, nothing written -------------------------------------------
