@@ -47,7 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from glint.bake.alpha import cut_out_texels
+from glint.bake.alpha import Coverage, cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
 from glint.parallel.executor import TASKS_PER_WORKER, executor_for
@@ -207,7 +207,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     # every side's sample moved out of geometry that covers it (bake/sample_points.py)
     tracer = RayTracer(scene)
     adjusted = adjust_samples(tracer, points, normals, np.concatenate([sizes, sizes[back]]),
-                              np.concatenate([objects, objects[back]]))
+                              np.concatenate([objects, objects[back]]), Coverage(scene, tracer))
     points = adjusted.points.astype(points.dtype)
     total = np.zeros((n, 3))
     square = np.zeros(n)

@@ -24,6 +24,11 @@ part of its footprint on that line ((t + r) / 2), provided the new point is on i
 no probe from it hits a back face within r / 2; else along the next probe. A covered sample with
 no such position is invalid: bake/lightmap.py fills it from its neighbours on the same object.
 
+Cut-outs. With the scene's alpha coverage (`coverage`, bake/alpha.py) every probe passes the
+missing parts of MASK and BLEND materials as the bake's own rays do (BLEND where 1 - alpha > 1/2,
+deterministically): a leaf card or a fence whose texels are cut out covers nothing there, where an
+opaque probe moved or dropped the samples of the floor it stands in.
+
 Slivers. A sample that faces another surface closer than SLIVER x its texel size (a probe along n
 hits anything, front or back, within it) lies in a gap far narrower than its footprint: the back of
 a skirting board 1 mm off the wall, a book's side against the next. Its light comes through the gap's
@@ -37,6 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from glint.bake.alpha import Coverage
 from glint.bake.raytrace import RayTracer
 from glint.bake.scatter import frame
 
@@ -61,40 +67,55 @@ def _directions(n: np.ndarray) -> np.ndarray:
     return np.cos(angle)[None, :, None] * t[:, None, :] + np.sin(angle)[None, :, None] * b[:, None, :]
 
 
-def _back_hits(tracer: RayTracer, origins: np.ndarray, dirs: np.ndarray, reach: np.ndarray):
+def _first_hits(tracer: RayTracer, coverage: Coverage | None, origins, dirs, reach):
+    """(prim (N,), t (N,)): the first surface along each ray up to reach (prim -1: none), through
+    cut-out parts where `coverage` is given (module docstring, "Cut-outs")."""
+    if coverage is None or not coverage.any:
+        prim, _, _, t = tracer.intersect_raw(origins, dirs, reach)
+        return prim, t
+    rows, h = coverage.intersect_hits(origins, dirs, reach)
+    prim, t = np.full(len(origins), -1, np.int64), np.full(len(origins), np.inf)
+    prim[rows], t[rows] = h.prim, h.t
+    return prim, t
+
+
+def _back_hits(tracer: RayTracer, coverage: Coverage | None, origins: np.ndarray, dirs: np.ndarray,
+               reach: np.ndarray):
     """Probes from origins (K, 3) along dirs (K, P, 3) up to reach (K,): (K, P) distance to the first
     hit when it is a back face, inf otherwise."""
     K, P = dirs.shape[:2]
     d = dirs.reshape(-1, 3)
-    prim, _, _, t = tracer.intersect_raw(np.repeat(origins, P, axis=0), d, np.repeat(reach, P))
+    prim, t = _first_hits(tracer, coverage, np.repeat(origins, P, axis=0), d, np.repeat(reach, P))
     hit = prim >= 0
     back = np.zeros(len(prim), bool)
     back[hit] = np.einsum("ij,ij->i", d[hit], tracer.tri_ng[prim[hit]]) > 0
     return np.where(back, t.astype(np.float64), np.inf).reshape(K, P)
 
 
-def _on_surface(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, objects: np.ndarray,
-                lift: np.ndarray) -> np.ndarray:
+def _on_surface(tracer: RayTracer, coverage: Coverage | None, points: np.ndarray, normals: np.ndarray,
+                objects: np.ndarray, lift: np.ndarray) -> np.ndarray:
     """(K,) bool: a ray from each point lifted 4 lift along n, back along -n, meets its own object
-    within 8 lift."""
-    prim, _, _, _ = tracer.intersect_raw(points + 4.0 * lift[:, None] * normals, -normals, 8.0 * lift)
+    within 8 lift (not where that object is cut out)."""
+    prim, _ = _first_hits(tracer, coverage, points + 4.0 * lift[:, None] * normals, -normals, 8.0 * lift)
     return (prim >= 0) & (tracer.tri_object[np.maximum(prim, 0)] == objects)
 
 
-def adjust_samples(tracer: RayTracer, points, normals, sizes, objects) -> SampleAdjustment:
+def adjust_samples(tracer: RayTracer, points, normals, sizes, objects,
+                   coverage: Coverage | None = None) -> SampleAdjustment:
     """Sample points (K, 3) of texels of `objects` (K,) with unit normals (K, 3) of the baked side and
-    world texel sizes (K,) moved out of covering geometry (module docstring); in batches of BATCH."""
+    world texel sizes (K,) moved out of covering geometry (module docstring); in batches of BATCH.
+    `coverage`: the scene's alpha coverage, whose cut-out parts cover nothing."""
     p = np.asarray(points, np.float64).reshape(-1, 3)
     n = np.asarray(normals, np.float64).reshape(-1, 3)
     sizes = np.asarray(sizes, np.float64).reshape(-1)
     objects = np.asarray(objects, np.int64).reshape(-1)
-    parts = [_adjust(tracer, p[i:i + BATCH], n[i:i + BATCH], sizes[i:i + BATCH], objects[i:i + BATCH])
-             for i in range(0, len(p), BATCH)] or [_adjust(tracer, p, n, sizes, objects)]
+    parts = [_adjust(tracer, coverage, p[i:i + BATCH], n[i:i + BATCH], sizes[i:i + BATCH], objects[i:i + BATCH])
+             for i in range(0, len(p), BATCH)] or [_adjust(tracer, coverage, p, n, sizes, objects)]
     return SampleAdjustment(*(np.concatenate([getattr(a, f) for a in parts])
                               for f in ("points", "moved", "invalid", "sliver")))
 
 
-def _adjust(tracer: RayTracer, points, normals, sizes, objects) -> SampleAdjustment:
+def _adjust(tracer: RayTracer, coverage: Coverage | None, points, normals, sizes, objects) -> SampleAdjustment:
     p = np.asarray(points, np.float64).reshape(-1, 3)
     n = np.asarray(normals, np.float64).reshape(-1, 3)
     objects = np.asarray(objects, np.int64)
@@ -105,23 +126,23 @@ def _adjust(tracer: RayTracer, points, normals, sizes, objects) -> SampleAdjustm
     r = np.asarray(sizes, np.float64) / np.sqrt(2.0)
     lift = tracer.point_eps(p, n)
     dirs = _directions(n)
-    t = _back_hits(tracer, p + lift[:, None] * n, dirs, r)
+    t = _back_hits(tracer, coverage, p + lift[:, None] * n, dirs, r)
 
     # covered: some back-face hit beyond which the own surface goes on
     k, j = np.nonzero(np.isfinite(t))
     beyond = p[k] + dirs[k, j] * (t[k, j] + MIN_MARGIN_EPS * lift[k])[:, None]
-    goes_on = _on_surface(tracer, beyond, n[k], objects[k], lift[k])
+    goes_on = _on_surface(tracer, coverage, beyond, n[k], objects[k], lift[k])
     covered_pairs = np.zeros(t.shape, bool)
     covered_pairs[k[goes_on], j[goes_on]] = True
     covered = np.flatnonzero(covered_pairs.any(axis=1))
     out = p.copy()
     if len(covered):
-        _move(tracer, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid)
-    sliver = tracer.intersect_raw(out + lift[:, None] * n, n, SLIVER * np.asarray(sizes, np.float64))[0] >= 0
+        _move(tracer, coverage, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid)
+    sliver = _first_hits(tracer, coverage, out + lift[:, None] * n, n, SLIVER * np.asarray(sizes, np.float64))[0] >= 0
     return SampleAdjustment(out, moved, invalid | sliver, sliver)
 
 
-def _move(tracer, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid) -> None:
+def _move(tracer, coverage, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid) -> None:
     """Moves the `covered` samples (indices) of p into `out`, marking them `moved` or `invalid`."""
 
     # candidates: along every probe of a covered sample that hit a back face, the middle of the free part
@@ -132,10 +153,10 @@ def _move(tracer, p, n, objects, r, lift, dirs, t, covered, out, moved, invalid)
     ci, cj = np.nonzero(usable)
     rows = covered[ci]
     cand = p[rows] + dirs[rows, cj] * step[ci, cj][:, None]
-    ok = _on_surface(tracer, cand, n[rows], objects[rows], lift[rows])
+    ok = _on_surface(tracer, coverage, cand, n[rows], objects[rows], lift[rows])
     if ok.any():
         sel = np.flatnonzero(ok)
-        again = _back_hits(tracer, cand[sel] + lift[rows[sel], None] * n[rows[sel]], _directions(n[rows[sel]]),
+        again = _back_hits(tracer, coverage, cand[sel] + lift[rows[sel], None] * n[rows[sel]], _directions(n[rows[sel]]),
                            r[rows[sel]] / 2.0)
         ok[sel] = ~np.isfinite(again).any(axis=1)
     # the nearest good candidate per covered sample

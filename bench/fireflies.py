@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy import ndimage
 
+from glint.bake.alpha import Coverage
 from glint.bake.irradiance import compute_irradiance
 from glint.bake.lightmap import LightmapPages, bake_lightmaps
 from glint.bake.raytrace import RayTracer
@@ -98,7 +99,8 @@ def count_fireflies(scene: Scene, quality: str, **settings) -> FireflyCount:
             continue
         ys, xs = np.array([h[0] for h in hits]), np.array([h[1] for h in hits])
         normals = page.normal[ys, xs].astype(np.float64)
-        moved = adjust_samples(tracer, page.position[ys, xs], normals, page.size[ys, xs], page.object[ys, xs])
+        moved = adjust_samples(tracer, page.position[ys, xs], normals, page.size[ys, xs], page.object[ys, xs],
+                               Coverage(scene, tracer))
         E = compute_irradiance(scene, tracer, moved.points, normals, CONVERGED,
                                seed=CONVERGED_SEED).irradiance.mean(axis=1)
         found += [Outlier(k, *h, float(e)) for h, e in zip(hits, E)]

@@ -60,6 +60,7 @@ def count(args) -> None:
 
 def bias(args) -> None:
     from glint.bake import lightmap as LM
+    from glint.bake.alpha import Coverage
     from glint.bake.irradiance import compute_irradiance, refine_irradiance, relative_error
     from glint.bake.lights import luminance
     from glint.bake.raytrace import RayTracer
@@ -79,7 +80,7 @@ def bias(args) -> None:
     yx = np.array([t[1:] for t in FIREFLY_TEXELS] + [(int(ys[i]), int(xs[i])) for i in picked])
     normals = page.normal[yx[:, 0], yx[:, 1]].astype(np.float64)
     moved = adjust_samples(tracer, page.position[yx[:, 0], yx[:, 1]], normals, page.size[yx[:, 0], yx[:, 1]],
-                           page.object[yx[:, 0], yx[:, 1]])
+                           page.object[yx[:, 0], yx[:, 1]], Coverage(scene, tracer))
     keep = np.flatnonzero(~moved.invalid)
     points, normals, yx = moved.points[keep], normals[keep], yx[keep]
     former = keep < len(FIREFLY_TEXELS)

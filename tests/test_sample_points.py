@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from glint.bake.alpha import Coverage
 from glint.bake.dilate import dilate
 from glint.bake.gltf_loader import load_scene
 from glint.bake.raytrace import RayTracer
@@ -109,3 +110,29 @@ def test_invalid_texel_is_filled_from_its_own_object():
     labels = np.array([[1, -1, 2], [1, 1, 2], [1, -1, 2]])
     assert dilate(image, valid, 1, labels)[1, 1, 0] == pytest.approx(1.0)
     assert dilate(image, valid, 1)[1, 1, 0] == pytest.approx(3.0)
+
+
+@pytest.mark.parametrize("mode, moved", [("OPAQUE", True), ("MASK", False), ("BLEND", False)])
+def test_cut_out_card_through_the_floor_covers_nothing(tmp_path, mode, moved):
+    """A card standing through the floor (x = 0, facing +x), its base colour's alpha 0 (MASK: all cut
+    out; BLEND: all passed, 1 - alpha > 1/2): a floor sample 2 cm behind it (x = -0.02), whose +x
+    probe meets the card's back face within r = 4.4 cm, stays where it is; an opaque card of the
+    same shape covers it and it moves (x = -0.02 + (0.02 + r) / 2). Expected by hand from the
+    geometry. Bug this catches (tried): probes that ignore coverage move the sample under a card
+    nobody sees (moved True for MASK and BLEND)."""
+    w = GltfWriter()
+    paint = w.add_material("Paint", base_color=(0.8, 0.8, 0.8))
+    card = w.add_material("Card", base_color=(0.2, 0.6, 0.2, 0.0), alpha_mode=None if mode == "OPAQUE" else mode)
+    w.add_node("Floor", mesh=add_mesh(w, "Floor", quad((-1, 0, 1), (1, 0, 1), (1, 0, -1), (-1, 0, -1)), paint))
+    w.add_node("Card", mesh=add_mesh(w, "Card", quad((0, -0.1, 0.5), (0, -0.1, -0.5), (0, 0.5, -0.5), (0, 0.5, 0.5)),
+                                     card))
+    path = w.write(tmp_path / "s.glb")
+    (tmp_path / "s.glint.toml").write_text("[sky]\n")
+    scene = load_scene(path)
+    tracer, names = RayTracer(scene), [o.name for o in scene.objects]
+    a = adjust_samples(tracer, np.array([[-0.02, 0.0, 0.1]]), np.array([UP]), np.array([S]),
+                       np.array([names.index("Floor")]), Coverage(scene, tracer))
+    assert a.moved.tolist() == [moved] and not a.invalid.any()
+    r = S / np.sqrt(2)
+    want = [-0.02 + (0.02 + r) / 2 if moved else -0.02, 0.0, 0.1]
+    np.testing.assert_allclose(a.points[0], want, atol=1e-6)

@@ -98,7 +98,7 @@ def test_the_old_rule_leaks(tmp_path, monkeypatch):
     from glint.bake.sample_points import SampleAdjustment
 
     monkeypatch.setattr(texels, "EDGE_INSET", 0.0)
-    monkeypatch.setattr(lightmap, "adjust_samples", lambda tracer, points, normals, sizes, objects: SampleAdjustment(
+    monkeypatch.setattr(lightmap, "adjust_samples", lambda tracer, points, normals, sizes, objects, coverage=None: SampleAdjustment(
         np.asarray(points, np.float64), np.zeros(len(points), bool), np.zeros(len(points), bool)))
     scene, bake = _bake(tmp_path, samples=128)
     ratios = block_ratios(scene, bake)
