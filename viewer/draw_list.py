@@ -47,7 +47,7 @@ import moderngl
 import numpy as np
 
 from glint.viewer.camera import frustum_planes, gl_bytes
-from glint.viewer.gl import GL, software_renderer
+from glint.viewer.gl import DRAW_ELEMENTS_INDIRECT_COMMAND_BYTES, GL, software_renderer
 from glint.viewer.gl_bindings import (
     ANISOTROPY_TEXTURE_UNIT,
     DRAW_BATCH_BINDING,
@@ -69,7 +69,7 @@ from glint.viewer.shader_source import compute_program, set_uniforms
 
 # Why an object was or was not drawn (shaders/cull.comp writes one per object and region).
 DRAW_STATES = {"DRAWN": 0, "HIDDEN": 1, "EMPTY": 2, "OUTSIDE_VIEW": 3, "BEHIND_PLANE": 4, "TOO_SMALL": 5}
-COMMAND_BYTES = 20  # glDrawElementsIndirect's command: count, instanceCount, firstIndex, baseVertex, baseInstance
+COMMAND_BYTES = DRAW_ELEMENTS_INDIRECT_COMMAND_BYTES  # one indirect draw command (viewer/gl.py)
 CULL_GROUP = 64     # cull.comp's local size
 COMPACT_GROUP = 256  # compact.comp's local size: the commands one step of its scan packs
 TEXTURE_UNITS = (KD_TEXTURE_UNIT, EMISSION_TEXTURE_UNIT, METALLIC_ROUGHNESS_TEXTURE_UNIT, NORMAL_TEXTURE_UNIT,

@@ -47,6 +47,8 @@ GL_COLOR_ATTACHMENT0, GL_DEPTH_ATTACHMENT = 0x8CE0, 0x8D00
 GL_COLOR, GL_DEPTH = 0x1800, 0x1801
 GL_CLIP_DISTANCE0 = 0x3000
 GL_ANY_SAMPLES_PASSED_CONSERVATIVE = 0x8D6A
+# glDrawElementsIndirect's command: count, instanceCount, firstIndex, baseVertex, baseInstance (5 x uint32)
+DRAW_ELEMENTS_INDIRECT_COMMAND_BYTES = 20
 GL_QUERY_RESULT, GL_QUERY_RESULT_AVAILABLE = 0x8866, 0x8867
 GL_TRIANGLES, GL_UNSIGNED_INT = 0x0004, 0x1405
 GL_DRAW_INDIRECT_BUFFER, GL_PARAMETER_BUFFER = 0x8F3F, 0x80EE
@@ -218,7 +220,7 @@ class GL:
         self.BindVertexArray(vao.glo)
         self.BindBuffer(GL_DRAW_INDIRECT_BUFFER, commands.glo)
         self.BindBuffer(GL_PARAMETER_BUFFER, counts.glo)
-        self.MultiDrawElementsIndirectCount(GL_TRIANGLES, GL_UNSIGNED_INT, ctypes.c_void_p(first * 20),
+        self.MultiDrawElementsIndirectCount(GL_TRIANGLES, GL_UNSIGNED_INT, ctypes.c_void_p(first * DRAW_ELEMENTS_INDIRECT_COMMAND_BYTES),
                                             count_offset, max_draws, 0)
         self.BindBuffer(GL_PARAMETER_BUFFER, 0)
         self.BindVertexArray(0)
