@@ -183,9 +183,12 @@ def _step(P, w, plane_p, plane_n, vp):
 
 
 def project_sample(P, w, mirror_view_proj, positions: np.ndarray, normals: np.ndarray, *,
-                   second_step: bool = True, centre_position=None, centre_normal=None) -> SampleProjection:
+                   second_step: bool = True, third_step: bool = False, centre_position=None,
+                   centre_normal=None) -> SampleProjection:
     """Map lobe sample directions w (..., 3, unit, world) at reflector points P (..., 3)
-    to mirror-buffer uv by the two-step tangent-plane scheme (module docstring).
+    to mirror-buffer uv by the two-step tangent-plane scheme (module docstring); `third_step`:
+    where step 2 hit a drawn plane, once more in the plane seen at step 2's uv, taken where it hits
+    a drawn plane (shaders/mirror_buffer.glsl: the still camera's look-ups).
 
     mirror_view_proj: the mirror camera's world -> clip matrix (reflection included).
     positions, normals: the mirror buffer's (H, W, 3) world position and normal images.
@@ -207,6 +210,15 @@ def project_sample(P, w, mirror_view_proj, positions: np.ndarray, normals: np.nd
         # look-up (the sky there) stands unless the direction at infinity is background too.
         inf_background = np.linalg.norm(fetch(normals, uv2), axis=-1) < BACKGROUND_NORMAL
         background = background & (~hit1 | hit2 | inf_background)
+        if third_step:
+            p3, n3 = fetch(positions, uv2), fetch(normals, uv2)
+            uv3, ok3, x3, hit3, t3 = _step(P, w, p3, n3, vp)
+            step3 = hit2 & ~background & hit3 & (np.linalg.norm(n3, axis=-1) >= BACKGROUND_NORMAL)
+            uv2 = np.where(step3[..., None], uv3, uv2)
+            ok2 = np.where(step3, ok3, ok2)
+            x2 = np.where(step3[..., None], x3, x2)
+            t2 = np.where(step3, t3, t2)
+            n2 = np.where(step3[..., None], n3, n2)
         take = hit2 | background  # a missed (parallel / behind) plane keeps step 1
         uv = np.where(take[..., None], uv2, uv1)
         ok = np.where(take, ok2, ok1)

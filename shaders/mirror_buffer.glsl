@@ -104,20 +104,26 @@ MirrorCentre mirror_centre(vec3 P, mat4 vp, int layer) {
 
 // The look-up of one sample direction w (world, unit) at P (mirror_projection.project_sample):
 // step 1 in the tangent plane (plane_p, plane_n) -- P_R's, or the still camera's averaged one --
-// then, with `second_step`, step 2 in the plane the mirror camera saw at step 1's uv.
+// then, with `second_step`, step 2 in the plane the mirror camera saw at step 1's uv, and with
+// `third_step` (where step 2 hit a drawn plane) a step 3 in the plane seen at step 2's uv: the
+// scheme iterated once more towards the ray's own hit. The still camera takes it: its step 1 plane
+// (the mean of the planes found so far, over walls, floor and ceiling for a wide lobe) put step 2 on
+// the wrong surface, and its unfiltered look-ups showed it (a rough metal floor 12 % darker than
+// Mitsuba rendering the same lobes; 3.6 % with step 3: docs/BENCHMARKS.md, "Issue 24: the floors'
+// errors split"); the walkthrough's filtered look-ups did not change (within 0.1 %).
 struct MirrorSample {
     vec2 uv;           // the look-up position
     bool valid;        // in front of the mirror camera (else uv is the centre's)
     bool at_infinity;  // uv is the projected direction: no plane was hit
     bool hit_second;   // step 2 hit the plane seen at step 1's uv
-    vec3 plane_p;      // that plane (the still camera averages them): position ...
+    vec3 plane_p;      // that plane, or step 3's where it was taken (the still camera averages them): position ...
     vec3 plane_n;      // ... and normal (~0 where step 1's uv showed background)
     float t;           // the look-up's point is P + t w, in the plane with normal `normal`; 0: at infinity
     vec3 normal;
 };
 
 MirrorSample mirror_project_sample(vec3 P, vec3 w, mat4 vp, int layer, MirrorCentre c, vec3 plane_p,
-                                   vec3 plane_n, bool second_step) {
+                                   vec3 plane_n, bool second_step, bool third_step) {
     MirrorSample s;
     bool ok1, hit1;
     float t1;
@@ -145,6 +151,20 @@ MirrorSample mirror_project_sample(vec3 P, vec3 w, mat4 vp, int layer, MirrorCen
             vec3 p_inf, n_inf;
             mirror_fetch_plane(layer, uv2, p_inf, n_inf);
             background = length(n_inf) < MIRROR_BACKGROUND_NORMAL;
+        }
+        if (third_step && hit2 && !background) {
+            vec3 p3, n3;
+            mirror_fetch_plane(layer, uv2, p3, n3);
+            bool ok3, hit3;
+            float t3;
+            vec2 uv3 = mirror_step(P, w, p3, n3, vp, ok3, hit3, t3);
+            if (length(n3) >= MIRROR_BACKGROUND_NORMAL && hit3) {  // else step 2 stands
+                uv2 = uv3;
+                ok2 = ok3;
+                t2 = t3;
+                s.plane_p = p3;
+                s.plane_n = n3;
+            }
         }
         if (hit2 || background) {
             uv = uv2;
@@ -174,10 +194,10 @@ float mirror_ellipse_mip_level(vec2 uv0, vec2 uv1, vec2 uv2, vec2 uv3, int n, ve
 // The same for four world directions at P (mirror_projection.lobe_mip_level).
 float mirror_lobe_mip_level(vec3 P, vec3 e0, vec3 e1, vec3 e2, vec3 e3, int n, mat4 vp, int layer,
                             MirrorCentre c, vec2 size, float max_level) {
-    vec2 uv0 = mirror_project_sample(P, e0, vp, layer, c, c.position, c.normal, true).uv;
-    vec2 uv1 = mirror_project_sample(P, e1, vp, layer, c, c.position, c.normal, true).uv;
-    vec2 uv2 = mirror_project_sample(P, e2, vp, layer, c, c.position, c.normal, true).uv;
-    vec2 uv3 = mirror_project_sample(P, e3, vp, layer, c, c.position, c.normal, true).uv;
+    vec2 uv0 = mirror_project_sample(P, e0, vp, layer, c, c.position, c.normal, true, false).uv;
+    vec2 uv1 = mirror_project_sample(P, e1, vp, layer, c, c.position, c.normal, true, false).uv;
+    vec2 uv2 = mirror_project_sample(P, e2, vp, layer, c, c.position, c.normal, true, false).uv;
+    vec2 uv3 = mirror_project_sample(P, e3, vp, layer, c, c.position, c.normal, true, false).uv;
     return mirror_ellipse_mip_level(uv0, uv1, uv2, uv3, n, size, max_level);
 }
 

@@ -264,12 +264,13 @@ float planar_lobe_lod(SpecularPoint sp, Lobe lobe, int n) {
 }
 
 // Where a sample direction wi (local frame) reads the mirror buffer: projected by the two steps,
-// step 1 in the plane (plane_p, plane_n).
+// step 1 in the plane (plane_p, plane_n); the still camera's unfiltered look-ups by a third
+// (mirror_project_sample).
 MirrorSample planar_project(SpecularPoint sp, vec3 wi, vec3 plane_p, vec3 plane_n) {
     MirrorSlot slot = mirror_slots[sp.mirror];
     mirror_lookups += 1;
     return mirror_project_sample(sp.position, sp.frame * wi, slot.view_proj, sp.mirror, sp.centre, plane_p,
-                                 plane_n, true);
+                                 plane_n, true, specular_mode == SPECULAR_QMC);
 }
 
 // The radiance it reads there at MIP level `lod`.

@@ -254,7 +254,7 @@ def test_faces_of_a_planar_object_off_its_plane_do_not_read_the_mirror(ctx, tmp_
 PROJECT_BODY = """
     mat4 vp = mat4(c0, c1, c2, c3);
     MirrorCentre c = mirror_centre(P, vp, 0);
-    MirrorSample s = mirror_project_sample(P, w, vp, 0, c, c.position, c.normal, second > 0.5);
+    MirrorSample s = mirror_project_sample(P, w, vp, 0, c, c.position, c.normal, second > 0.5, third > 0.5);
     uv = s.uv;
     centre = c.uv;
     flags = vec2(s.valid ? 1.0 : 0.0, s.at_infinity ? 1.0 : 0.0);
@@ -303,23 +303,30 @@ def test_glsl_projection_matches_numpy(projection_setup):
     cam, vp_m, pos, nrm, defines = projection_setup
     k = 3000
     p, w = floor_samples(cam, np.random.default_rng(11), k, [0.01, 0.05, 0.2])
-    for second in (0.0, 1.0):
-        ref = project_sample(p, w, vp_m, pos, nrm, second_step=bool(second))
+    for second, third in ((0.0, 0.0), (1.0, 0.0), (1.0, 1.0)):
+        ref = project_sample(p, w, vp_m, pos, nrm, second_step=bool(second), third_step=bool(third))
         out = glsl_eval.evaluate("mirror_buffer.glsl", PROJECT_BODY,
-                                 {"P": p, "w": w, "second": np.full(k, second), **_columns(vp_m, k)},
+                                 {"P": p, "w": w, "second": np.full(k, second), "third": np.full(k, third),
+                                  **_columns(vp_m, k)},
                                  {"uv": 2, "centre": 2, "flags": 2}, defines=defines)
         np.testing.assert_allclose(out["centre"], ref.uv_centre, atol=2e-6)
         # float32 against float64: a step-1 point within a hair of a texel edge may fetch the
         # neighbouring texel's plane in step 2; leave those few out, and count them.
         edge = np.abs((ref.uv_first * SIZE[::-1]) - np.round(ref.uv_first * SIZE[::-1]))
         clear = np.all(edge > 1e-3, axis=-1) | (second == 0.0)
+        if third:  # step 3 fetches at step 2's look-up: the same for it
+            uv2 = project_sample(p, w, vp_m, pos, nrm).uv
+            clear &= np.all(np.abs(uv2 * SIZE[::-1] - np.round(uv2 * SIZE[::-1])) > 1e-3, axis=-1)
+            moved = np.linalg.norm(ref.uv - uv2, axis=-1) > 1e-3  # where step 3 changed the look-up
+            print(f"step 3 moved {moved.mean():.1%} of the look-ups")
+            assert moved.mean() > 0.01  # (so a GLSL step 3 that did nothing would fail here)
         assert clear.mean() > 0.98
         np.testing.assert_array_equal(out["flags"][clear, 0], ref.valid[clear])
         np.testing.assert_array_equal(out["flags"][clear, 1], ref.at_infinity[clear])
         diff = np.abs(out["uv"] - ref.uv)[clear]
         assert np.all(np.isfinite(out["uv"]))
         np.testing.assert_allclose(out["uv"][clear], ref.uv[clear], atol=1e-4)
-        print(f"second step {bool(second)}: max |uv_glsl - uv_numpy| = {diff.max():.2e} over {clear.sum()} samples")
+        print(f"second step {bool(second)}, third {bool(third)}: max |uv_glsl - uv_numpy| = {diff.max():.2e} over {clear.sum()} samples")
 
 
 def test_glsl_mip_level_matches_numpy(projection_setup):
@@ -350,7 +357,7 @@ def test_glsl_mip_level_matches_numpy(projection_setup):
 SAMPLE_MIP_BODY = """
     mat4 vp = mat4(c0, c1, c2, c3);
     MirrorCentre c = mirror_centre(P, vp, 0);
-    MirrorSample s = mirror_project_sample(P, w, vp, 0, c, c.position, c.normal, true);
+    MirrorSample s = mirror_project_sample(P, w, vp, 0, c, c.position, c.normal, true, false);
     texels = mirror_texels_per_sr(P, w, s, vp, size);
     level = mirror_sample_mip_level(solid_angle, P, w, s, vp, size, max_level);
 """
