@@ -59,13 +59,26 @@ def block_means(lum: np.ndarray) -> np.ndarray:
     return lum[:h, :w].reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK).mean(axis=(1, 3))
 
 
+def block_ratios(ours: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per 8 x 8 block: (within half a stop, the ratio of the block means' luminance); blocks dark in
+    both count as within."""
+    bo, br = block_means(luminance(ours)), block_means(luminance(reference))
+    ratio = np.maximum(bo, FLOOR) / np.maximum(br, FLOOR)
+    return ((bo < FLOOR) & (br < FLOOR)) | ((ratio <= HALF_STOP) & (ratio >= 1 / HALF_STOP)), ratio
+
+
+def add_scene_arguments(p: argparse.ArgumentParser) -> None:
+    """SCENE, REFERENCE, --camera and --size: what bench/mitsuba_external.py shares."""
+    p.add_argument("scene", type=Path)
+    p.add_argument("reference", type=Path, help="linear-radiance EXR at the camera, a whole multiple of --size")
+    p.add_argument("--camera", required=True)
+    p.add_argument("--size", default="180x320")
+
+
 def metrics(ours: np.ndarray, reference: np.ndarray) -> dict:
     """The figures of the module docstring, for two linear-radiance images of one size."""
     lo, lr = luminance(ours), luminance(reference)
-    bo, br = block_means(lo), block_means(lr)
-    both_dark = (bo < FLOOR) & (br < FLOOR)
-    ratio = np.maximum(bo, FLOOR) / np.maximum(br, FLOOR)
-    within = both_dark | ((ratio <= HALF_STOP) & (ratio >= 1 / HALF_STOP))
+    within, ratio = block_ratios(ours, reference)
     lit = lr > LIT
     return {"blocks": int(within.size), "blocks_within_half_stop": float(within.mean()),
             "black_where_lit": float(((lo < DARK) & lit).sum() / max(lit.sum(), 1)),
@@ -101,10 +114,7 @@ def glint(*args) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("scene", type=Path)
-    p.add_argument("reference", type=Path, help="linear-radiance EXR at the camera, a whole multiple of --size")
-    p.add_argument("--camera", required=True)
-    p.add_argument("--size", default="180x320")
+    add_scene_arguments(p)
     p.add_argument("--quality", default="preview")
     p.add_argument("--converge", type=int, default=64)
     p.add_argument("--out", type=Path, default=Path("external"))

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from glint.bench.measure_external import FLOOR, HALF_STOP, block_means, downsample, luminance, metrics
+from glint.bench.measure_external import add_scene_arguments, block_ratios, downsample, metrics
 from glint.bench.report import write_json
 from glint.core.image_io import read_image, write_image
 
@@ -55,19 +55,9 @@ def render_seed(scene_path: Path, camera: str, size: tuple[int, int], spp: int, 
     return time.perf_counter() - started
 
 
-def within(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Per 8 x 8 block: a's mean luminance within half a stop of b's (measure_external's rule)."""
-    ba, bb = block_means(luminance(a)), block_means(luminance(b))
-    ratio = np.maximum(ba, FLOOR) / np.maximum(bb, FLOOR)
-    return ((ba < FLOOR) & (bb < FLOOR)) | ((ratio <= HALF_STOP) & (ratio >= 1 / HALF_STOP))
-
-
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("scene", type=Path)
-    p.add_argument("reference", type=Path, help="linear-radiance EXR at the camera, a whole multiple of --size")
-    p.add_argument("--camera", required=True)
-    p.add_argument("--size", default="180x320")
+    add_scene_arguments(p)
     p.add_argument("--spp", type=int, default=16, help="samples per pixel per seed")
     p.add_argument("--seeds", type=int, nargs="+", default=[0])
     p.add_argument("--out", type=Path, default=Path("mitsuba-external"))
@@ -92,10 +82,10 @@ def main(argv: list[str] | None = None) -> int:
               "samples_per_pixel": args.spp * len(args.seeds), "seeds": args.seeds,
               "mitsuba_vs_reference": summary(metrics(ours, reference)), "glint": {}}
     print(f"Mitsuba ({result['samples_per_pixel']} spp) against the reference: {result['mitsuba_vs_reference']}")
-    hit_m = within(ours, reference)
+    hit_m = block_ratios(ours, reference)[0]
     for path in args.glint:
         g = read_image(path)[..., :3].astype(np.float64)
-        hit_g = within(g, reference)
+        hit_g = block_ratios(g, reference)[0]
         entry = {"vs_reference": summary(metrics(g, reference)), "vs_mitsuba": summary(metrics(g, ours)),
                  "blocks_glint_misses_mitsuba_hits": int((~hit_g & hit_m).sum()),
                  "blocks_mitsuba_misses_glint_hits": int((hit_g & ~hit_m).sum()),
