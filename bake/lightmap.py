@@ -194,6 +194,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     two = two_sided_objects(scene)
     # Texels in the cut-out parts of MASK materials are never seen: not traced, left to dilation.
     covered = [(p.object >= 0) & ~_cut_out(scene, p) for p in pages]
+    back_cover = back_cover_of(pages, covered, two)  # the back sides' texels, page by page
     objects = np.concatenate([p.object[c] for p, c in zip(pages, covered)]).astype(np.int64)
     points = np.concatenate([p.position[c] for p, c in zip(pages, covered)])
     normals = np.concatenate([p.normal[c] for p, c in zip(pages, covered)])
@@ -230,7 +231,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
         refined = np.zeros(0, np.int64)
         if settings.adaptive_samples > 1 and n:
-            refined = undersampled(pages, covered, back_cover_of(pages, covered, two), total, square, paths, valid)
+            refined = undersampled(pages, covered, back_cover, total, square, paths, valid)
             cap = settings.samples * settings.adaptive_samples
             # strided, so that neighbouring texels (a gap's whole row) spread over the tasks
             parts = min(len(refined), len(tasks), TASKS_PER_WORKER * tiles.workers())
@@ -249,7 +250,6 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     irradiance = _stitched(tracer, irradiance, baked, pages, 1.0, settings)
     back_irradiance, back_baked = [], []
     if len(back):
-        back_cover = back_cover_of(pages, covered, two)
         back_irradiance, back_baked = _pages(pages, back_cover, E[front:], valid[front:], settings)
         back_irradiance = _stitched(tracer, back_irradiance, back_baked, pages, -1.0, settings)
 
