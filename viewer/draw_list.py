@@ -130,19 +130,18 @@ class DrawList:
         if regions <= self.regions:
             return
         n = max(self.count, 1)
-        for buf in (self.command_buffer, self.state_buffer, self.hidden_buffer, self.compact_buffer, self.count_buffer):
+        for buf in (self.command_buffer, self.state_buffer, self.hidden_buffer):
             if buf is not None:
                 buf.release()
         with self._gl.checked(f"allocate the draw commands of {regions} passes x {n} objects"):
             self.command_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
             self.state_buffer = self.ctx.buffer(reserve=regions * n * 4)
             self.hidden_buffer = self.ctx.buffer(np.zeros(regions * n, np.uint32).tobytes())
-            if self.compact_program is not None:
-                self.compact_buffer = self.ctx.buffer(reserve=regions * n * COMMAND_BYTES)
-                self.count_buffer = self.ctx.buffer(reserve=regions * len(self.batches) * 4)
+        self.regions = regions
+        if self.compact_program is not None:
+            self._allocate_packed()
         self._checked = set()
         self._hidden = [frozenset()] * regions
-        self.regions = regions
 
     def _set_hidden(self, region: int, hidden) -> None:
         hidden = frozenset(int(i) for i in hidden if 0 <= int(i) < self.count)
@@ -235,12 +234,21 @@ class DrawList:
         if self.compact_program is None:
             self.compact_program = compute_program(self.ctx, "compact.comp", {**self._defines, **draw_defines()})
             table = np.array([(first, count) for first, count, _ in self.batches], np.int32)
-            n = max(self.count, 1)
-            with self._gl.checked(f"upload the {len(table)} draw batches and allocate their packed commands"):
+            with self._gl.checked(f"upload the {len(table)} draw batches"):
                 self.batch_buffer = self.ctx.buffer(table.tobytes())
-                self.compact_buffer = self.ctx.buffer(reserve=self.regions * n * COMMAND_BYTES)
-                self.count_buffer = self.ctx.buffer(reserve=self.regions * len(self.batches) * 4)
+            self._allocate_packed()
         return True
+
+    def _allocate_packed(self) -> None:
+        """The packed commands and per-batch counts of `regions` passes (compact.comp writes them),
+        replacing those of fewer."""
+        for buf in (self.compact_buffer, self.count_buffer):
+            if buf is not None:
+                buf.release()
+        n = max(self.count, 1)
+        with self._gl.checked(f"allocate the packed draw commands of {self.regions} passes x {n} objects"):
+            self.compact_buffer = self.ctx.buffer(reserve=self.regions * n * COMMAND_BYTES)
+            self.count_buffer = self.ctx.buffer(reserve=self.regions * len(self.batches) * 4)
 
     def draw_counts(self, region: int = 0) -> np.ndarray:
         """(batches,) how many commands of each batch region's last draw handed the GPU (reads the
