@@ -502,3 +502,114 @@ def fit(data: BrdfData, lobes: int = 1, *, method: str = METHODS[0],
 def _params(p):
     """(log m, r0, alpha) -> arrays (m,), (r0,), (alpha,) for lobe_columns."""
     return np.array([math.exp(p[0])]), np.array([p[1]]), np.array([p[2]])
+
+
+# ----------------------------------------------------------------------------- Eq. 3.7's transfer error
+
+TRANSFER_ALBEDO_WEIGHT = 100.0  # fit_transfer: the albedo term against the transfer term, at first ...
+TRANSFER_ALBEDO_TOLERANCE = 0.028  # ... then x TRANSFER_WEIGHT_STEP from the solution while the albedo misses by more
+TRANSFER_WEIGHT_STEP = 3.0  # (a weight of 1000 from the start stalled L-BFGS-B on another solution: twice the
+TRANSFER_WEIGHT_MAX = 1e4  # transfer error of the rough metal rows)
+TRANSFER_RAISE_COST = 1.5  # ... and stops where the transfer error would grow past this factor of the first solution's
+TRANSFER_KEEP = 1.1  # the caller's starts win unless another start's objective is below 1 / TRANSFER_KEEP of theirs
+TRANSFER_SMOOTH = 1e-4  # |x| taken as sqrt(x^2 + (TRANSFER_SMOOTH w)^2): L-BFGS-B needs gradients
+TRANSFER_KS_MIN = 1e-4  # a lobe's ks searched from here (log-spaced) to ks_max
+# The starts of fit_transfer besides the caller's: lobe i's m at the given width x TRANSFER_SPREAD^i x
+# the start's factor, its alpha the start's, its ks TRANSFER_KS[i == 0] (deterministic: no random numbers)
+TRANSFER_SPREAD = 3.0
+TRANSFER_STARTS = ((1.0, 0.3), (0.75, 0.4), (1.35, 0.2))  # (m factor, alpha)
+TRANSFER_KS = (0.2, 0.6)  # (other lobes, lobe 1)
+
+
+def transfer_error(data: BrdfData, lobes: list[Lobe], kd=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """(V,) Eq. 3.7 per view on the grey data: sum_k |model - data| (cos theta_i dw)_k over the view's
+    directional albedo. Unlike the least-squares rows of `fit`, every misplaced unit of light counts the
+    same wherever it goes: the relative error of the light reflected from a room of any radiance
+    distribution is at most this (an environment of radiance within [L, 2L] reflects within
+    error x L of the truth), so a long tail's light sent the wrong way is no cheaper than the peak's."""
+    w = data.mask_weight
+    y = np.nan_to_num(data.rgb).mean(axis=-1)
+    f = model_values(data, kd, lobes).mean(axis=-1)
+    a = np.maximum((y * w).sum(axis=1), ALBEDO_FLOOR)
+    return (np.abs(f - y) * w).sum(axis=1) / a
+
+
+def fit_transfer(data: BrdfData, lobes: int, *, width: float, r0_range: tuple[float, float] = (0.0, 1.0),
+                 m_range: tuple[float, float] = M_RANGE, ks_max: float = 1.0, starts: list = (),
+                 albedo_weight: float = TRANSFER_ALBEDO_WEIGHT) -> FitResult:
+    """`lobes` grey, isotropic reflect lobes (kd held at 0: a glTF specular layer or a metal) that minimise
+    Eq. 3.7's transfer error (`transfer_error`, averaged over the views) plus albedo_weight x the mean
+    square of each view's relative albedo error (issue 24: the albedo within 3 %), all parameters at once
+    (L-BFGS-B, log ks and log m); the best of TRANSFER_STARTS around `width` (lobe 1's m; lobe i's
+    TRANSFER_SPREAD^i wider) and of the caller's `starts` (lists of (ks, m, r0, alpha), e.g. the
+    neighbouring row's solution, which keeps a table's rows one solution: preferred unless another
+    start does TRANSFER_KEEP better). Where the albedo still misses by more than
+    TRANSFER_ALBEDO_TOLERANCE (up to ALBEDO_DEGREES), the albedo weight is raised by TRANSFER_WEIGHT_STEP
+    and the solution polished again, up to TRANSFER_WEIGHT_MAX, as long as the transfer error stays
+    within TRANSFER_RAISE_COST of the first solution's (a dark metal, f0 0.2, whose Schlick rise to
+    grazing the lobes' r0 near f0 cannot follow, collapsed to one lobe of three times the transfer
+    error to gain its last per cent of albedo). The lobes come narrowest first.
+    Why not `fit`'s least squares: on the energy each direction receives, a narrow peak's samples outweigh
+    the tail's, and a rough metal's fitted tail lobe sent 26-33 % of the light the wrong way (Eq. 3.7 of
+    the glTF metal of roughness 0.3), which a room's floor showed as 12 % too bright (docs/BENCHMARKS.md)."""
+    from scipy.optimize import minimize
+
+    t0 = time.perf_counter()
+    problem = _Problem(data, diffuse=False)
+    w, a = problem.w, np.maximum(data.albedo().mean(axis=-1), ALBEDO_FLOOR)
+    y = problem.y.mean(axis=-1) * w / a[:, None]  # (V, K) the data's transfer, per unit albedo
+    scale = 1.0 / a[:, None]
+    smooth = (TRANSFER_SMOOTH * w * scale) ** 2
+    m_lo, m_hi = (math.log(max(v, bsdf.M_MIN)) for v in m_range)
+    r0_lo, r0_hi = float(np.clip(r0_range[0], 0.0, 1.0)), float(np.clip(r0_range[1], 0.0, 1.0))
+    bounds = [(math.log(TRANSFER_KS_MIN), math.log(ks_max)), (m_lo, m_hi), (r0_lo, r0_hi), (0.0, 1.0)] * lobes
+    evaluations = 0
+
+    def lobes_of(x):
+        p = np.asarray(x, float).reshape(lobes, 4)
+        return np.exp(p[:, 0]), np.exp(p[:, 1]), p[:, 2], p[:, 3]
+
+    keep = np.degrees(data.theta_o) <= ALBEDO_DEGREES + 1e-9
+
+    def residual(x):
+        ks, m, r0, alpha = lobes_of(x)
+        return np.einsum("c,cvk->vk", ks, problem.lobe_columns("reflect", m, r0, alpha)) * scale - y
+
+    def objective(x, weight):
+        nonlocal evaluations
+        evaluations += 1
+        d = residual(x)
+        return float(np.sqrt(d * d + smooth).sum(axis=1).mean() + weight * np.mean(d.sum(axis=1) ** 2))
+
+    def polish(x0, weight):
+        return minimize(objective, np.array(x0), args=(weight,), method="L-BFGS-B", bounds=bounds,
+                        options={"maxiter": 400})
+
+    def start(ks, m, r0, alpha):
+        return [v for k in range(lobes) for v in (math.log(np.clip(ks[k], TRANSFER_KS_MIN, ks_max)),
+                                                    float(np.clip(math.log(max(m[k], bsdf.M_MIN)), m_lo, m_hi)),
+                                                    float(np.clip(r0[k], r0_lo, r0_hi)), float(np.clip(alpha[k], 0, 1)))]
+
+    r0_mid = 0.5 * (r0_lo + r0_hi)
+    x0s = [start([TRANSFER_KS[k == 0] for k in range(lobes)], [width * factor * TRANSFER_SPREAD ** k for k in range(lobes)],
+                 [r0_mid] * lobes, [alpha] * lobes) for factor, alpha in TRANSFER_STARTS]
+    own = [polish(x0, albedo_weight) for x0 in x0s]
+    given = [polish(start(*zip(*lobes_given)), albedo_weight) for lobes_given in starts if len(lobes_given) == lobes]
+    best = min(own + given, key=lambda r: r.fun)
+    if given and min(r.fun for r in given) <= TRANSFER_KEEP * best.fun:
+        best = min(given, key=lambda r: r.fun)
+    weight, first = albedo_weight, np.abs(residual(best.x)).sum(axis=1).mean()
+    while np.max(np.abs(residual(best.x).sum(axis=1)[keep])) > TRANSFER_ALBEDO_TOLERANCE and weight < TRANSFER_WEIGHT_MAX:
+        weight *= TRANSFER_WEIGHT_STEP
+        raised = polish(best.x, weight)
+        if np.abs(residual(raised.x)).sum(axis=1).mean() > TRANSFER_RAISE_COST * first:
+            break
+        best = raised
+    ks, m, r0, alpha = lobes_of(best.x)
+    order = np.argsort(m, kind="stable")
+    out = [Lobe("reflect", (float(ks[k]),) * 3, float(m[k]), float(m[k]), float(r0[k]), float(alpha[k]))
+           for k in order]
+    kd = (0.0, 0.0, 0.0)
+    return FitResult(kd=kd, lobes=out, error=float(transfer_error(data, out).mean()), theta_o=data.theta_o,
+                     albedo_data=data.albedo(), albedo_fit=model_albedo(data, kd, out), method="transfer",
+                     evaluations=evaluations, seconds=time.perf_counter() - t0)

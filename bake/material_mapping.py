@@ -14,8 +14,8 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   angles a walkthrough sees them. Each lobe's (ks, m, r0, alpha) is read from the table of
   bake/gltf_fit_table.py: the section 3.3 lobes fitted (thesis 3.4.1) to glTF's specular BRDF with
   Schlick's Fresnel of normal-incidence reflectance f0, at roughness r (`FitTable.specular_lobes`):
-  one lobe, or two where one Beckmann lobe cannot follow GGX's long tail (rough rows: a narrow and a
-  wide lobe). Every rule below that emits "one lobe" of the table emits each of that row's lobes,
+  one lobe, or three where one Beckmann lobe cannot follow GGX's long tail (rough metals, narrowest
+  first; up to four between rows). Every rule below that emits "one lobe" of the table emits each of that row's lobes,
   with the same weights (and, with a metallicRoughnessTexture, the same m scaling).
   How close the result is: docs/SCENES.md, "glTF materials: how close".
 - Diffuse: kd = b * (1 - M) * (1 - t) * share(f0), where share is what glTF's fresnel_mix leaves
@@ -27,9 +27,9 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   white at grazing, per channel. The fitted lobe is the table's for f0 = max(b), its ks times M;
   Schlick's F being linear in r0, a coloured metal gets two lobes of that one shape whose sum has
   r0_c = r0 b_c / max(b) in each channel (`metal_lobes`): ks r0_c with r0 = 1 and ks (1 - r0_c)
-  with r0 = 0. A grey metal keeps one lobe, ks b / max(b) with the fitted r0. A row's tail lobe
-  (the second, wide one) is not split: ks b / max(b) with its fitted r0 (a coloured rough metal
-  gets three lobes, not four).
+  with r0 = 0. A grey metal keeps one lobe, ks b / max(b) with the fitted r0. Each of a rough row's
+  lobes is split so (a coloured rough metal gets six lobes): with the wider two kept whole, ks
+  b / max(b), orange (0.8, 0.5, 0.2) of roughness 0.7 reflected 15 % too little blue at 80 degrees.
 - Transmission (t > 0): one transmit lobe (Eq. 3.5, thin surface), ks = b * (1 - M) * t,
   m = max(r^2, 1e-4), r0 = f0, alpha = 0; Eq. 3.5's (1 - F) factor plays glTF's Fresnel weighting.
 - Clearcoat (c > 0): one more reflect lobe, the table's for f0 = 0.04 at roughness r_c, its ks
@@ -182,24 +182,23 @@ def _fitted(lobes_of, roughness: float, weight, m_scale: float = 1.0) -> list[tu
     out = []
     for lobe in lobes_of(float(np.clip(roughness, 0.0, 1.0))):
         # no cap at 1: with a metallicRoughnessTexture the viewer's per-texel m' = m G^2 must give the
-        # table's m where G is the mean, and the tail lobe's m (up to 1) over mean(G)^2 exceeds 1 (capped,
+        # table's m where G is the mean, and the widest lobe's m (up to 1) over mean(G)^2 exceeds 1 (capped,
         # a uniform texture of G 0.6 rendered 37 % off its factors); Eq. 3.3 holds for any m > 0
         m = float(max(lobe.m * m_scale, M_MIN))
         out.append((_rgb3(np.asarray(weight, np.float64) * lobe.ks), m, lobe.r0, lobe.alpha))
     return out
 
 
-def metal_lobes(ks, m: tuple[float, float], r0: float, alpha: float, tint, mr: str, split: bool = True) -> list[Lobe]:
+def metal_lobes(ks, m: tuple[float, float], r0: float, alpha: float, tint, mr: str) -> list[Lobe]:
     """A metal's reflect lobes from the fitted lobe (ks, m = (mx, my), r0, alpha) of its brightest
     channel, `tint` = b / max(b). Schlick's F = r0 (1 - w) + w, w = (1 - cos)^5, is linear in r0, so
     channel c's ks F(r0_c), r0_c = r0 tint_c, is ks r0_c F(1) + ks (1 - r0_c) F(0): two lobes of the
     one shape, ks r0_c with r0 = 1 (F = 1) and ks (1 - r0_c) with r0 = 0 (F = w). A grey metal
     (every channel within GREY_METAL of the brightest) keeps one lobe, ks tint with r0: a second
-    lobe costs the viewer a pattern per pixel, for at most GREY_METAL of the light at grazing.
-    `split` False: one lobe whatever the colour (a row's tail lobe, module docstring)."""
+    lobe costs the viewer a pattern per pixel, for at most GREY_METAL of the light at grazing."""
     tint = np.asarray(tint, np.float64)
     ks = np.asarray(ks, np.float64)
-    if not split or float(np.min(tint)) >= 1.0 - GREY_METAL:
+    if float(np.min(tint)) >= 1.0 - GREY_METAL:
         return [Lobe("reflect", _rgb3(ks * tint), *m, r0, alpha, mr)]
     r0_c = np.clip(r0 * tint, 0.0, 1.0)
     return [Lobe("reflect", _rgb3(ks * r0_c), *m, 1.0, alpha, mr),
@@ -260,11 +259,10 @@ def map_pbr(p: GltfPbr, diffuse_roughness: float = DIFFUSE_ROUGHNESS,
     # incidence, white at grazing; the lobes are the table's for f0 = max(b) (module docstring)
     brightest = float(np.max(base))
     if brightest > 0:
-        # the narrow lobe split per channel (`metal_lobes`); a tail lobe (rough rows, bake/gltf_fit_table.py)
-        # keeps ks b / max(b): four lobes would double the viewer's cost for a coloured rough metal
+        # each lobe split per channel (`metal_lobes`): a coloured rough metal's three lobes are six
         fits = _fitted(lambda r: table.specular_lobes(r, brightest), fitted, metal_ks, m_scale)
-        for k, (ks, m, r0, alpha) in enumerate(fits):
-            lobes += metal_lobes(ks, anisotropic(m), r0, alpha, base / brightest, mr and "metal", split=k == 0)
+        for ks, m, r0, alpha in fits:
+            lobes += metal_lobes(ks, anisotropic(m), r0, alpha, base / brightest, mr and "metal")
     if t > 0:
         lobes.append(Lobe("transmit", _rgb3(base * dielectric * t), *anisotropic(beckmann_m(factor)), f0,
                           INTERFACE_ALPHA if volume else 0.0, mr))

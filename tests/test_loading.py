@@ -348,25 +348,25 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     # Smooth dielectric: diffuse base x fresnel_mix's share + one white lobe, the table's for f0 0.04.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.5, 0.4, 0.3), metallic=0, roughness=0.15))
     np.testing.assert_allclose(kd, np.array([0.5, 0.4, 0.3]) * share, rtol=1e-6)
-    (lobe,) = lobes  # one lobe: below roughness 0.2 no row of the table has a second one
+    (lobe,) = lobes  # one lobe: a dielectric layer's rows have one
     (fitted,) = table.specular_lobes(0.15, 0.04)
     assert lobe.kind == "reflect" and lobe.ks == pytest.approx((fitted.ks,) * 3)
     assert lobe.r0 == pytest.approx(fitted.r0) and lobe.mx == lobe.my == pytest.approx(fitted.m)
     assert 0.85 * 0.04 <= lobe.r0 <= 1.15 * 0.04 and 0.3 < lobe.alpha < 0.6  # Kurt's alpha: not 0
-    # Metal: no diffuse; the table's lobes for f0 = the brightest channel (two at roughness 0.7: the
-    # narrow one and the wide one of GGX's tail). A coloured metal: the narrow lobe as two lobes of its
-    # shape, F = 1 and F = (1 - cos)^5, weighted per channel so that each has Schlick's r0 = f0 scaled
-    # by its colour; the tail lobe with ks carrying the colour. A grey metal: the table's lobes.
+    # Metal: no diffuse; the table's lobes for f0 = the brightest channel (several at roughness 0.7,
+    # narrowest first: together they follow GGX's tail). A coloured metal: each lobe as two lobes of
+    # its shape, F = 1 and F = (1 - cos)^5, weighted per channel so that each has Schlick's r0 = f0
+    # scaled by its colour. A grey metal: the table's lobes.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(0.9, 0.6, 0.2), metallic=1, roughness=0.7))
     np.testing.assert_allclose(kd, 0)
-    narrow, tail = table.specular_lobes(0.7, 0.9)
-    assert narrow.m < tail.m
-    r0_c = np.array([narrow.r0 * c / 0.9 for c in (0.9, 0.6, 0.2)])
-    np.testing.assert_allclose([(lb.r0, lb.mx, lb.alpha) for lb in lobes],
-                               [(1.0, narrow.m, narrow.alpha), (0.0, narrow.m, narrow.alpha), (tail.r0, tail.m, tail.alpha)])
-    np.testing.assert_allclose(lobes[0].ks, narrow.ks * r0_c, rtol=1e-6)
-    np.testing.assert_allclose(lobes[1].ks, narrow.ks * (1 - r0_c), rtol=1e-6)
-    np.testing.assert_allclose(lobes[2].ks, [tail.ks * c / 0.9 for c in (0.9, 0.6, 0.2)], rtol=1e-6)
+    fitted = table.specular_lobes(0.7, 0.9)
+    assert len(fitted) > 1 and len(lobes) == 2 * len(fitted)
+    for (full, fresnel), lb in zip(zip(lobes[::2], lobes[1::2]), fitted, strict=True):
+        r0_c = np.array([lb.r0 * c / 0.9 for c in (0.9, 0.6, 0.2)])
+        np.testing.assert_allclose([(full.r0, full.mx, full.alpha), (fresnel.r0, fresnel.mx, fresnel.alpha)],
+                                   [(1.0, lb.m, lb.alpha), (0.0, lb.m, lb.alpha)])
+        np.testing.assert_allclose(full.ks, lb.ks * r0_c, rtol=1e-6)
+        np.testing.assert_allclose(fresnel.ks, lb.ks * (1 - r0_c), rtol=1e-6)
     grey = map_pbr(GltfPbr(base_color=(0.6, 0.6, 0.6), metallic=1, roughness=0.7))[1]
     for lobe, fitted in zip(grey, table.specular_lobes(0.7, 0.6), strict=True):
         assert lobe.ks == pytest.approx((fitted.ks,) * 3) and lobe.r0 == pytest.approx(fitted.r0)
@@ -378,7 +378,7 @@ def test_mapping_rule_dielectric_metal_rough_glass_anisotropic():
     kd, _, _ = map_pbr(GltfPbr(base_color=(0.5, 0.5, 0.5), metallic=0, roughness=0.5))
     np.testing.assert_allclose(kd, 0.5 * share + table.specular_albedo_at(0.5, 0.04), rtol=1e-6)
     assert len(map_pbr(GltfPbr(metallic=0, roughness=0.5), diffuse_roughness=0.8)[1]) == len(
-        table.specular_lobes(0.5, 0.04)) == 1  # a dielectric layer: one lobe (TWO_LOBES_F0)
+        table.specular_lobes(0.5, 0.04)) == 1  # a dielectric layer: one lobe (MULTI_LOBE_F0)
     # Frosted glass, ior 1.33: no diffuse, reflect + transmit lobes; the transmit lobe m = r^2, r0 = f0.
     kd, lobes, _ = map_pbr(GltfPbr(base_color=(1, 1, 1), metallic=0, roughness=0.6,
                                    transmission=1.0, ior=1.33))

@@ -83,7 +83,7 @@ def test_planar_lobes_get_the_multi_ring_when_isotropic():
     assert P.choose_pattern(0.1, 0.1, planar=True) == "multi_ring"
     assert P.choose_pattern(0.1, 0.1 * P.LINE_RATIO, planar=True) == "line_y"  # lines stay lines
     assert P.choose_pattern(0.1, 0.1) == "ring"                                # cube maps keep the ring
-    assert [P.samples_for_lobe(m, m, planar=True) for m in (0.005, 0.015, 0.03, 0.06, 0.5)] == [1, 3, 5, 10, 10]
+    assert [P.samples_for_lobe(m, m, planar=True) for m in (0.005, 0.015, 0.03, 0.06, 0.15, 0.5)] == [1, 3, 5, 10, 10, 25]
     assert P.samples_for_lobe(0.01, 0.1, planar=True) == P.samples_for_lobe(0.01, 0.1)
 
 

@@ -78,7 +78,13 @@ inner ring taking the odd sample, the outer ring turned by half its sample spaci
 samples line up radially. `choose_pattern(..., planar=True)` gives it to isotropic lobes;
 anisotropic ones keep the line patterns, whose samples are already evenly spaced and fade
 towards the ends (the thesis says the same). `samples_for_lobe(..., planar=True)`: 1, 3, 5
-as for the ring, and 10 (centre + 5 + 4) from m = 0.05 on.
+as for the ring, 10 (centre + 5 + 4) from m = 0.05 on, and 25 (centre + 12 + 12) from m = 0.2 on:
+a wide lobe's ten samples each filter a tenth of its cap (shaders/specular.glsl `planar_sample_sr`),
+and the mirror buffer's box-filtered levels that wide read its bright parts (a room's lamp) into
+the darker directions around them. The rough metal floor's widest fitted lobe (m 0.33) alone read
+1.35 times Mitsuba's rendering of the same lobe with 10 samples, 1.24 with 13, 1.09 with 19, 1.02
+with 25 and 1.00 with 31 (unfiltered look-ups: 0.87, the pattern's own bias); its m 0.13 lobe reads
+0.97 with 10 (docs/BENCHMARKS.md, "Issue 24: three lobes fitted to Eq. 3.7").
 
 Why these radii and counts (bench/measure_multi_ring.py, the step response of the estimate
 across a straight edge in the reflected scene; table: docs/BENCHMARKS.md, "Lobe patterns:
@@ -107,7 +113,7 @@ LINE_SAMPLES = ((MIRROR_M, 1), (0.03, 3), (0.05, 7), (0.1, 11), (0.15, 15), (np.
 
 # Planar reflectors (module doc): theta_h / theta_thresh of the multi-ring pattern's rings.
 MULTI_RING_RADII = (0.4, 0.8)
-MULTI_RING_SAMPLES = ((MIRROR_M, 1), (0.02, 3), (0.05, 5), (np.inf, 10))
+MULTI_RING_SAMPLES = ((MIRROR_M, 1), (0.02, 3), (0.05, 5), (0.2, 10), (np.inf, 25))  # 25: module doc
 
 KINDS = ("ring", "line_x", "line_y", "multi_ring")
 LINE_XI2 = {"line_x": (0.0, 0.5), "line_y": (0.25, 0.75)}  # the two sides of the line: phi_h and phi_h + 180 deg
