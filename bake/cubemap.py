@@ -74,7 +74,9 @@ share: large curved objects keep their own probe. A probe's face size is the lar
 members' (`automatic_size`). What a shared probe gets wrong: its members do not see each other,
 and nearby objects are seen from the cluster's centre; an object of the cluster's size or smaller
 whose box holds that centre is left out of the probe too (`enclosing`: its inside would fill the
-view).
+view). A part of an object (bake/probe_parts.py: a mesh spread through rooms, split
+where its surface cannot see its probe centre) is an object here; its probe hides all the object's
+parts, as an object's own probe hides the object.
 
 The budget ([bake] `cubemap_budget` probes and `cubemap_budget_mib` MiB, counted as RGBA16F with
 the MIP chain): with more probes planned, the sharing factor is doubled (at most
@@ -296,6 +298,13 @@ class CubeMapPlan:
         return entry
 
 
+def own_probe(obj: Object) -> bool:
+    """The sidecar fixed this object's probe (a `cubemap_size`, its own `bounding_planes`, or
+    `shared_probe = false`): it keeps a probe of its own (see "Probes")."""
+    given = obj.options
+    return given.get("shared_probe") is False or "cubemap_size" in given or given.get("bounding_planes", True) is not True
+
+
 def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()) -> list[CubeMapPlan]:
     """The probes of the scene's curved and transmissive objects (see the module docstring), none
     for any other; `Object.options` holds the sidecar's per-object settings (bake/sidecar.py)."""
@@ -311,8 +320,7 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
         if planes is None:
             surfaces = candidate_surfaces(scene) if surfaces is None else surfaces
             planes = choose_planes(obj, surfaces)
-        if (given.get("shared_probe") is False or "cubemap_size" in given
-                or given.get("bounding_planes", True) is not True):
+        if own_probe(obj):
             own.append((i, int(size), planes))
         else:
             shared.append((i, int(size), planes))
@@ -335,8 +343,13 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
             lo, hi = box[:, 0].min(axis=0), box[:, 1].max(axis=0)
             centre, planes = (lo + hi) / 2, box_planes(lo, hi, candidate_surfaces(scene) if surfaces is None else surfaces)
             around = enclosing(all_bounds, centre, float(np.linalg.norm(hi - lo)))
-        return CubeMapPlan(members[0], first.name, max(sizes), centre, tuple(sorted({*members, *glass, *around})),
-                           planes, members=tuple(members), fixed_size=fixed)
+        return CubeMapPlan(members[0], first.name, max(sizes), centre,
+                           tuple(sorted({*members, *glass, *around, *siblings(members)})), planes,
+                           members=tuple(members), fixed_size=fixed)
+
+    def siblings(members: list[int]) -> list[int]:  # a part's probe hides its whole object (bake/probe_parts.py)
+        names = {scene.objects[k].part_of for k in members} - {""}
+        return [k for k, o in enumerate(scene.objects) if o.part_of in names] if names else []
 
     all_bounds = np.array([o.bounds for o in scene.objects]) if shared else None
     owns = [plan([i], [size], [planes], True) for i, size, planes in own]

@@ -54,6 +54,7 @@ from glint.bake.gltf_materials import MaterialReader
 from glint.bake.gltf_primitives import PrimitiveReader
 from glint.bake.gltf_scene import SceneGraphReader, node_world_matrices
 from glint.bake.material_mapping import MATERIAL_EXTENSIONS
+from glint.bake.probe_parts import split_large_reflectors
 from glint.bake.roles import assign_roles
 from glint.bake.sidecar import read_sidecar
 from glint.bake.validate import add_warning, validate_scene
@@ -123,6 +124,7 @@ class _SceneBuilder:
         options = self._object_options(scene, aliases)
         for obj in scene.objects:
             obj.options = options.get(obj.name, {})
+        split_large_reflectors(scene)  # after the options: a probe the sidecar fixed keeps its object whole
         scene.warnings = list(side.warnings) + self.warnings
         validate_scene(scene)
         return scene

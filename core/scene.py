@@ -166,6 +166,7 @@ class Object:
     role: str = "diffuse"
     role_overridden: bool = False
     options: dict = field(default_factory=dict)  # sidecar [objects."NAME"]: cubemap_size, bounding_planes, shared_probe
+    part_of: str = ""  # the object this one is a part of (bake/probe_parts.py), "" for a whole object
 
     @property
     def triangle_areas(self) -> np.ndarray:

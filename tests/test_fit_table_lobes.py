@@ -31,8 +31,9 @@ def test_transfer_fit_gives_back_three_known_lobes():
     by `fit_transfer` from its fixed starts: Eq. 3.7's error under 0.5 % at every view, each lobe's m
     within 5 % and ks within 5 %.
 
-    Deliberate bug this catches (tried): the lobes' ks taken as ks^2 in the objective (a wrong
-    parameterisation: the fit then finds other ks and m); also a fit left at its first start."""
+    Deliberate bugs this catches (tried): the lobes' ks taken as ks^2 in the objective (the fit then
+    reports other ks); the lobes returned widest first. (A fit left at its first start still passes:
+    on exact data the first start reaches the optimum.)"""
     known = [grey(0.3, 0.06, 0.9, 0.45), grey(0.4, 0.13, 0.95, 0.5), grey(0.2, 0.35, 0.9, 0.5)]
     data = BrdfData.from_function(lambda wi, wo: bsdf.bsdf(wi, wo, (0, 0, 0), known), views=VIEWS)
     result = fit_transfer(data, 3, width=0.06, r0_range=(0.8, 1.0), m_range=(0.02, 1.0))
@@ -59,8 +60,8 @@ def test_rough_metals_send_little_light_the_wrong_way(roughness, f0):
     rows trade that last half per cent for the shape, brdf_fit.py TRANSFER_RAISE_COST). What the floor of a room shows: the glTF metal floor
     of roughness 0.3 read 12 % bright, path traced, where this error was 0.26-0.29 (docs/BENCHMARKS.md).
 
-    Deliberate bug this catches (tried): the table of two lobes fitted by least squares (0.21-0.33
-    up to 70 degrees); also three-lobe rows interpolated as a one-lobe row's nearest-row rule."""
+    Deliberate bug this catches (tried): the table before, two lobes fitted by least squares (every
+    case fails: 0.21 and more at every view)."""
     data = BrdfData.from_function(lambda wi, wo: evaluate(
         GltfMaterialParams(base_color=(f0, f0, f0), metallic=1.0, roughness=roughness), wi, wo), views=VIEWS + (85,))
     lobes = [grey(lb.ks, lb.m, lb.r0, lb.alpha) for lb in fit_table().specular_lobes(roughness, f0)]
@@ -127,7 +128,7 @@ def test_rows_of_one_and_three_lobes_mix_continuously():
     step between neighbours above 0.5 %.
 
     Deliberate bug this catches (tried): the nearer row's lobes taken whole between a one-lobe and a
-    three-lobe row (a step of 4 % at roughness 0.25)."""
+    three-lobe row (at roughness 0.25 the three-lobe row's ks 0.2, 0.3, 0.4 instead of the mix)."""
     table = hand_table()
     mixed = table.specular_lobes(0.25, 1.0)
     assert sorted(round(lb.ks, 6) for lb in mixed) == [0.1, 0.15, 0.2, 0.45]
