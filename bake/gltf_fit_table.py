@@ -29,7 +29,7 @@ each row from its neighbour, and ordered narrowest first, so lobe k of one row i
 other), each lobe's parameters are interpolated linearly (m through sqrt(m), about linear in r as
 m ~ r^2). Between a one-lobe and a three-lobe row (roughness 0.15 to 0.2 and 0.7 to 0.8 of a metal;
 f0 0.12 to 0.2) the two rows' BRDFs are mixed: both rows' lobes, ks times 1 - t and t, continuous and
-exact in albedo, for up to four lobes there. Between two one-lobe rows, where lobe 1 of both is
+exact in albedo, for up to four lobes there (five between f0 0.12 and 0.2 at roughness 0.15-0.2). Between two one-lobe rows, where lobe 1 of both is
 one solution of the fit (their alpha within SAME_ALPHA, their m in the ratio r^2 predicts within a
 factor 2), its parameters are interpolated linearly. One-lobe rough rows have two solutions of similar
 error (a narrow lobe with alpha ~ 0.5, a wide one with alpha ~ 0.2 and a large ks) and neighbouring
@@ -71,7 +71,7 @@ class FitTable:
     diffuse: np.ndarray  # (F,)
 
     def specular_lobes(self, roughness: float, f0: float) -> tuple[FittedLobe, ...]:
-        """The lobes (one to four, see the module docstring) of glTF's specular BRDF with Schlick's
+        """The lobes (one to five, see the module docstring) of glTF's specular BRDF with Schlick's
         Fresnel of normal-incidence reflectance f0; below the grid's first f0, its row with r0 scaled by
         f0 / f0_row (the fitted r0 follows f0). A lobe whose ks is 0 is left out, lobes of one shape are one."""
         i, j, t = _bracket(self.f0, f0)
