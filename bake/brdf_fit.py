@@ -598,13 +598,19 @@ def fit_transfer(data: BrdfData, lobes: int, *, width: float, r0_range: tuple[fl
     best = min(own + given, key=lambda r: r.fun)
     if given and min(r.fun for r in given) <= TRANSFER_KEEP * best.fun:
         best = min(given, key=lambda r: r.fun)
-    weight, first = albedo_weight, np.abs(residual(best.x)).sum(axis=1).mean()
-    while np.max(np.abs(residual(best.x).sum(axis=1)[keep])) > TRANSFER_ALBEDO_TOLERANCE and weight < TRANSFER_WEIGHT_MAX:
+    def figures(x):
+        """Eq. 3.7 averaged over the views, and the worst albedo miss up to ALBEDO_DEGREES."""
+        d = residual(x)
+        return float(np.abs(d).sum(axis=1).mean()), float(np.max(np.abs(d.sum(axis=1)[keep])))
+
+    weight, (first, miss) = albedo_weight, figures(best.x)
+    while miss > TRANSFER_ALBEDO_TOLERANCE and weight < TRANSFER_WEIGHT_MAX:
         weight *= TRANSFER_WEIGHT_STEP
         raised = polish(best.x, weight)
-        if np.abs(residual(raised.x)).sum(axis=1).mean() > TRANSFER_RAISE_COST * first:
+        transfer, raised_miss = figures(raised.x)
+        if transfer > TRANSFER_RAISE_COST * first:
             break
-        best = raised
+        best, miss = raised, raised_miss
     ks, m, r0, alpha = lobes_of(best.x)
     order = np.argsort(m, kind="stable")
     out = [Lobe("reflect", (float(ks[k]),) * 3, float(m[k]), float(m[k]), float(r0[k]), float(alpha[k]))

@@ -347,9 +347,13 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
                            tuple(sorted({*members, *glass, *around, *siblings(members)})), planes,
                            members=tuple(members), fixed_size=fixed)
 
-    def siblings(members: list[int]) -> list[int]:  # a part's probe hides its whole object (bake/probe_parts.py)
-        names = {scene.objects[k].part_of for k in members} - {""}
-        return [k for k, o in enumerate(scene.objects) if o.part_of in names] if names else []
+    parts_of: dict[str, list[int]] = {}  # object name -> its parts' indices (bake/probe_parts.py)
+    for k, o in enumerate(scene.objects):
+        if o.part_of:
+            parts_of.setdefault(o.part_of, []).append(k)
+
+    def siblings(members: list[int]) -> list[int]:  # a part's probe hides its whole object
+        return [k for name in {scene.objects[m].part_of for m in members} for k in parts_of.get(name, ())]
 
     all_bounds = np.array([o.bounds for o in scene.objects]) if shared else None
     owns = [plan([i], [size], [planes], True) for i, size, planes in own]

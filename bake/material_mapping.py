@@ -15,7 +15,7 @@ layer of specular reflection over mix(diffuse, specular transmission, t). So:
   bake/gltf_fit_table.py: the section 3.3 lobes fitted (thesis 3.4.1) to glTF's specular BRDF with
   Schlick's Fresnel of normal-incidence reflectance f0, at roughness r (`FitTable.specular_lobes`):
   one lobe, or three where one Beckmann lobe cannot follow GGX's long tail (rough metals, narrowest
-  first; up to four between rows). Every rule below that emits "one lobe" of the table emits each of that row's lobes,
+  first; up to five between rows). Every rule below that emits "one lobe" of the table emits each of that row's lobes,
   with the same weights (and, with a metallicRoughnessTexture, the same m scaling).
   How close the result is: docs/SCENES.md, "glTF materials: how close".
 - Diffuse: kd = b * (1 - M) * (1 - t) * share(f0), where share is what glTF's fresnel_mix leaves
