@@ -19,9 +19,19 @@ face outwards in exports) and p is where it should be. This is Bakery's "adjust 
 and the push-off of Unity's progressive lightmapper, with the continuation test in place of their
 back-face tolerance, which double-sided exports defeat.
 
+Curved surfaces. On the concave side of a faceted curve (a handrail's profile, the inside of a
+bowl) a probe longer than a facet meets the next facets of the sample's own surface from behind,
+and that surface goes on past them: the surface curving, not covering. So the continuation test
+looks past the triangle the probe crossed: the crossed facet itself is not the surface going on,
+while a moulding's face that crosses the ceiling at a shallow angle still has the ceiling beyond it.
+
 A covered sample moves along the probe that found the nearest such hit, to the middle of the free
 part of its footprint on that line ((t + r) / 2), provided the new point is on its own object and
-no probe from it hits a back face within r / 2; else along the next probe. A covered sample with
+no probe from it hits a back face within r / 2, and it is not in a slot (two opposite probes meet
+surfaces, of any side, less than SLOT x the texel size apart in all); else along the next probe. The
+slot rule keeps a sample from being moved past a plate into a narrow gap behind it: on the wooden
+staircase a post's fin, modelled as one sheet facing a wall 1 cm away, took the samples of the
+post's lit face into that gap (black where the reference is lit). A covered sample with
 no such position is invalid: bake/lightmap.py fills it from its neighbours on the same object.
 
 Cut-outs. With the scene's alpha coverage (`coverage`, bake/alpha.py) every probe passes the
@@ -50,6 +60,7 @@ PROBES = 8  # tangent directions, 45 degrees apart
 MIN_MARGIN_EPS = 4.0  # a moved point lies at least this many ray offsets beyond the surface it crossed
 BATCH = 1 << 16  # samples probed at once: bounds memory (8 probes each)
 SLIVER = 0.1  # texel sizes: a sample facing a surface closer than this is in a sliver (module docstring)
+SLOT = 0.25  # texel sizes: a moved sample between two surfaces closer than this is in a slot (module docstring)
 
 
 @dataclass
@@ -82,21 +93,42 @@ def _first_hits(tracer: RayTracer, coverage: Coverage | None, origins, dirs, rea
 def _back_hits(tracer: RayTracer, coverage: Coverage | None, origins: np.ndarray, dirs: np.ndarray,
                reach: np.ndarray):
     """Probes from origins (K, 3) along dirs (K, P, 3) up to reach (K,): (K, P) distance to the first
-    hit when it is a back face, inf otherwise."""
+    hit when it is a back face, inf otherwise; (K, P) the triangle hit (-1: none)."""
     K, P = dirs.shape[:2]
     d = dirs.reshape(-1, 3)
     prim, t = _first_hits(tracer, coverage, np.repeat(origins, P, axis=0), d, np.repeat(reach, P))
     hit = prim >= 0
     back = np.zeros(len(prim), bool)
     back[hit] = np.einsum("ij,ij->i", d[hit], tracer.tri_ng[prim[hit]]) > 0
-    return np.where(back, t.astype(np.float64), np.inf).reshape(K, P)
+    return np.where(back, t.astype(np.float64), np.inf).reshape(K, P), prim.reshape(K, P)
+
+
+def _in_slot(tracer: RayTracer, coverage: Coverage | None, origins: np.ndarray, dirs: np.ndarray,
+             width: np.ndarray) -> np.ndarray:
+    """(K,) bool: some pair of opposite probes (dirs (K, PROBES, 3), the second half opposite the
+    first) meets surfaces, front or back, less than `width` (K,) apart in all."""
+    K, P = dirs.shape[:2]
+    prim, t = _first_hits(tracer, coverage, np.repeat(origins, P, axis=0), dirs.reshape(-1, 3), np.repeat(width, P))
+    t = np.where(prim >= 0, t.astype(np.float64), np.inf).reshape(K, P)
+    return (t[:, :P // 2] + t[:, P // 2:] < width[:, None]).any(axis=1)
 
 
 def _on_surface(tracer: RayTracer, coverage: Coverage | None, points: np.ndarray, normals: np.ndarray,
-                objects: np.ndarray, lift: np.ndarray) -> np.ndarray:
+                objects: np.ndarray, lift: np.ndarray, skip: np.ndarray | None = None) -> np.ndarray:
     """(K,) bool: a ray from each point lifted 4 lift along n, back along -n, meets its own object
-    within 8 lift (not where that object is cut out)."""
-    prim, _ = _first_hits(tracer, coverage, points + 4.0 * lift[:, None] * normals, -normals, 8.0 * lift)
+    within 8 lift (not where that object is cut out). `skip` (K,): a triangle per point the ray passes
+    through (module docstring, "Curved surfaces")."""
+    origins = points + 4.0 * lift[:, None] * normals
+    reach = 8.0 * lift
+    prim, t = _first_hits(tracer, coverage, origins, -normals, reach)
+    if skip is not None:
+        again = np.flatnonzero((prim >= 0) & (prim == skip))
+        if len(again):
+            # on past the skipped triangle: a quarter lift beyond it, well above float32's rounding there
+            step = t[again] + 0.25 * lift[again]
+            prim[again], _ = _first_hits(tracer, coverage, origins[again] - step[:, None] * normals[again],
+                                         -normals[again], np.maximum(reach[again] - step, 0.0))
+            prim[again[prim[again] == skip[again]]] = -1
     return (prim >= 0) & (tracer.tri_object[np.maximum(prim, 0)] == objects)
 
 
@@ -126,12 +158,12 @@ def _adjust(tracer: RayTracer, coverage: Coverage | None, points, normals, sizes
     r = np.asarray(sizes, np.float64) / np.sqrt(2.0)
     lift = tracer.point_eps(p, n)
     dirs = _directions(n)
-    t = _back_hits(tracer, coverage, p + lift[:, None] * n, dirs, r)
+    t, crossed = _back_hits(tracer, coverage, p + lift[:, None] * n, dirs, r)
 
     # covered: some back-face hit beyond which the own surface goes on
     k, j = np.nonzero(np.isfinite(t))
     beyond = p[k] + dirs[k, j] * (t[k, j] + MIN_MARGIN_EPS * lift[k])[:, None]
-    goes_on = _on_surface(tracer, coverage, beyond, n[k], objects[k], lift[k])
+    goes_on = _on_surface(tracer, coverage, beyond, n[k], objects[k], lift[k], skip=crossed[k, j])
     covered_pairs = np.zeros(t.shape, bool)
     covered_pairs[k[goes_on], j[goes_on]] = True
     covered = np.flatnonzero(covered_pairs.any(axis=1))
@@ -156,9 +188,10 @@ def _move(tracer, coverage, p, n, objects, r, lift, dirs, t, covered, out, moved
     ok = _on_surface(tracer, coverage, cand, n[rows], objects[rows], lift[rows])
     if ok.any():
         sel = np.flatnonzero(ok)
-        again = _back_hits(tracer, coverage, cand[sel] + lift[rows[sel], None] * n[rows[sel]], _directions(n[rows[sel]]),
-                           r[rows[sel]] / 2.0)
-        ok[sel] = ~np.isfinite(again).any(axis=1)
+        lifted, around = cand[sel] + lift[rows[sel], None] * n[rows[sel]], _directions(n[rows[sel]])
+        again, _ = _back_hits(tracer, coverage, lifted, around, r[rows[sel]] / 2.0)
+        size = np.sqrt(2.0) * r[rows[sel]]  # the texel's size (r is half its diagonal)
+        ok[sel] = ~np.isfinite(again).any(axis=1) & ~_in_slot(tracer, coverage, lifted, around, SLOT * size)
     # the nearest good candidate per covered sample
     dist = np.where(ok, step[ci, cj], np.inf)
     best = np.full(len(covered), np.inf)
@@ -170,3 +203,4 @@ def _move(tracer, coverage, p, n, objects, r, lift, dirs, t, covered, out, moved
     out[rows[pi]] = cand[pi]
     moved[rows[pi]] = True
     invalid[covered] = ~moved[covered]
+
