@@ -22,7 +22,7 @@ from glint.core.scene import Scene
 
 # Bump when the integrator or the unwrap changes what they produce.
 GEOMETRY_VERSION = 1
-TRANSPORT_VERSION = 6  # 2: back sides of two-sided objects baked; back-face rule spares them; 3: paths scatter by the lobes; 4: samples inset from chart borders and moved out of covering geometry (bake/sample_points.py); 5: adaptive sampling (bake/lightmap.py); 6: sample probes pass cut-outs (bake/sample_points.py)
+TRANSPORT_VERSION = 7  # 2: back sides of two-sided objects baked; back-face rule spares them; 3: paths scatter by the lobes; 4: samples inset from chart borders and moved out of covering geometry (bake/sample_points.py); 5: adaptive sampling (bake/lightmap.py); 6: sample probes pass cut-outs (bake/sample_points.py); 7: probes look past the facet they cross, moved samples avoid slots, samples in cavities get more paths
 CUBEMAP_VERSION = 1  # bump when the renderer changes what a cube map's pixels are
 
 

@@ -31,7 +31,11 @@ same. A texel's own paths never decide how many it gets (its own flag does not c
 estimate stays unbiased: the number is independent of its paths. A rule by the texel's own error
 (refine while it is over a target) averages to less than the plain estimator where rare paths carry
 the light: -16 to -90 % at living-room's former fireflies (bench/measure_fireflies.py --bias,
-docs/BAKE.md "Fireflies"). The price: a firefly with no flagged neighbour stays (docs/BAKE.md).
+docs/BAKE.md "Fireflies"). The price: a firefly with no flagged neighbour would stay, so texels whose
+samples are enclosed (bake/sample_points.py `enclosed`: every direction meets a surface within half a
+metre, under a sofa, behind books) get the same number of paths whatever their neighbours: the
+cavities where light comes only through narrow openings. That choice is the geometry's alone, so it
+is unbiased too.
 
 Invalid texels: those whose own hemisphere rays hit the back of single-sided surfaces more
 often than `backface_threshold` (inside walls, under boxes), and those whose covered sample has no
@@ -54,7 +58,7 @@ from glint.parallel.executor import TASKS_PER_WORKER, executor_for
 from glint.bake.irradiance import compute_irradiance, mean_irradiance, refine_irradiance, relative_error
 from glint.bake.lights import luminance
 from glint.bake.raytrace import RayTracer
-from glint.bake.sample_points import adjust_samples
+from glint.bake.sample_points import adjust_samples, enclosed
 from glint.bake.seams import stitch
 from glint.bake.texels import TexelPage
 from glint.core.errors import warn
@@ -83,6 +87,10 @@ MIDDLE_GREY = 0.18
 # 0.61-0.96), 1.41 at draft's 32 (above what 32 paths can show: draft is not refined) and 0.25 at
 # final's 1024.
 SELECT_CV = 8.0
+# Texels whose samples lie in cavities (bake/sample_points.py `enclosed`) get this many times `samples`
+# paths (at most adaptive_samples): enough for living-room's last firefly at preview; 4 removes no more
+# fireflies there and made the wooden staircase's light maps 29 % slower (docs/BAKE.md "Fireflies").
+ENCLOSED_SAMPLES = 2
 FLOOR_SHARE = 0.05
 DARK_STOPS, BRIGHT_STOPS = 4.0, 5.0
 
@@ -109,6 +117,7 @@ class LightmapPages:
     moved: int = 0  # of `texels`, samples moved out of geometry that covered them (bake/sample_points.py)
     refined: int = 0  # of `texels`, given more paths by adaptive sampling
     refined_paths: int = 0  # the paths adaptive sampling added
+    enclosed: int = 0  # of `refined`, chosen only because their samples lie in cavities (bake/sample_points.py)
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
@@ -207,9 +216,12 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     n = len(points)
     # every side's sample moved out of geometry that covers it (bake/sample_points.py)
     tracer = RayTracer(scene)
+    coverage = Coverage(scene, tracer)
     adjusted = adjust_samples(tracer, points, normals, np.concatenate([sizes, sizes[back]]),
-                              np.concatenate([objects, objects[back]]), Coverage(scene, tracer))
+                              np.concatenate([objects, objects[back]]), coverage)
     points = adjusted.points.astype(points.dtype)
+    # samples in cavities, where fireflies come from: more paths (module docstring, "Adaptive sampling")
+    closed = enclosed(tracer, points, normals, coverage) if settings.adaptive_samples > 1 else np.zeros(n, bool)
     total = np.zeros((n, 3))
     square = np.zeros(n)
     paths = np.full(n, settings.samples, np.int64)
@@ -229,14 +241,18 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
             if progress is not None:
                 progress(len(e))
         valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
-        refined = np.zeros(0, np.int64)
+        refined = cavity = np.zeros(0, np.int64)
         if settings.adaptive_samples > 1 and n:
-            refined = undersampled(pages, covered, back_cover, total, square, paths, valid)
-            cap = settings.samples * settings.adaptive_samples
-            # strided, so that neighbouring texels (a gap's whole row) spread over the tasks
-            parts = min(len(refined), len(tasks), TASKS_PER_WORKER * tiles.workers())
-            more = [RefineTask(r, total[r], square[r], paths[r], cap, settings.seed, settings.max_depth)
-                    for r in (refined[i::parts] for i in range(parts))]
+            flagged = undersampled(pages, covered, back_cover, total, square, paths, valid)
+            cavity = np.setdiff1d(np.flatnonzero(valid & closed), flagged)
+            refined = np.union1d(flagged, cavity)
+            more = []
+            for group, factor in ((flagged, settings.adaptive_samples),
+                                  (cavity, min(settings.adaptive_samples, ENCLOSED_SAMPLES))):
+                # strided, so that neighbouring texels (a gap's whole row) spread over the tasks
+                parts = min(len(group), len(tasks), TASKS_PER_WORKER * tiles.workers())
+                more += [RefineTask(r, total[r], square[r], paths[r], settings.samples * factor, settings.seed,
+                                    settings.max_depth) for r in (group[i::parts] for i in range(parts))]
             # no tasks, no run: a run of none would still build a worker state (a tracer) here
             results = tiles.run(_setup, (scene, points, normals), _refine_tile, more) if more else ()
             for index, (e, q, c, r) in results:
@@ -271,7 +287,8 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
                          unlit_by_object=unlit_by_object, median_radiance=median_radiance,
                          trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()),
-                         refined=len(refined), refined_paths=int((paths - settings.samples).sum()))
+                         refined=len(refined), refined_paths=int((paths - settings.samples).sum()),
+                         enclosed=len(cavity))
 
 
 def back_cover_of(pages: list[TexelPage], covered: list[np.ndarray], two: np.ndarray) -> list[np.ndarray]:

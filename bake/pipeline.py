@@ -67,7 +67,8 @@ class BakeReport:
         cluster = stats.cluster
         where = f" on the Dask cluster {cluster['scheduler']} ({cluster['workers']} workers)" if cluster else ""
         moved = (f" ({lm['moved_texels']} moved out of geometry, {lm['invalid_texels']} invalid"
-                 + (f", {lm['refined_texels']} refined" if "refined_texels" in lm and lm["refined_texels"] else "") + ")"
+                 + (f", {lm['refined_texels']} refined" if lm.get("refined_texels") else "")
+                 + (f" ({lm['enclosed_texels']} in cavities)" if lm.get("enclosed_texels") else "") + ")"
                  if "moved_texels" in lm else "")
         return (f"{self.bake_dir}: baked {', '.join(self.redone)} — {lm['texels']} texels{moved}, "
                 f"{lm['rays'] / 1e6:.1f} M rays in {lm['seconds']:.1f} s "
@@ -439,6 +440,7 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
             "lightmaps": {"seconds": round(t2 - t1, 3), "texels": result.texels, "back_texels": result.back_texels,
                           "invalid_texels": result.invalid, "moved_texels": result.moved,
                           "refined_texels": result.refined, "refined_paths": result.refined_paths,
+                          "enclosed_texels": result.enclosed,
                           "unlit_texels": result.unlit,
                           "median_radiance": result.median_radiance,
                           "invalid_objects": worst(result.invalid_by_object),

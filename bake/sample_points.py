@@ -39,6 +39,14 @@ missing parts of MASK and BLEND materials as the bake's own rays do (BLEND where
 deterministically): a leaf card or a fence whose texels are cut out covers nothing there, where an
 opaque probe moved or dropped the samples of the floor it stands in.
 
+Enclosed samples (`enclosed`). A sample whose every direction meets a surface within ENCLOSED_REACH
+lies in a cavity: under a sofa, behind the books on a shelf. Its light comes in through the cavity's
+openings, by paths that few of its first paths find, each with a large weight: where a firefly is
+likeliest (all four of living-room's were in such cavities). bake/lightmap.py gives such texels
+more paths. The test is a fixed set of ENCLOSED_PROBES cosine-distributed rays around n, a function of
+the geometry alone: the number of paths a texel gets does not depend on its own paths, so its estimate
+stays unbiased.
+
 Slivers. A sample that faces another surface closer than SLIVER x its texel size (a probe along n
 hits anything, front or back, within it) lies in a gap far narrower than its footprint: the back of
 a skirting board 1 mm off the wall, a book's side against the next. Its light comes through the gap's
@@ -61,6 +69,10 @@ MIN_MARGIN_EPS = 4.0  # a moved point lies at least this many ray offsets beyond
 BATCH = 1 << 16  # samples probed at once: bounds memory (8 probes each)
 SLIVER = 0.1  # texel sizes: a sample facing a surface closer than this is in a sliver (module docstring)
 SLOT = 0.25  # texel sizes: a moved sample between two surfaces closer than this is in a slot (module docstring)
+# A sample is enclosed when each of ENCLOSED_PROBES rays meets a surface within ENCLOSED_REACH (metres,
+# glTF's unit): a floor under a sofa, a book's end in a shelf (module docstring, "Enclosed samples").
+ENCLOSED_PROBES = 16
+ENCLOSED_REACH = 0.5
 
 
 @dataclass
@@ -204,3 +216,31 @@ def _move(tracer, coverage, p, n, objects, r, lift, dirs, t, covered, out, moved
     moved[rows[pi]] = True
     invalid[covered] = ~moved[covered]
 
+
+def enclosed(tracer: RayTracer, points: np.ndarray, normals: np.ndarray,
+             coverage: Coverage | None = None) -> np.ndarray:
+    """(K,) bool: samples at points (K, 3) on the side of unit normals (K, 3) whose every probe, of
+    ENCLOSED_PROBES cosine-distributed directions (R2 points, the same for all), meets a surface within
+    ENCLOSED_REACH (module docstring, "Enclosed samples"); in batches of BATCH."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    n = np.asarray(normals, np.float64).reshape(-1, 3)
+    g = 1.32471795724474602596  # the plastic number: R2 points frac(i / g, i / g^2)
+    u = (0.5 + np.arange(ENCLOSED_PROBES)[:, None] * np.array([1.0 / g, 1.0 / g ** 2])) % 1.0
+    radius, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
+    local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(1.0 - u[:, 0])], axis=1)
+    out = np.zeros(len(p), bool)
+    for i in range(0, len(p), BATCH):
+        q, m = p[i:i + BATCH], n[i:i + BATCH]
+        t, b = frame(m)
+        dirs = local[None, :, 0:1] * t[:, None] + local[None, :, 1:2] * b[:, None] + local[None, :, 2:3] * m[:, None]
+        origins = q + tracer.point_eps(q, m)[:, None] * m
+        d = dirs.reshape(-1, 3)
+        prim, _ = _first_hits(tracer, coverage, np.repeat(origins, ENCLOSED_PROBES, axis=0), d,
+                              np.full(len(d), ENCLOSED_REACH))
+        hit = prim >= 0
+        front = np.zeros(len(d), bool)
+        front[hit] = np.einsum("ij,ij->i", d[hit], tracer.tri_ng[prim[hit]]) < 0
+        hit, front = hit.reshape(-1, ENCLOSED_PROBES), front.reshape(-1, ENCLOSED_PROBES)
+        # the inside of a closed mesh (a solid's back side) is seen from behind: not a cavity anyone sees
+        out[i:i + BATCH] = hit.all(axis=1) & (2 * front.sum(axis=1) >= ENCLOSED_PROBES)
+    return out

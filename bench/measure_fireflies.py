@@ -50,7 +50,7 @@ def count(args) -> None:
             lm = r.lightmaps
             print(f"{name} {args.quality} adaptive_samples {adaptive}: {len(r.outliers)} outliers, "
                   f"{len(r.fireflies)} fireflies; light maps {r.seconds:.1f} s wall, {r.cpu_seconds:.1f} s CPU "
-                  f"(jobs 1); {lm.texels} texels, {lm.refined} refined, +{lm.refined_paths} paths "
+                  f"(jobs 1); {lm.texels} texels, {lm.refined} refined ({lm.enclosed} in cavities), +{lm.refined_paths} paths "
                   f"(+{100 * lm.refined_paths / max(lm.texels * r.lightmaps_samples, 1):.1f} %), "
                   f"{lm.rays / 1e6:.1f} M rays", flush=True)
             for o in r.fireflies:

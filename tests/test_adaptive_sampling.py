@@ -104,3 +104,34 @@ def test_refinement_does_not_depend_on_the_workers(monkeypatch):
     assert (one.refined, one.refined_paths) == (two.refined, two.refined_paths)
     for a, b in zip(one.irradiance, two.irradiance):
         assert np.array_equal(a, b)
+
+
+def test_texels_in_a_cavity_get_more_paths_whatever_their_paths(tmp_path, monkeypatch):
+    """A floor with a sofa-like box 1 x 1 m over it, 5 cm up, single-sided, at draft (8 texels per
+    metre: conservatively rasterised, at most 10 x 10 floor texels touch the square under the box, and
+    as many on its bottom facing the floor), no texel
+    flagged (SELECT_CV out of reach): the texels in that cavity, and only they, get ENCLOSED_SAMPLES x
+    `samples` paths: 0 < enclosed <= 200 (measured: 130), every refined texel an enclosed one, and exactly
+    (ENCLOSED_SAMPLES - 1) x samples paths added for each. With adaptive sampling off none is.
+
+    Bug this catches (tried): the cavity texels left out of the refinement (enclosed 0: living-room's
+    last firefly stays, docs/BAKE.md "Fireflies")."""
+    from glint.scenes.generate import add_mesh, box, quad
+    from glint.scenes.gltf_writer import GltfWriter
+
+    monkeypatch.setattr(LM, "SELECT_CV", 1e9)
+    w = GltfWriter()
+    m = w.add_material("Paint", base_color=(0.8, 0.8, 0.8))
+    w.add_node("Floor", mesh=add_mesh(w, "Floor", quad((-2, 0, 2), (2, 0, 2), (2, 0, -2), (-2, 0, -2)), m))
+    w.add_node("Sofa", mesh=add_mesh(w, "Sofa", box((1.0, 0.4, 1.0), (0.0, 0.25, 0.0)), m))
+    path = w.write(tmp_path / "s.glb")
+    (tmp_path / "s.glint.toml").write_text("[sky]\n")
+    scene = load_scene(path)
+    s = resolve_settings(scene.bake_settings, quality="draft")
+    pages = rasterize_texels(scene.objects, unwrap(scene.objects, s.texels_per_metre, s.padding, s.max_page_size))
+    on = LM.bake_lightmaps(scene, pages, replace(s, jobs=1))
+    print(f"enclosed {on.enclosed}, refined {on.refined}, +{on.refined_paths} paths")
+    assert 0 < on.enclosed <= 200 and on.refined == on.enclosed
+    assert on.refined_paths == on.enclosed * (LM.ENCLOSED_SAMPLES - 1) * s.samples
+    off = LM.bake_lightmaps(scene, pages, replace(s, jobs=1, adaptive_samples=1))
+    assert off.enclosed == off.refined == off.refined_paths == 0
