@@ -40,7 +40,7 @@ deterministically): a leaf card or a fence whose texels are cut out covers nothi
 opaque probe moved or dropped the samples of the floor it stands in.
 
 Enclosed samples (`enclosed`). A sample whose every direction meets a surface within ENCLOSED_REACH
-lies in a cavity: under a sofa, behind the books on a shelf. Its light comes in through the cavity's
+texel sizes (half a metre at preview), most of them from the front, lies in a cavity: under a sofa, behind the books on a shelf. Its light comes in through the cavity's
 openings, by paths that few of its first paths find, each with a large weight: where a firefly is
 likeliest (all four of living-room's were in such cavities). bake/lightmap.py gives such texels
 more paths. The test is a fixed set of ENCLOSED_PROBES cosine-distributed rays around n, a function of
@@ -69,10 +69,11 @@ MIN_MARGIN_EPS = 4.0  # a moved point lies at least this many ray offsets beyond
 BATCH = 1 << 16  # samples probed at once: bounds memory (8 probes each)
 SLIVER = 0.1  # texel sizes: a sample facing a surface closer than this is in a sliver (module docstring)
 SLOT = 0.25  # texel sizes: a moved sample between two surfaces closer than this is in a slot (module docstring)
-# A sample is enclosed when each of ENCLOSED_PROBES rays meets a surface within ENCLOSED_REACH (metres,
-# glTF's unit): a floor under a sofa, a book's end in a shelf (module docstring, "Enclosed samples").
+# A sample is enclosed when each of ENCLOSED_PROBES rays meets a surface within ENCLOSED_REACH texel sizes
+# (half a metre at preview's 16 texels per metre; in texels, so that a scene scaled with its texel
+# density bakes the same): a floor under a sofa, a book's end in a shelf (module docstring, "Enclosed samples").
 ENCLOSED_PROBES = 16
-ENCLOSED_REACH = 0.5
+ENCLOSED_REACH = 8.0
 
 
 @dataclass
@@ -217,13 +218,15 @@ def _move(tracer, coverage, p, n, objects, r, lift, dirs, t, covered, out, moved
     invalid[covered] = ~moved[covered]
 
 
-def enclosed(tracer: RayTracer, points: np.ndarray, normals: np.ndarray,
+def enclosed(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sizes: np.ndarray,
              coverage: Coverage | None = None) -> np.ndarray:
-    """(K,) bool: samples at points (K, 3) on the side of unit normals (K, 3) whose every probe, of
-    ENCLOSED_PROBES cosine-distributed directions (R2 points, the same for all), meets a surface within
-    ENCLOSED_REACH (module docstring, "Enclosed samples"); in batches of BATCH."""
+    """(K,) bool: samples at points (K, 3) on the side of unit normals (K, 3), of world texel sizes
+    (K,), whose every probe, of ENCLOSED_PROBES cosine-distributed directions (R2 points, the same for
+    all), meets a surface within ENCLOSED_REACH texel sizes, most of them from the front (module
+    docstring, "Enclosed samples"); in batches of BATCH."""
     p = np.asarray(points, np.float64).reshape(-1, 3)
     n = np.asarray(normals, np.float64).reshape(-1, 3)
+    reach = ENCLOSED_REACH * np.asarray(sizes, np.float64).reshape(-1)
     g = 1.32471795724474602596  # the plastic number: R2 points frac(i / g, i / g^2)
     u = (0.5 + np.arange(ENCLOSED_PROBES)[:, None] * np.array([1.0 / g, 1.0 / g ** 2])) % 1.0
     radius, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
@@ -236,7 +239,7 @@ def enclosed(tracer: RayTracer, points: np.ndarray, normals: np.ndarray,
         origins = q + tracer.point_eps(q, m)[:, None] * m
         d = dirs.reshape(-1, 3)
         prim, _ = _first_hits(tracer, coverage, np.repeat(origins, ENCLOSED_PROBES, axis=0), d,
-                              np.full(len(d), ENCLOSED_REACH))
+                              np.repeat(reach[i:i + BATCH], ENCLOSED_PROBES))
         hit = prim >= 0
         front = np.zeros(len(d), bool)
         front[hit] = np.einsum("ij,ij->i", d[hit], tracer.tri_ng[prim[hit]]) < 0

@@ -197,7 +197,8 @@ def test_concave_side_of_a_faceted_curve_is_not_covered(tmp_path):
 def test_enclosed_samples_are_those_in_cavities(tmp_path):
     """A sofa-like box 1 x 1 m whose bottom is 5 cm above the floor, and a solid 0.4 m cube elsewhere:
     the floor under the sofa's middle is enclosed (every probe meets the sofa's bottom, at most
-    5 cm / cos 80 deg = 29 cm away for the R2 set's most grazing probe, under ENCLOSED_REACH = 0.5 m);
+    5 cm / cos 80 deg = 29 cm away for the R2 set's most grazing probe, under ENCLOSED_REACH = 8 texels
+    of S = 6.25 cm: 0.5 m);
     the open floor 1.5 m from both is not; nor is the back side of the cube's top (inside a solid: its
     probes all meet the cube from behind within 0.4 / cos 53 deg = 0.5 m at most, but no one sees
     that cavity).
@@ -211,4 +212,4 @@ def test_enclosed_samples_are_those_in_cavities(tmp_path):
                                              "Cube": box((0.4, 0.4, 0.4), (1.5, 0.2, 1.5))}, True)
     points = np.array([[0.0, 0.0, 0.0], [-1.5, 0.0, -1.5], [1.5, 0.4, 1.5]])
     normals = np.array([UP, UP, DOWN])
-    assert enclosed(tracer, points, normals).tolist() == [True, False, False]
+    assert enclosed(tracer, points, normals, np.full(3, S)).tolist() == [True, False, False]
