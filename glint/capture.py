@@ -302,8 +302,9 @@ def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
 def lightmap_texels(manifest: Manifest) -> dict:
     """The bake's light-map texel counts (manifest statistics.lightmaps; bake/lightmap.py): path traced
     (both sides), back sides, invalid (inside geometry), unlit, moved out of geometry
-    (bake/sample_points.py) and refined by adaptive sampling, with the objects that have most
-    invalid and unlit. Counts a bake dir made before they were recorded lacks are null."""
+    (bake/sample_points.py) and refined by adaptive sampling (of them, enclosed: in cavities), with the
+    objects that have most invalid and unlit. Counts a bake dir made before they were recorded lacks are null."""
     lm = manifest.statistics.lightmaps
     return {key: lm.get(key) for key in ("texels", "back_texels", "invalid_texels", "unlit_texels",
-                                         "moved_texels", "refined_texels", "invalid_objects", "unlit_objects")}
+                                         "moved_texels", "refined_texels", "enclosed_texels", "invalid_objects",
+                                         "unlit_objects")}

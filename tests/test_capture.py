@@ -150,7 +150,7 @@ def test_stats_file(room, tmp_path):
     manifest = json.loads((Path(stats["bake_dir"]) / "manifest.json").read_text())["statistics"]["lightmaps"]
     counts = stats["lightmap_texels"]
     assert counts["texels"] > 0
-    for key in ("texels", "invalid_texels", "moved_texels", "refined_texels"):
+    for key in ("texels", "invalid_texels", "moved_texels", "refined_texels", "enclosed_texels"):
         assert isinstance(counts[key], int) and counts[key] == manifest[key], key
 
 
