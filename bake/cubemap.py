@@ -14,7 +14,9 @@ the viewer would. It renders the scene *diffuse*: kd/pi E (Eq. 4.1) plus emissio
 left out, as the thesis renders "the light-mapped scene". No cube map then depends on another
 (no order, no chains of re-renders). Left out of each map: the object itself, and every
 transmissive object (thin glass): rendered diffuse, clear glass (kd = 0) would be an opaque
-black sheet, whereas from most directions it shows what lies behind it.
+black sheet, whereas from most directions it shows what lies behind it. And every object whose
+closed surface holds the probe's centre (`holding`; for shared probes `enclosing`): from inside, its
+back faces would fill the whole map.
 
 Faces follow the OpenGL cube-map convention, so `texture(samplerCube, dir)` returns the
 radiance seen along dir: face k = GL_TEXTURE_CUBE_MAP_POSITIVE_X + k, in the order
@@ -100,12 +102,13 @@ detail that keeps LOD_TRIANGLES_PER_PIXEL.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from glint.bake import hashing
+from glint.bake.raytrace import RayTracer
 from glint.bake.bounding_planes import (
     ENCLOSE_RELATIVE,
     BoundingPlane,
@@ -209,6 +212,29 @@ def enclosing(bounds: np.ndarray, centre: np.ndarray, diagonal: float) -> list[i
     inside = np.all((bounds[:, 0] <= centre) & (centre <= bounds[:, 1]), axis=1)
     small = np.linalg.norm(bounds[:, 1] - bounds[:, 0], axis=1) <= diagonal
     return [int(k) for k in np.flatnonzero(inside & small)]
+
+
+def holding(scene: Scene, bounds: np.ndarray, centre: np.ndarray, member: int) -> list[int]:
+    """Objects other than `member` whose closed surface holds `centre` (an object's own probe centre):
+    of those whose box holds it, the ones most of INSIDE_PROBES rays from it meet from behind first
+    (the brass rod through the middle of the wooden staircase's glass lamp, whose probe saw only the
+    rod's inside, black). Left out of the probe like a shared probe's `enclosing` objects; an object
+    that merely stands inside the box, as the lamp's candles, stays in view."""
+    out = []
+    dirs = np.array([d for d in np.ndindex(3, 3, 3) if d != (1, 1, 1)], float) - 1.0
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    inside = np.all((bounds[:, 0] <= centre) & (centre <= bounds[:, 1]), axis=1)
+    for k in np.flatnonzero(inside):
+        if k == member or scene.objects[k].role == "transmissive":
+            continue
+        tracer = RayTracer(replace(scene, objects=[scene.objects[k]]))
+        prim, _, _, _ = tracer.intersect_raw(np.repeat(centre[None], len(dirs), axis=0), dirs)
+        hit = prim >= 0
+        back = hit.copy()
+        back[hit] = np.einsum("ij,ij->i", dirs[hit], tracer.tri_ng[prim[hit]]) > 0
+        if 2 * back.sum() > len(dirs):
+            out.append(int(k))
+    return out
 
 
 def box_walls(lo: np.ndarray, hi: np.ndarray) -> list[BoundingPlane]:
@@ -338,6 +364,7 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
         first, around = scene.objects[members[0]], []
         if len(members) == 1:
             centre, planes = first.bounds.mean(axis=0), planes_of[0]
+            around = holding(scene, all_bounds, centre, members[0])
         else:  # the cluster's box: its centre, and its own bounding planes
             box = np.array([scene.objects[k].bounds for k in members])
             lo, hi = box[:, 0].min(axis=0), box[:, 1].max(axis=0)
@@ -355,7 +382,7 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
     def siblings(members: list[int]) -> list[int]:  # a part's probe hides its whole object
         return [k for name in {scene.objects[m].part_of for m in members} for k in parts_of.get(name, ())]
 
-    all_bounds = np.array([o.bounds for o in scene.objects]) if shared else None
+    all_bounds = np.array([o.bounds for o in scene.objects])
     owns = [plan([i], [size], [planes], True) for i, size, planes in own]
     sharing, steps = max(float(rules.sharing), 0.0), 0
     while True:

@@ -314,3 +314,38 @@ def test_python_m_glint_bake_with_worker_processes(tmp_path):
     stats = Bake(out).manifest["statistics"]["cubemaps"]
     assert stats["processes"] == 2 and stats["rendered"] == 24
     assert len(list((out / "cubemaps").glob("*.exr"))) == 24
+
+
+def test_a_probe_leaves_out_what_its_centre_lies_inside(tmp_path):
+    """A glass sphere (radius 0.3 m, thin transmissive) with a brass rod through its middle (radius
+    1 cm, closed) and a candle box standing inside it, off the centre, over a floor: the glass's probe
+    centre lies inside the rod, so the rod is left out of that probe (its inside, black in the diffuse
+    render, would fill the whole map: the wooden staircase's glass lamp read black); the candle,
+    whose box does not hold the centre, stays in view, and so does the floor.
+
+    Bug this catches (tried): without `holding` in plan_cubemaps an object's own probe keeps the rod
+    (hidden: only the glass itself)."""
+    from glint.scenes.generate import add_mesh, box, cylinder, quad, uv_sphere
+    from glint.scenes.gltf_writer import GltfWriter
+
+    w = GltfWriter()
+    paint = w.add_material("Paint", base_color=(0.8, 0.8, 0.8))
+    glass = w.add_material("Glass", base_color=(1, 1, 1), roughness=0.0,
+                           extensions={"KHR_materials_transmission": {"transmissionFactor": 1.0}})
+    brass = w.add_material("Brass", base_color=(0.9, 0.7, 0.3), metallic=1.0, roughness=0.3)
+    w.add_node("Floor", mesh=add_mesh(w, "Floor", quad((-2, 0, 2), (2, 0, 2), (2, 0, -2), (-2, 0, -2)), paint))
+    w.add_node("Shade", mesh=add_mesh(w, "Shade", uv_sphere(0.3, 24, 12).transformed(np.array(
+        [[1, 0, 0, 0], [0, 1, 0, 1.0], [0, 0, 1, 0], [0, 0, 0, 1]], float)), glass))
+    w.add_node("Rod", mesh=add_mesh(w, "Rod", cylinder(0.01, 0.8, 12).transformed(np.array(
+        [[1, 0, 0, 0], [0, 1, 0, 0.6], [0, 0, 1, 0], [0, 0, 0, 1]], float)), brass))
+    w.add_node("Candle", mesh=add_mesh(w, "Candle", box((0.05, 0.1, 0.05), (0.15, 0.9, 0.0)), paint))
+    path = w.write(tmp_path / "lamp.glb")
+    (tmp_path / "lamp.glint.toml").write_text("[sky]\n")
+    scene = load_scene(path)
+    names = [o.name for o in scene.objects]
+    shade, rod = names.index("Shade"), names.index("Rod")
+    lo, hi = scene.objects[rod].bounds
+    assert scene.objects[shade].role == "transmissive" and np.all(lo <= [0, 1, 0]) and np.all([0, 1, 0] <= hi)
+    plan = next(p for p in plan_cubemaps(scene, "x") if shade in p.members)
+    np.testing.assert_allclose(plan.centre, [0.0, 1.0, 0.0], atol=1e-6)
+    assert {names[k] for k in plan.hidden} == {"Shade", "Rod"}
