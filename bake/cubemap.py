@@ -214,26 +214,28 @@ def enclosing(bounds: np.ndarray, centre: np.ndarray, diagonal: float) -> list[i
     return [int(k) for k in np.flatnonzero(inside & small)]
 
 
-def holding(scene: Scene, bounds: np.ndarray, centre: np.ndarray, member: int) -> list[int]:
+def holding(scene: Scene, bounds: np.ndarray, centre: np.ndarray, member: int,
+            tracers: dict[int, RayTracer] | None = None) -> list[int]:
     """Objects other than `member` whose closed surface holds `centre` (an object's own probe centre):
-    of those whose box holds it, the ones most of INSIDE_PROBES rays from it meet from behind first
-    (the brass rod through the middle of the wooden staircase's glass lamp, whose probe saw only the
-    rod's inside, black). Left out of the probe like a shared probe's `enclosing` objects; an object
-    that merely stands inside the box, as the lamp's candles, stays in view."""
-    out = []
+    of those whose box holds it, the ones that most of 26 rays from it (to the corners, edges and faces
+    of a cube around it) meet from behind first (the brass rod through the middle of the wooden
+    staircase's glass lamp, whose probe saw only the rod's inside, black). Left out of the probe like a
+    shared probe's `enclosing` objects; an object that merely stands inside the box, as the lamp's
+    candles, stays in view. `tracers`: each object's own tracer, built once for all probes (the walls
+    of a room hold every centre)."""
+    tracers = {} if tracers is None else tracers
     dirs = np.array([d for d in np.ndindex(3, 3, 3) if d != (1, 1, 1)], float) - 1.0
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    inside = np.all((bounds[:, 0] <= centre) & (centre <= bounds[:, 1]), axis=1)
-    for k in np.flatnonzero(inside):
+    out = []
+    for k in enclosing(bounds, centre, math.inf):
         if k == member or scene.objects[k].role == "transmissive":
             continue
-        tracer = RayTracer(replace(scene, objects=[scene.objects[k]]))
+        if k not in tracers:
+            tracers[k] = RayTracer(replace(scene, objects=[scene.objects[k]]))
+        tracer = tracers[k]
         prim, _, _, _ = tracer.intersect_raw(np.repeat(centre[None], len(dirs), axis=0), dirs)
-        hit = prim >= 0
-        back = hit.copy()
-        back[hit] = np.einsum("ij,ij->i", dirs[hit], tracer.tri_ng[prim[hit]]) > 0
-        if 2 * back.sum() > len(dirs):
-            out.append(int(k))
+        if 2 * tracer.from_behind(prim, dirs).sum() > len(dirs):
+            out.append(k)
     return out
 
 
@@ -364,7 +366,7 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
         first, around = scene.objects[members[0]], []
         if len(members) == 1:
             centre, planes = first.bounds.mean(axis=0), planes_of[0]
-            around = holding(scene, all_bounds, centre, members[0])
+            around = holding(scene, all_bounds, centre, members[0], tracers)
         else:  # the cluster's box: its centre, and its own bounding planes
             box = np.array([scene.objects[k].bounds for k in members])
             lo, hi = box[:, 0].min(axis=0), box[:, 1].max(axis=0)
@@ -383,6 +385,7 @@ def plan_cubemaps(scene: Scene, transport: str, rules: ProbeRules = ProbeRules()
         return [k for name in {scene.objects[m].part_of for m in members} for k in parts_of.get(name, ())]
 
     all_bounds = np.array([o.bounds for o in scene.objects])
+    tracers: dict[int, RayTracer] = {}  # `holding`'s, per object
     owns = [plan([i], [size], [planes], True) for i, size, planes in own]
     sharing, steps = max(float(rules.sharing), 0.0), 0
     while True:

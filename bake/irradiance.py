@@ -86,7 +86,7 @@ _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _R2 = 1.32471795724474602596  # plastic number: R2 sequence x_n = frac(n / g, n / g^2)
-_R2_A = np.array([1.0 / _R2, 1.0 / _R2 ** 2])
+R2_STEP = np.array([1.0 / _R2, 1.0 / _R2 ** 2])  # the R2 sequence's step (bake/sample_points.py too)
 
 
 @dataclass
@@ -470,8 +470,8 @@ def _texel_qmc(texel_key: np.ndarray, samples: int, tag: int, permute: bool,
                     + np.arange(first_sample, first_sample + samples, dtype=np.uint64)[None, :] + np.uint64(tag))
         index = first_sample + np.argsort(keys, axis=1).astype(np.float64)
     shift = _uniform2(texel_key, 1000 + tag)
-    u = np.mod(shift[0][:, None] + index * _R2_A[0], 1.0).ravel()
-    v = np.mod(shift[1][:, None] + index * _R2_A[1], 1.0).ravel()
+    u = np.mod(shift[0][:, None] + index * R2_STEP[0], 1.0).ravel()
+    v = np.mod(shift[1][:, None] + index * R2_STEP[1], 1.0).ravel()
     return u, v
 
 

@@ -32,9 +32,9 @@ estimate stays unbiased: the number is independent of its paths. A rule by the t
 (refine while it is over a target) averages to less than the plain estimator where rare paths carry
 the light: -16 to -90 % at living-room's former fireflies (bench/measure_fireflies.py --bias,
 docs/BAKE.md "Fireflies"). The price: a firefly with no flagged neighbour would stay, so texels whose
-samples are enclosed (bake/sample_points.py `enclosed`: every direction meets a surface within half a
-metre, under a sofa, behind books) get the same number of paths whatever their neighbours: the
-cavities where light comes only through narrow openings. That choice is the geometry's alone, so it
+samples are enclosed (bake/sample_points.py `enclosed`: every direction meets a surface within 8
+texels, half a metre at preview, under a sofa, behind books) get more paths whatever their
+neighbours: the cavities where light comes only through narrow openings. That choice is the geometry's alone, so it
 is unbiased too.
 
 Invalid texels: those whose own hemisphere rays hit the back of single-sided surfaces more
@@ -217,12 +217,11 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     # every side's sample moved out of geometry that covers it (bake/sample_points.py)
     tracer = RayTracer(scene)
     coverage = Coverage(scene, tracer)
-    adjusted = adjust_samples(tracer, points, normals, np.concatenate([sizes, sizes[back]]),
-                              np.concatenate([objects, objects[back]]), coverage)
+    sizes = np.concatenate([sizes, sizes[back]])
+    adjusted = adjust_samples(tracer, points, normals, sizes, np.concatenate([objects, objects[back]]), coverage)
     points = adjusted.points.astype(points.dtype)
     # samples in cavities, where fireflies come from: more paths (module docstring, "Adaptive sampling")
-    closed = (enclosed(tracer, points, normals, np.concatenate([sizes, sizes[back]]), coverage)
-              if settings.adaptive_samples > 1 else np.zeros(n, bool))
+    closed = enclosed(tracer, points, normals, sizes, coverage) if settings.adaptive_samples > 1 else np.zeros(n, bool)
     total = np.zeros((n, 3))
     square = np.zeros(n)
     paths = np.full(n, settings.samples, np.int64)

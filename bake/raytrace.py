@@ -243,6 +243,15 @@ class RayTracer:
         o, d, t = self._prep(origins, directions, tmax)
         return self._embree.run(o, d, dists=t, query="OCCLUDED") != -1
 
+    def from_behind(self, prim, directions) -> np.ndarray:
+        """(N,) bool: rays along `directions` (N, 3) whose hit triangle `prim` (N,; -1: no hit) they
+        meet from behind, against the normal its winding gives (whatever the material's doubleSided)."""
+        prim = np.asarray(prim)
+        hit = prim >= 0
+        out = np.zeros(len(prim), bool)
+        out[hit] = np.einsum("ij,ij->i", np.asarray(directions)[hit], self.tri_ng[prim[hit]]) > 0
+        return out
+
     def point_eps(self, points, normals) -> np.ndarray:
         """Ray offsets for points on surfaces (texels): the eps of the triangle found by a probe ray
         from p + D n along -n (D: the offset of the scene's largest coordinates), at least the

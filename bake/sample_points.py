@@ -40,9 +40,10 @@ deterministically): a leaf card or a fence whose texels are cut out covers nothi
 opaque probe moved or dropped the samples of the floor it stands in.
 
 Enclosed samples (`enclosed`). A sample whose every direction meets a surface within ENCLOSED_REACH
-texel sizes (half a metre at preview), most of them from the front, lies in a cavity: under a sofa, behind the books on a shelf. Its light comes in through the cavity's
-openings, by paths that few of its first paths find, each with a large weight: where a firefly is
-likeliest (all four of living-room's were in such cavities). bake/lightmap.py gives such texels
+texel sizes (half a metre at preview), most of them from the front, lies in a cavity: under a sofa,
+behind the books on a shelf. Its light comes in through the cavity's openings, by paths that few of
+its first paths find, each with a large weight: where a firefly is likeliest (all four of
+living-room's were in such cavities). bake/lightmap.py gives such texels
 more paths. The test is a fixed set of ENCLOSED_PROBES cosine-distributed rays around n, a function of
 the geometry alone: the number of paths a texel gets does not depend on its own paths, so its estimate
 stays unbiased.
@@ -61,6 +62,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from glint.bake.alpha import Coverage
+from glint.bake.irradiance import R2_STEP
 from glint.bake.raytrace import RayTracer
 from glint.bake.scatter import frame
 
@@ -103,26 +105,29 @@ def _first_hits(tracer: RayTracer, coverage: Coverage | None, origins, dirs, rea
     return prim, t
 
 
-def _back_hits(tracer: RayTracer, coverage: Coverage | None, origins: np.ndarray, dirs: np.ndarray,
-               reach: np.ndarray):
-    """Probes from origins (K, 3) along dirs (K, P, 3) up to reach (K,): (K, P) distance to the first
-    hit when it is a back face, inf otherwise; (K, P) the triangle hit (-1: none)."""
+def _probe(tracer: RayTracer, coverage: Coverage | None, origins: np.ndarray, dirs: np.ndarray, reach: np.ndarray):
+    """Probes from origins (K, 3) along dirs (K, P, 3) up to reach (K,): (K, P) each the triangle hit
+    (-1: none), its distance (inf: none) and whether the probe meets it from behind."""
     K, P = dirs.shape[:2]
     d = dirs.reshape(-1, 3)
     prim, t = _first_hits(tracer, coverage, np.repeat(origins, P, axis=0), d, np.repeat(reach, P))
-    hit = prim >= 0
-    back = np.zeros(len(prim), bool)
-    back[hit] = np.einsum("ij,ij->i", d[hit], tracer.tri_ng[prim[hit]]) > 0
-    return np.where(back, t.astype(np.float64), np.inf).reshape(K, P), prim.reshape(K, P)
+    t = np.where(prim >= 0, t.astype(np.float64), np.inf)
+    return prim.reshape(K, P), t.reshape(K, P), tracer.from_behind(prim, d).reshape(K, P)
+
+
+def _back_hits(tracer: RayTracer, coverage: Coverage | None, origins: np.ndarray, dirs: np.ndarray,
+               reach: np.ndarray):
+    """`_probe`'s distance to the first hit when it is a back face, inf otherwise; and the triangle hit."""
+    prim, t, behind = _probe(tracer, coverage, origins, dirs, reach)
+    return np.where(behind, t, np.inf), prim
 
 
 def _in_slot(tracer: RayTracer, coverage: Coverage | None, origins: np.ndarray, dirs: np.ndarray,
              width: np.ndarray) -> np.ndarray:
     """(K,) bool: some pair of opposite probes (dirs (K, PROBES, 3), the second half opposite the
     first) meets surfaces, front or back, less than `width` (K,) apart in all."""
-    K, P = dirs.shape[:2]
-    prim, t = _first_hits(tracer, coverage, np.repeat(origins, P, axis=0), dirs.reshape(-1, 3), np.repeat(width, P))
-    t = np.where(prim >= 0, t.astype(np.float64), np.inf).reshape(K, P)
+    _, t, _ = _probe(tracer, coverage, origins, dirs, width)
+    P = t.shape[1]
     return (t[:, :P // 2] + t[:, P // 2:] < width[:, None]).any(axis=1)
 
 
@@ -227,8 +232,7 @@ def enclosed(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sizes: 
     p = np.asarray(points, np.float64).reshape(-1, 3)
     n = np.asarray(normals, np.float64).reshape(-1, 3)
     reach = ENCLOSED_REACH * np.asarray(sizes, np.float64).reshape(-1)
-    g = 1.32471795724474602596  # the plastic number: R2 points frac(i / g, i / g^2)
-    u = (0.5 + np.arange(ENCLOSED_PROBES)[:, None] * np.array([1.0 / g, 1.0 / g ** 2])) % 1.0
+    u = (0.5 + np.arange(ENCLOSED_PROBES)[:, None] * R2_STEP) % 1.0
     radius, phi = np.sqrt(u[:, 0]), 2.0 * np.pi * u[:, 1]
     local = np.stack([radius * np.cos(phi), radius * np.sin(phi), np.sqrt(1.0 - u[:, 0])], axis=1)
     out = np.zeros(len(p), bool)
@@ -236,14 +240,8 @@ def enclosed(tracer: RayTracer, points: np.ndarray, normals: np.ndarray, sizes: 
         q, m = p[i:i + BATCH], n[i:i + BATCH]
         t, b = frame(m)
         dirs = local[None, :, 0:1] * t[:, None] + local[None, :, 1:2] * b[:, None] + local[None, :, 2:3] * m[:, None]
-        origins = q + tracer.point_eps(q, m)[:, None] * m
-        d = dirs.reshape(-1, 3)
-        prim, _ = _first_hits(tracer, coverage, np.repeat(origins, ENCLOSED_PROBES, axis=0), d,
-                              np.repeat(reach[i:i + BATCH], ENCLOSED_PROBES))
+        prim, _, behind = _probe(tracer, coverage, q + tracer.point_eps(q, m)[:, None] * m, dirs, reach[i:i + BATCH])
         hit = prim >= 0
-        front = np.zeros(len(d), bool)
-        front[hit] = np.einsum("ij,ij->i", d[hit], tracer.tri_ng[prim[hit]]) < 0
-        hit, front = hit.reshape(-1, ENCLOSED_PROBES), front.reshape(-1, ENCLOSED_PROBES)
         # the inside of a closed mesh (a solid's back side) is seen from behind: not a cavity anyone sees
-        out[i:i + BATCH] = hit.all(axis=1) & (2 * front.sum(axis=1) >= ENCLOSED_PROBES)
+        out[i:i + BATCH] = hit.all(axis=1) & (2 * (hit & ~behind).sum(axis=1) >= ENCLOSED_PROBES)
     return out
