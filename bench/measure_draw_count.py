@@ -37,6 +37,25 @@ def bake_for(name: str, out: Path) -> Path:
     return bake_dir
 
 
+def alternate(ctx, render: dict, blocks: int = BLOCKS, frames: int = FRAMES, warmup: int = WARMUP) -> dict:
+    """Wall times (ms) of `render`'s callables (each draws one frame), the sides alternating in
+    `blocks` blocks of `frames` timed frames after `warmup` untimed ones, every other block in the
+    other order, each frame followed by glFinish: {key: [ms, ...]}."""
+    keys = list(render)
+    times = {k: [] for k in keys}
+    for block in range(blocks):
+        for k in keys if block % 2 == 0 else keys[::-1]:
+            for _ in range(warmup):
+                render[k]()
+                ctx.finish()
+            for _ in range(frames):
+                t = time.perf_counter()
+                render[k]()
+                ctx.finish()
+                times[k].append((time.perf_counter() - t) * 1e3)
+    return times
+
+
 def main(argv=None) -> int:
     import moderngl
 
@@ -59,19 +78,12 @@ def main(argv=None) -> int:
             if not r.draws.can_count:
                 print(f"{name}: the driver offers no glMultiDrawElementsIndirectCount")
                 continue
-            times = {True: [], False: []}
-            for block in range(BLOCKS):
-                for counted in (True, False) if block % 2 == 0 else (False, True):
-                    r.draws.indirect_count = counted
-                    for _ in range(WARMUP):
-                        r.render(camera, width, height)
-                        ctx.finish()
-                    for _ in range(FRAMES):
-                        t = time.perf_counter()
-                        r.render(camera, width, height)
-                        ctx.finish()
-                        times[counted].append(time.perf_counter() - t)
-            a, b = (statistics.median(times[k]) * 1e3 for k in (True, False))
+            def frame(counted: bool, r=r, camera=camera) -> None:
+                r.draws.indirect_count = counted
+                r.render(camera, width, height)
+
+            times = alternate(ctx, {True: lambda: frame(True), False: lambda: frame(False)})
+            a, b = (statistics.median(times[k]) for k in (True, False))
             print(f"{name}: counted {a:.2f} ms, uncounted {b:.2f} ms, ratio {a / b:.3f} "
                   f"(objects drawn {r.stats['objects_drawn']} of {len(r.scene.objects)})", flush=True)
     return 0

@@ -119,11 +119,19 @@ def add_capture_options(p: argparse.ArgumentParser) -> None:
     specular.add_argument("--mirror-budget", metavar="N",
                           help=f"mirror passes per frame at most, for planar reflectors (section 4.5; default "
                                f"{DEFAULT_BUDGET}; 0: none, planar objects show their diffuse part)")
+    image.add_argument("--gbuffer", choices=("auto", "raster", "visibility"), default="auto",
+                       help="how the G-buffer is made: rasterised with every surface value per fragment, or a "
+                            "visibility buffer (ids per pixel, the surface worked out once per pixel in compute); "
+                            "auto (default): the visibility buffer on a GPU, the raster pass on a software "
+                            "renderer, where it is faster (docs/VIEWER.md); the same image either way")
     image.add_argument("--stats", type=Path, metavar="FILE.json",
                        help="write time per pass and what was drawn and skipped as JSON")
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
     add_edit_option(p.add_argument_group("edits (the sidecar's keys, docs/SCENES.md)"))
     p.set_defaults(run=cmd_capture)
+
+
+GBUFFER_CHOICES = {"auto": None, "raster": False, "visibility": True}  # --gbuffer -> Renderer(visibility=...)
 
 
 # -- argument checks (all before the bake, so mistakes cost nothing) ------------------------------
@@ -235,7 +243,8 @@ def cmd_capture(args) -> int:
         budget = {} if parsed["mirror_budget"] is None else {"mirror_budget": parsed["mirror_budget"]}
         renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
                             lobe_samples=parsed["lobe_samples"], weights=args.weights,
-                            walkthrough=args.walkthrough_method, max_frames=max(converge, 1), **budget)
+                            walkthrough=args.walkthrough_method, max_frames=max(converge, 1),
+                            visibility=GBUFFER_CHOICES[args.gbuffer], **budget)
         renderer.check_size(width, height)
         mode = "converge" if converge else "walkthrough"
         started = time.perf_counter()
@@ -281,6 +290,7 @@ def _write_stats(path: Path, args, report, renderer, frames: list) -> None:
         "bake": report.status,
         "device": s["device"],
         "timing": s["timing"],
+        "gbuffer": s["gbuffer"],
         "size": s["size"],
         "render_size": s["render_size"],
         "supersample": s["supersample"],

@@ -11,8 +11,8 @@ layout(location = MIRROR_POSITION_LOCATION) out vec4 out_position;  // rgba32f: 
 layout(location = MIRROR_NORMAL_LOCATION) out vec4 out_normal;    // rgba16f: xyz unit normal on the seen side (0 where nothing was drawn)
 
 void main() {
-    RasterSurface s = raster_surface();
-    vec3 L = s.dark ? vec3(0.0) : s.diffuse + constant_emission(materials[object_material()]);
+    RasterSurface s = fragment_surface();
+    vec3 L = s.dark ? vec3(0.0) : s.diffuse + constant_emission(materials[object_material(v_object)]);
     out_radiance = vec4(clean_half_radiance(L), 1.0);
     out_position = vec4(v_position, 1.0);
     out_normal = vec4(s.mesh_normal, 0.0);  // the surface's, not a normal map's: the projection's tangent plane

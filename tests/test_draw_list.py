@@ -132,7 +132,8 @@ def write_tiles(path) -> list[tuple[str, np.ndarray, np.ndarray]]:
     return tiles
 
 
-def test_interleaved_textured_materials_each_draw_their_own(ctx, tmp_path):
+@pytest.mark.parametrize("visibility", [False, True], ids=["raster", "visibility-buffer"])
+def test_interleaved_textured_materials_each_draw_their_own(ctx, tmp_path, visibility):
     """Each of 12 up-facing quads under a constant sky shows kd x texture x SKY at its centre
     (E = pi SKY exactly: nothing occludes the sky, so every bake path returns SKY), within 1.5 %
     (half-float light maps and textures). The materials alternate textured / untextured, so the
@@ -142,7 +143,10 @@ def test_interleaved_textured_materials_each_draw_their_own(ctx, tmp_path):
     every batch drawn with the last batch's textures: 5 textured tiles off by 33x to 54x; the
     material taken from object 0 (scene_objects[0].info.x): 11 tiles off by 0.58 to 61x; a
     batch's first command off by one (an object skipped, another drawn with a neighbour's
-    textures): 7 tiles off by 9x to 76x."""
+    textures): 7 tiles off by 9x to 76x. Through the visibility buffer (viewer/passes/gbuffer.py), whose
+    resolve runs batch by batch over the pixels shaders/visibility_classify.comp listed: every batch
+    resolved with the last batch's textures: 5 tiles off by 33x to 54x; the pixels of batch b
+    read from batch b + 1's list: 11 tiles off by 1x to 76x."""
     path = tmp_path / "tiles.glb"
     tiles = write_tiles(path)
     scene = load_scene(path)
@@ -150,11 +154,12 @@ def test_interleaved_textured_materials_each_draw_their_own(ctx, tmp_path):
     bake = Bake(tmp_path / "tiles.bake")
     size = (320, 240)
     camera = ViewCamera(eye=(0.0, 6.0, 0.0), forward=(0.0, -1.0, 0.0), up=(0.0, 0.0, -1.0), yfov=math.radians(50))
-    with Renderer(ctx, bake) as r:
+    with Renderer(ctx, bake, visibility=visibility) as r:
         r.render(camera, *size)
         image = r.read_linear()
         stats = r.stats
         assert len(r.draws.batches) == 7  # 6 textured materials and the untextured ones
+        assert r.gbuffer.visibility == visibility
     assert stats["objects_drawn"] == 12 and stats["triangles"] == 24
     view_proj = camera.view_projection(size[0] / size[1])
     errors = {}

@@ -118,6 +118,7 @@ class DrawList:
         self.regions = 0
         self.command_buffer = self.state_buffer = self.hidden_buffer = None
         self.compact_buffer = self.count_buffer = None
+        self._batch_of_object = None  # made by the first `batch_of_object`
         self._checked: set = set()  # regions whose counted multi-draw has been checked for GL errors
         self._hidden: list = []   # per region: the hidden set its slice of hidden_buffer holds
         self._records: dict = {}  # region -> the record, once read back this frame
@@ -212,19 +213,28 @@ class DrawList:
         vao = scene.vertex_array(program)
         if not self._counting():
             for first, count, textures in self.batches:
-                for unit, texture in zip(TEXTURE_UNITS, textures):
-                    texture.use(unit)
+                bind_textures(textures)
                 vao.render_indirect(self.command_buffer, moderngl.TRIANGLES, count=count, first=first_command + first)
             return
         first_count = region * len(self.batches)
         check = region not in self._checked  # the first counted draw of each region, once per allocation
         with self._gl.checked("draw with glMultiDrawElementsIndirectCount") if check else _unchecked():
             for b, (first, count, textures) in enumerate(self.batches):
-                for unit, texture in zip(TEXTURE_UNITS, textures):
-                    texture.use(unit)
+                bind_textures(textures)
                 self._gl.multi_draw_indirect_count(program, vao, self.compact_buffer, first_command + first,
                                                    self.count_buffer, 4 * (first_count + b), count)
         self._checked.add(region)
+
+    def batch_of_object(self) -> moderngl.Buffer:
+        """(objects,) int32 on the GPU: the texture batch of each object (`batches`), for passes that
+        work batch by batch after the draw (shaders/gbuffer_resolve.comp). Made on first use."""
+        if self._batch_of_object is None:
+            table = np.zeros(max(self.count, 1), np.int32)
+            for b, (first, count, _) in enumerate(self.batches):
+                table[self.order[first:first + count]] = b
+            with self._gl.checked(f"upload the texture batch of {self.count} objects"):
+                self._batch_of_object = self.ctx.buffer(table.tobytes())
+        return self._batch_of_object
 
     def _counting(self) -> bool:
         """Whether draws are packed and counted now; the first time, compact.comp, the batch table and
@@ -289,12 +299,18 @@ class DrawList:
 
     def release(self) -> None:
         for buf in (self.command_buffer, self.state_buffer, self.hidden_buffer, self.order_buffer,
-                    self.compact_buffer, self.count_buffer, self.batch_buffer):
+                    self.compact_buffer, self.count_buffer, self.batch_buffer, self._batch_of_object):
             if buf is not None:
                 buf.release()
         self.cull_program.release()
         if self.compact_program is not None:
             self.compact_program.release()
+
+
+def bind_textures(textures: tuple) -> None:
+    """A batch's textures on the raster surface's units (shaders/raster_surface.glsl)."""
+    for unit, texture in zip(TEXTURE_UNITS, textures):
+        texture.use(unit)
 
 
 @contextmanager

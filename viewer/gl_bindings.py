@@ -43,6 +43,11 @@ LOBE_ALBEDO_TABLE_BINDING = 20  # lobe_albedo.glsl: the table's values, layer by
 DRAW_BATCH_BINDING = 21     # compact.comp: per texture batch its first command and count
 DRAW_COMPACT_BINDING = 22   # compact.comp: the drawn commands, packed per batch
 DRAW_COUNT_BINDING = 23     # compact.comp: per batch how many it packed (the draws' count)
+VERTEX_BINDING = 24         # gbuffer_resolve.comp: the scene's vertex buffer (viewer/gpu_meshes.py VERTEX_DTYPE)
+INDEX_BINDING = 25          # gbuffer_resolve.comp: its index buffer
+DRAW_BATCH_OF_OBJECT_BINDING = 26  # gbuffer_resolve.comp: per object its texture batch (viewer/draw_list.py)
+VISIBILITY_TALLY_BINDING = 27   # visibility_classify.comp: per batch its pixels' count, offset, dispatch
+VISIBILITY_PIXELS_BINDING = 28  # visibility_classify.comp: the pixels, batch after batch
 
 # -- raster passes over the bake's meshes (raster_surface.glsl: G-buffer and mirror passes) -----------
 LIGHTMAP_UNIT = 0
@@ -54,6 +59,12 @@ ANISOTROPY_TEXTURE_UNIT = 5  # its anisotropy texture (MAT_ANISOTROPY_TEXTURE)
 # gbuffer.frag's outputs = the G-buffer framebuffer's colour attachments, in this order
 GB_SHADE_LOCATION = 0
 GB_FRAME_LOCATION = 1
+VISIBILITY_LOCATION = 0     # visibility.frag's one output (the visibility buffer's framebuffer)
+# gbuffer_resolve.comp: the visibility buffer in (units past the raster textures'), the G-buffer out
+VISIBILITY_UNIT = 6
+VISIBILITY_DEPTH_UNIT = 7
+GB_SHADE_IMAGE = 0
+GB_FRAME_IMAGE = 1
 # mirror.frag's and mirror_sky.frag's outputs = colour attachments of a mirror-buffer framebuffer
 MIRROR_RADIANCE_LOCATION = 0
 MIRROR_POSITION_LOCATION = 1

@@ -30,6 +30,17 @@ VERTEX_DTYPE = np.dtype([("position", "<f4", 3), ("normal", "<f4", 3), ("tangent
 VERTEX_FORMAT = "3f 3f 4f 2f 2f 1i 1i 3f"
 VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_uv", "in_lm_page", "in_object",
                      "in_color")
+
+
+def vertex_defines() -> dict:
+    """The vertex layout as shaders/gbuffer_resolve.comp reads the vertex buffer, in 32-bit words:
+    VERTEX_WORDS per vertex, VERTEX_<FIELD> the word offset of each field of VERTEX_DTYPE."""
+    out = {"VERTEX_WORDS": VERTEX_DTYPE.itemsize // 4}
+    for name, (dtype, offset) in VERTEX_DTYPE.fields.items():
+        out[f"VERTEX_{name.upper()}"] = offset // 4
+    return out
+
+
 # Per object its levels of detail, finest first (viewer/lod.py; std430, shaders/cull.comp): first
 # index in the scene's index buffer and index count of each; count 0 = no such level.
 OBJECT_LOD_DTYPE = np.dtype([("first", "<i4", LOD_LEVELS), ("count", "<i4", LOD_LEVELS)])

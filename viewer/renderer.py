@@ -44,7 +44,7 @@ import numpy as np
 from glint.core.errors import GlintError
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.draw_list import DrawList
-from glint.viewer.gl import check_context, describe, max_texture_size
+from glint.viewer.gl import check_context, describe, max_texture_size, software_renderer
 from glint.viewer.gpu_scene import GpuScene, shader_defines
 from glint.viewer.passes.gbuffer import GBufferPass
 from glint.viewer.passes.mirror import MirrorPasses, mirror_defines
@@ -83,7 +83,7 @@ class Renderer:
                  samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
                  blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto",
                  footprint: str = "moment", timing: bool = True, small_objects: float = 0.0,
-                 display: bool = True, lod: float = 0.0):
+                 display: bool = True, lod: float = 0.0, visibility: bool | None = None):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "albedo" (the default), "eq4.25" or "eq4.24" (the walkthrough's estimator); walkthrough: a key of
         WALKTHROUGH_METHODS (anything but the defaults is a comparison method, above); samples_per_frame, max_frames, blend_frames: the still camera's
@@ -99,7 +99,9 @@ class Renderer:
         map (no display_texture or read_srgb: for renderers read with read_linear only); lod: > 0
         uploads levels of detail (viewer/lod.py) and draws each object in the G-buffer at the
         coarsest that keeps `lod` triangles per G-buffer pixel it covers (0: every object whole;
-        the bake's cube-map renders, whose texels are larger than most triangles)."""
+        the bake's cube-map renders, whose texels are larger than most triangles); visibility: the
+        G-buffer through a visibility buffer (viewer/passes/gbuffer.py; None: unless the renderer is
+        a software one, where it is no faster: docs/VIEWER.md; never with `lod`)."""
         check_context(ctx)
         if walkthrough not in WALKTHROUGH_METHODS:
             raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
@@ -118,7 +120,9 @@ class Renderer:
         mirror_unit = scene_units(self.scene)["MIRROR_RADIANCE_UNIT"]
         defines = {**shader_defines(), **mirror_defines(mirror_unit)}
         self.draws = DrawList(ctx, self.scene, defines)
-        self.gbuffer = GBufferPass(ctx, self.scene, self.draws, defines)
+        if visibility is None:
+            visibility = not software_renderer(ctx)
+        self.gbuffer = GBufferPass(ctx, self.scene, self.draws, defines, visibility=visibility)
         self.mirror = MirrorPasses(ctx, self.scene, bake, self.draws, defines, budget=int(mirror_budget))
         self.mirror.set_units(mirror_unit)
         self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
@@ -396,6 +400,7 @@ class Renderer:
             "triangles": drawn.get("triangles", 0),
             "triangles_in_scene": self.scene.triangles,
             "lightmap_format": "RGBA16F" if self.scene.lightmap_dtype == "f2" else "RGBA32F",
+            "gbuffer": "visibility" if self.gbuffer.visibility else "raster",
             "skipped": skipped,
             "specular": specular,
             "mirror": mirror,

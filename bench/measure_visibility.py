@@ -1,0 +1,78 @@
+"""The G-buffer through a visibility buffer against the raster G-buffer (viewer/passes/gbuffer.py,
+issue 27): the same frames, how close and how fast.
+
+    python3 -m glint.bench.measure_visibility [--scenes living-room many-1000 ...] [--size 640x360]
+                                              [--out DIR]
+
+Per scene and camera, two renderers in one process, one each way, drawing walkthrough frames
+alternately in blocks (a machine's changing load falls on both): medians of the G-buffer pass's time
+(viewer/timing.py: glFinish-bracketed on a software renderer, timer queries on a GPU) and of the whole
+frame's wall time (render() and glFinish). Then one frame each way compared pixel by pixel (linear
+radiance): the largest relative difference |a - b| / max(|a|, |b|, 1e-6) of any channel, the pixels
+over 1e-3, and whether the depth is the same. Scenes: built-in names, or many-N (N boxes:
+bench/measure_draw_count.py); draft bakes are made in DIR when missing.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+from pathlib import Path
+
+
+def compare(a, b) -> tuple[float, int]:
+    """(largest relative difference of any channel, pixels where it is over 1e-3) of two images."""
+    import numpy as np
+
+    rel = np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-6)
+    worst = rel.max(axis=-1)
+    return float(worst.max()), int((worst > 1e-3).sum())
+
+
+def main(argv=None) -> int:
+    import moderngl
+    import numpy as np
+
+    from glint.bench.measure_draw_count import BLOCKS, FRAMES, alternate, bake_for
+    from glint.core.bake_dir import Bake
+    from glint.viewer.camera import ViewCamera
+    from glint.viewer.gl import describe
+    from glint.viewer.renderer import Renderer
+
+    p = argparse.ArgumentParser(prog="python3 -m glint.bench.measure_visibility", description=__doc__.splitlines()[0])
+    p.add_argument("--scenes", nargs="+", default=["cornell-box", "living-room", "material-classes", "planar-classes",
+                                                   "many-1000"])
+    p.add_argument("--size", default="640x360")
+    p.add_argument("--out", type=Path, default=Path("visibility"))
+    args = p.parse_args(argv)
+    width, height = (int(v) for v in args.size.split("x"))
+    args.out.mkdir(parents=True, exist_ok=True)
+    ctx = moderngl.create_standalone_context(backend="egl", require=430)
+    print(f"{describe(ctx)}, {width}x{height}, walkthrough frames, medians of {BLOCKS * FRAMES} per side")
+    print("| scene, camera | G-buffer ms: raster / visibility | frame ms: raster / visibility | frame ratio "
+          "| largest relative difference | pixels over 1e-3 | same depth |")
+    print("|---|---|---|---:|---:|---:|---|")
+    for name in args.scenes:
+        bake = Bake(bake_for(name, args.out))
+        for entry in bake.model.cameras:
+            camera = ViewCamera.from_manifest(entry)
+            renderers = {vis: Renderer(ctx, bake, visibility=vis) for vis in (False, True)}
+            try:
+                frame = alternate(ctx, {vis: (lambda r=r, camera=camera: r.render(camera, width, height))
+                                        for vis, r in renderers.items()})
+                gbuffer = {vis: r.timer.median_ms.get("gbuffer", float("nan")) for vis, r in renderers.items()}
+                images = {vis: r.read_linear() for vis, r in renderers.items()}
+                depth = {vis: np.frombuffer(r.gbuffer.targets["depth"].read(), np.float32) for vis, r in renderers.items()}
+                worst, over = compare(images[False], images[True])
+                a, b = (statistics.median(frame[k]) for k in (False, True))
+                print(f"| {name}, {entry.name} | {gbuffer[False]:.2f} / {gbuffer[True]:.2f} | {a:.2f} / {b:.2f} "
+                      f"| {b / a:.3f} | {worst:.2e} | {over} of {width * height} "
+                      f"| {'yes' if np.array_equal(depth[False], depth[True]) else 'no'} |", flush=True)
+            finally:
+                for r in renderers.values():
+                    r.release()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
