@@ -3,7 +3,7 @@
 // - a fragment of a raster pass (the G-buffer's gbuffer.frag, the mirror passes' mirror.frag; the
 //   vertex side is gbuffer.vert): `fragment_surface_input()` from the interpolated varyings, with the
 //   screen-space derivatives and facing of the fragment;
-// - a pixel of the visibility buffer (gbuffer_resolve.comp, with SURFACE_FROM_IDS defined): its
+// - a pixel of the visibility buffer (visibility_resolve.comp, with SURFACE_FROM_IDS defined): its
 //   triangle's vertices interpolated there, the derivatives those of the same triangle one pixel over
 //   (visibility.glsl). Texture look-ups then take their level from those derivatives (textureGrad)
 //   where a fragment takes the hardware's own (texture()).

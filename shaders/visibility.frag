@@ -1,8 +1,9 @@
-// The visibility buffer's raster pass (viewer/passes/gbuffer.py with `visibility`), fragments: depth
+// A visibility buffer's raster pass (viewer/passes/visibility.py: the G-buffer's, a mirror pass's), fragments: depth
 // and, per pixel, the object, triangle and facing that cover it (visibility.glsl) -- no light map, no
 // texture but the coverage test's. MASK and BLEND materials drop the fragments the G-buffer's own
 // raster pass drops (raster_surface.glsl coverage_discards), so both leave the same depth.
-// Vertex side: gbuffer.vert. gbuffer_resolve.comp turns the ids into the G-buffer.
+// Vertex side: gbuffer.vert (with MIRROR_CLIP in a mirror pass). visibility_resolve.comp turns the ids
+// into what the pass's own fragment shader would have written (viewer/passes/visibility.py).
 
 #include "raster_surface.glsl"
 #include "visibility.glsl"

@@ -1,6 +1,6 @@
 // The visibility buffer's per-pixel ids (Burns and Hunt 2013, "The Visibility Buffer: A Cache-Friendly
 // Approach to Deferred Shading"): one RG32UI texel per pixel, written by visibility.frag, read by
-// gbuffer_resolve.comp. Where the depth is 1 (the clear value) nothing was drawn and the ids are
+// visibility_resolve.comp. Where the depth is 1 (the clear value) nothing was drawn and the ids are
 // undefined.
 //   x: the object's index in the bake manifest
 //   y: bits 0-30: the triangle's index within the object's range of the index buffer

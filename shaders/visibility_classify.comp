@@ -1,8 +1,7 @@
-// The visibility buffer's pixels sorted by texture batch (viewer/passes/gbuffer.py `_classify`), so that
-// the resolve (gbuffer_resolve.comp) runs once per batch over that batch's
+// The visibility buffer's pixels sorted by texture batch (viewer/passes/visibility.py), so that
+// the resolve (visibility_resolve.comp) runs once per batch over that batch's
 // pixels only, each dispatch sized on the GPU (glDispatchComputeIndirect): a scene of many textured
-// materials costs no more dispatches over the whole screen than a scene of one (and on llvmpipe the lists
-// made even one batch's resolve 6 times faster than a dispatch over the screen in 8 x 8 groups). Three programs, one
+// materials costs no more dispatches over the whole screen than a scene of one. Three programs, one
 // define each, run in this order:
 //   CLASSIFY_COUNT    per pixel drawn: counts[its batch] += 1
 //   CLASSIFY_PLAN     one invocation: offsets = exclusive prefix sum of counts; per batch the

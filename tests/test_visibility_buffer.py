@@ -19,12 +19,13 @@ from conftest import FAST
 
 from glint.bake.gltf_loader import load_scene
 from glint.bake.settings import resolve_settings
-from glint.core.constants import GB_DARK_BIT
 from glint.core.bake_dir import Bake
+from glint.core.constants import GB_DARK_BIT
 from glint.scenes.generate import LAMBERT
 from glint.scenes.gltf_writer import GltfWriter, quad
 from glint.services import bake_scene
 from glint.viewer.camera import ViewCamera
+from glint.viewer.gl import GL
 from glint.viewer.passes.gbuffer import oct_decode
 from glint.viewer.renderer import Renderer
 
@@ -51,7 +52,8 @@ def write_scene(path):
     """An open yard under a constant sky, seen low over its floor: the floor tiled 12 x with a checker;
     a metal wall behind it with a normal map (lobes: a tangent frame, normal-mapped flag); a leaf
     (MASK, alpha 0 outside a disc) in front of it; a quad with a clamped NEAREST checker; a quad
-    with vertex colours; a double-sided and a single-sided panel, each turned away from the camera."""
+    with vertex colours; a double-sided and a single-sided panel, each turned away from the camera;
+    behind the camera a checker backdrop, which the wall's mirror pass shows."""
     w = GltfWriter()
     floor = w.add_material("Floor", base_color=(1, 1, 1), base_color_texture=checker(), extensions=LAMBERT)
     wall = w.add_material("Wall", base_color=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.35)
@@ -84,6 +86,9 @@ def write_scene(path):
     colors = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]], float)
     w.add_node("Coloured", mesh=w.add_mesh("Coloured", p, i, plain, normals=np.tile((0, 0, 1), (4, 1)),
                                            colors=colors))
+    p, i = quad((0, 1.2, 1.9), (-4, 0, 0), (0, 1.2, 0))  # behind the camera, facing the wall: its mirror's
+    w.add_node("Backdrop", mesh=w.add_mesh("Backdrop", p, i, floor, normals=np.tile((0, 0, -1), (4, 1)),
+                                           uvs=(p[:, [0, 1]] + (4.0, 0.0)) * 2.0))
     for name, material, x in (("Two-sided", two, -0.5), ("One-sided", one, 0.9)):
         p, i = quad((x, 1.5, -3.5), (0, 0.3, 0), (0.3, 0, 0))  # front face along -z: seen from behind
         w.add_node(name, mesh=w.add_mesh(name, p, i, material, normals=np.tile((0, 0, -1), (4, 1))))
@@ -112,25 +117,32 @@ def gbuffer_of(ctx, bake, visibility: bool) -> dict:
         words = {name: np.frombuffer(t[name].read(alignment=1), np.uint32).reshape(h, w, 4).copy()
                  for name in ("shade", "frame")}
         picks = [r.gbuffer.pick(x, y) for x in range(3, w, 17) for y in range(2, h, 13)]
+        assert [p.names for p in r.mirror.plan_.passes] == [["Wall"]]
+        mirror = {t: r.mirror.read(0, t) for t in ("radiance", "position", "normal")}
         return {**words, "depth": np.frombuffer(t["depth"].read(alignment=1), np.float32).reshape(h, w).copy(),
-                "image": r.read_linear(), "batches": len(r.draws.batches), "picks": picks}
+                "image": r.read_linear(), "batches": len(r.draws.batches), "picks": picks, "mirror": mirror}
 
 
 def test_visibility_buffer_resolves_the_raster_gbuffer(ctx, yard):
-    """Both ways on the yard (192 x 128): the same depth bit for bit and the same ids and flags on
-    every pixel; the diffuse radiance kd/pi E x textures within 1e-3 relative (the resolve's
-    barycentrics round differently from the rasteriser's: measured 1.6e-4 at most in the living
-    room); the shading normal and tangent within 2e-4 rad (one step of the octahedral snorm16
-    encoding is ~1e-4); the metallic-roughness word within 2/65535; and the shaded image within 1e-3
-    relative on 99.9 % of the pixels (where the normal rounds to the other snorm16 step, a sharp lobe
-    may move more).
+    """Both ways on the yard (192 x 128), the raster renderer first (so state it leaves behind meets the
+    second): the same depth bit for bit and the same ids, flags and picks on every pixel; the shading
+    normal and tangent within 2e-4 rad (one step of the octahedral snorm16 encoding is ~1e-4); the
+    anisotropy strength and metallic-roughness words within 2/65535; the wall's mirror pass the same
+    texels drawn, position within 1e-4 m, normal within 2e-3 (half floats). Diffuse radiance kd/pi E
+    x textures, the mirror's radiance and the shaded image: relative difference of a channel |a - b| /
+    max(|a|, |b|) at most 1e-2, over 1e-3 on at most 1 % of the pixels. Measured: diffuse at most
+    1.96e-3 apart, 0.18 % of the drawn pixels over 1e-3, all on the checker floor far away (its uv
+    derivatives are differences of nearly equal numbers; the trilinear filter turns their rounding
+    into a slightly other mix of two MIP levels); the image likewise (30 pixels).
 
     Deliberate bugs this catches (tried): the texture derivatives as each pixel's own forward
-    difference instead of its 2 x 2 quad's (a MIP level unlike the hardware's): the checker floor's
-    diffuse off by up to 38 % on 1,208 pixels; the facing bit ignored (every pixel front-facing): the
-    panels seen from behind change flags and radiance; dFdy's step taken along x: the floor off by
-    up to 45 %; the light-map page from the first vertex instead of the provoking (last) one: no
-    effect here (an object's pages agree per triangle), so it is not claimed."""
+    difference instead of its 2 x 2 quad's (a MIP level unlike llvmpipe's): diffuse off by up to
+    39 %, 27 % of the pixels over 1e-3; the facing bit ignored (every pixel front-facing): the dark
+    flag of the single-sided panel's back lost; dFdy's step taken along x: off by up to 98 %; a
+    mirror pass's depth clear left to the depth mask a released renderer left off (moderngl's parked
+    framebuffer without a depth buffer): the whole first mirror layer taken as drawn. The light-map
+    page from the first vertex instead of the provoking (last) one changes nothing here (an
+    object's vertices share their page), so it is not claimed."""
     raster, vis = gbuffer_of(ctx, yard, False), gbuffer_of(ctx, yard, True)
     assert raster["batches"] >= 5
     drawn = raster["depth"] < 1.0
@@ -156,6 +168,17 @@ def test_visibility_buffer_resolves_the_raster_gbuffer(ctx, yard):
     mr = [np.stack([g["frame"][..., 3] & 0xFFFF, g["frame"][..., 3] >> 16], -1).astype(np.int64) for g in (raster, vis)]
     assert np.abs(mr[0] - mr[1])[drawn].max() <= 2
 
+    ma, mb = raster["mirror"], vis["mirror"]  # the wall's mirror pass
+    seen = np.linalg.norm(ma["normal"][..., :3], axis=-1) > 0.5
+    assert np.array_equal(seen, np.linalg.norm(mb["normal"][..., :3], axis=-1) > 0.5) and seen.sum() > 200
+    rel = (np.abs(ma["radiance"] - mb["radiance"]) / np.maximum(np.maximum(np.abs(ma["radiance"]),
+                                                                           np.abs(mb["radiance"])), 1e-6))[seen]
+    rel = rel[..., :3].max(axis=-1)
+    print(f"mirror radiance: largest relative difference {rel.max():.2e}, {(rel > 1e-3).mean() * 100:.2f} % over 1e-3")
+    assert rel.max() <= 1e-2 and (rel > 1e-3).mean() <= 0.01
+    assert np.abs(ma["position"] - mb["position"])[seen].max() <= 1e-4
+    assert np.abs(ma["normal"] - mb["normal"])[seen].max() <= 2e-3
+
     ia, ib = raster["image"], vis["image"]
     rel = (np.abs(ia - ib) / np.maximum(np.maximum(np.abs(ia), np.abs(ib)), 1e-6)).max(axis=-1)
     print(f"image: largest relative difference {rel.max():.2e}, {(rel > 1e-3).sum()} pixels over 1e-3")
@@ -172,3 +195,23 @@ def test_scene_with_levels_of_detail_keeps_the_raster_pass(ctx, yard):
         assert not r.gbuffer.visibility
     with Renderer(ctx, yard) as r:
         assert r.gbuffer.visibility is False
+
+
+def test_frames_and_releases_leave_no_gl_error(ctx, yard):
+    """Renderers made, drawn at two sizes (targets remade) and released one after the other, either
+    way, with a mirror pass, leave no GL error flag set, nor does a framebuffer made afterwards
+    (glGetError after each: an error no check ties to its cause is one that goes unnoticed).
+
+    Deliberate bugs this catches (tried): the mirror layers' framebuffers wrapped by moderngl's
+    detect_framebuffer (as before this test): GL_INVALID_OPERATION from its attachment queries; a
+    bound framebuffer released without parking moderngl's binding first (viewer/gl.py
+    `release_framebuffer`): GL_INVALID_OPERATION at the next framebuffer moderngl makes."""
+    gl = GL(ctx)
+    gl.errors()
+    for visibility in (False, True, False):
+        with Renderer(ctx, yard, visibility=visibility) as r:
+            r.render(CAMERA, *SIZE)
+            r.render(CAMERA, 96, 64)
+            assert gl.errors() == [], visibility
+    ctx.framebuffer([ctx.texture((4, 4), 4)]).release()
+    assert gl.errors() == []

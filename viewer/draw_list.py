@@ -227,7 +227,7 @@ class DrawList:
 
     def batch_of_object(self) -> moderngl.Buffer:
         """(objects,) int32 on the GPU: the texture batch of each object (`batches`), for passes that
-        work batch by batch after the draw (shaders/gbuffer_resolve.comp). Made on first use."""
+        work batch by batch after the draw (shaders/visibility_resolve.comp). Made on first use."""
         if self._batch_of_object is None:
             table = np.zeros(max(self.count, 1), np.int32)
             for b, (first, count, _) in enumerate(self.batches):

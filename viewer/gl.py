@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import weakref
 from contextlib import contextmanager
 
 import moderngl
@@ -73,6 +74,24 @@ def describe(ctx: moderngl.Context) -> str:
     """'renderer (vendor, GL version)', for statistics and messages."""
     info = ctx.info
     return f"{info.get('GL_RENDERER', '?')} ({info.get('GL_VENDOR', '?')}, GL {info.get('GL_VERSION', '?')})"
+
+
+_PARKED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()  # context -> its 1 x 1 framebuffer
+
+
+def release_framebuffer(ctx: moderngl.Context, fbo: moderngl.Framebuffer | None) -> None:
+    """Release a moderngl framebuffer, binding a 1 x 1 one kept for the purpose first where `fbo` is
+    the bound one: moderngl rebinds its last bound framebuffer after it makes a new one, and binding a
+    deleted name fails (GL_INVALID_OPERATION, which no later check would tie to its cause)."""
+    if fbo is None:
+        return
+    if ctx.fbo is fbo:
+        parked = _PARKED.get(ctx)
+        if parked is None:  # made while `fbo` still exists, so moderngl's rebinding succeeds
+            # with a depth buffer: moderngl's use() sets glDepthMask from it, and clears after it obey the mask
+            parked = _PARKED[ctx] = ctx.framebuffer(ctx.renderbuffer((1, 1)), ctx.depth_renderbuffer((1, 1)))
+        parked.use()
+    fbo.release()
 
 
 def software_renderer(ctx: moderngl.Context) -> bool:
@@ -162,6 +181,8 @@ class GL:
         self.BindFramebuffer = fn("glBindFramebuffer", None, u, u)
         self.FramebufferTextureLayer = fn("glFramebufferTextureLayer", None, u, u, u, i, i)
         self.FramebufferRenderbuffer = fn("glFramebufferRenderbuffer", None, u, u, u, u)
+        self.FramebufferTexture = fn("glFramebufferTexture", None, u, u, u, i)
+        self.Viewport = fn("glViewport", None, i, i, i, i)
         self.CheckFramebufferStatus = fn("glCheckFramebufferStatus", u, u)
         self.DrawBuffers = fn("glDrawBuffers", None, i, pu)
         self.ClearBufferfv = fn("glClearBufferfv", None, u, i, ctypes.POINTER(ctypes.c_float))

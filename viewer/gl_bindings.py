@@ -43,9 +43,9 @@ LOBE_ALBEDO_TABLE_BINDING = 20  # lobe_albedo.glsl: the table's values, layer by
 DRAW_BATCH_BINDING = 21     # compact.comp: per texture batch its first command and count
 DRAW_COMPACT_BINDING = 22   # compact.comp: the drawn commands, packed per batch
 DRAW_COUNT_BINDING = 23     # compact.comp: per batch how many it packed (the draws' count)
-VERTEX_BINDING = 24         # gbuffer_resolve.comp: the scene's vertex buffer (viewer/gpu_meshes.py VERTEX_DTYPE)
-INDEX_BINDING = 25          # gbuffer_resolve.comp: its index buffer
-DRAW_BATCH_OF_OBJECT_BINDING = 26  # gbuffer_resolve.comp: per object its texture batch (viewer/draw_list.py)
+VERTEX_BINDING = 24         # visibility_resolve.comp: the scene's vertex buffer (viewer/gpu_meshes.py VERTEX_DTYPE)
+INDEX_BINDING = 25          # visibility_resolve.comp: its index buffer
+DRAW_BATCH_OF_OBJECT_BINDING = 26  # visibility_resolve.comp: per object its texture batch (viewer/draw_list.py)
 VISIBILITY_TALLY_BINDING = 27   # visibility_classify.comp: per batch its pixels' count, offset, dispatch
 VISIBILITY_PIXELS_BINDING = 28  # visibility_classify.comp: the pixels, batch after batch
 
@@ -60,11 +60,14 @@ ANISOTROPY_TEXTURE_UNIT = 5  # its anisotropy texture (MAT_ANISOTROPY_TEXTURE)
 GB_SHADE_LOCATION = 0
 GB_FRAME_LOCATION = 1
 VISIBILITY_LOCATION = 0     # visibility.frag's one output (the visibility buffer's framebuffer)
-# gbuffer_resolve.comp: the visibility buffer in (units past the raster textures'), the G-buffer out
+# visibility_resolve.comp: the visibility buffer in (units past the raster textures'), the G-buffer ...
 VISIBILITY_UNIT = 6
 VISIBILITY_DEPTH_UNIT = 7
 GB_SHADE_IMAGE = 0
 GB_FRAME_IMAGE = 1
+MIRROR_RADIANCE_IMAGE = 0   # ... or a mirror pass's targets (mirror.frag's, as images)
+MIRROR_POSITION_IMAGE = 1
+MIRROR_NORMAL_IMAGE = 2
 # mirror.frag's and mirror_sky.frag's outputs = colour attachments of a mirror-buffer framebuffer
 MIRROR_RADIANCE_LOCATION = 0
 MIRROR_POSITION_LOCATION = 1

@@ -33,7 +33,7 @@ VERTEX_ATTRIBUTES = ("in_position", "in_normal", "in_tangent", "in_uv", "in_lm_u
 
 
 def vertex_defines() -> dict:
-    """The vertex layout as shaders/gbuffer_resolve.comp reads the vertex buffer, in 32-bit words:
+    """The vertex layout as shaders/visibility_resolve.comp reads the vertex buffer, in 32-bit words:
     VERTEX_WORDS per vertex, VERTEX_<FIELD> the word offset of each field of VERTEX_DTYPE."""
     out = {"VERTEX_WORDS": VERTEX_DTYPE.itemsize // 4}
     for name, (dtype, offset) in VERTEX_DTYPE.fields.items():

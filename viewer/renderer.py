@@ -123,7 +123,8 @@ class Renderer:
         if visibility is None:
             visibility = not software_renderer(ctx)
         self.gbuffer = GBufferPass(ctx, self.scene, self.draws, defines, visibility=visibility)
-        self.mirror = MirrorPasses(ctx, self.scene, bake, self.draws, defines, budget=int(mirror_budget))
+        self.mirror = MirrorPasses(ctx, self.scene, bake, self.draws, defines, budget=int(mirror_budget),
+                                   visibility=self.gbuffer.visibility)
         self.mirror.set_units(mirror_unit)
         self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
         self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror,

@@ -9,21 +9,14 @@ single-sided materials, as in Mitsuba).
 Two ways to the same targets (`visibility`):
 - raster: shaders/gbuffer.frag writes them, fragment by fragment (every fragment that passes the
   depth test at the time does the whole surface's work: light map, textures, normal map);
-- a visibility buffer (Burns and Hunt 2013): the raster pass writes depth and one RG32UI texel of
-  ids (object, triangle, facing: shaders/visibility.frag, visibility.glsl), then
-  shaders/gbuffer_resolve.comp, once per pixel and texture batch, rebuilds each pixel's surface from
-  its triangle and writes the targets as images. A GPU's raster back end writes 8 bytes per fragment
-  instead of 32 and each pixel's surface is worked out once (issue 27: on an H200 the two RGBA32UI
-  targets alone cost 2.6 ms at 1920x1080, depth and RG32UI 0.8 ms). The same surface
-  (shaders/raster_surface.glsl) either way; only the texture coordinates' derivatives, which pick the
-  textures' MIP levels, are the triangle's own one pixel over instead of the quad's differences.
-  Scenes drawn at a level of detail (the bake's cube-map renders) keep the raster way: the resolve
-  finds a pixel's triangle in its object's own range of the index buffer.
-  The resolve binds one texture batch's textures at a time (viewer/draw_list.py):
-  shaders/visibility_classify.comp first lists the drawn pixels batch by batch and sizes each batch's
-  dispatch on the GPU, so every pixel is resolved once whatever the number of textured materials
-  (on llvmpipe a resolve over the whole screen in 8 x 8 groups, even of a one-batch scene, cost
-  3.7-4.6 times the listing and the lists' resolve together; docs/VIEWER.md).
+- a visibility buffer (viewer/passes/visibility.py): the raster pass writes depth and 8 bytes of ids
+  per pixel, a compute pass works out each pixel's surface once, from its triangle, and writes the
+  targets as images. A GPU's raster back end writes 8 bytes per fragment instead of 32 (issue 27: on
+  an H200 the two RGBA32UI targets alone cost 2.6 ms at 1920x1080, depth and RG32UI 0.8 ms). The
+  same surface (shaders/raster_surface.glsl) either way; only the texture coordinates' derivatives,
+  which pick the textures' MIP levels, are the triangle's own at the pixel's quad instead of the
+  hardware's differences. Scenes drawn at a level of detail (the bake's cube-map renders) keep the
+  raster way: the resolve finds a pixel's triangle in its object's own range of the index buffer.
 """
 from __future__ import annotations
 
@@ -33,28 +26,12 @@ import moderngl
 import numpy as np
 
 from glint.core.constants import GB_DARK_BIT, GB_ID_BITS
-from glint.viewer.camera import ViewCamera, gl_bytes
-from glint.viewer.draw_list import bind_textures
-from glint.viewer.gl import GL
-from glint.viewer.gl_bindings import (
-    DRAW_BATCH_OF_OBJECT_BINDING,
-    GB_FRAME_IMAGE,
-    GB_FRAME_LOCATION,
-    GB_SHADE_IMAGE,
-    GB_SHADE_LOCATION,
-    INDEX_BINDING,
-    LIGHTMAP_UNIT,
-    VERTEX_BINDING,
-    VISIBILITY_DEPTH_UNIT,
-    VISIBILITY_LOCATION,
-    VISIBILITY_PIXELS_BINDING,
-    VISIBILITY_TALLY_BINDING,
-    VISIBILITY_UNIT,
-)
-from glint.viewer.gpu_meshes import vertex_defines
-from glint.viewer.shader_source import compute_program, dispatch, raster_program, set_uniforms
+from glint.viewer.camera import ViewCamera
+from glint.viewer.gl import GL, release_framebuffer
+from glint.viewer.gl_bindings import GB_FRAME_IMAGE, GB_FRAME_LOCATION, GB_SHADE_IMAGE, GB_SHADE_LOCATION
+from glint.viewer.passes.visibility import VisibilityResolve
+from glint.viewer.shader_source import raster_program, set_uniforms
 
-RESOLVE_GROUP = 64  # gbuffer_resolve.comp's work-group size when it resolves a batch's list of pixels
 # The colour targets by fragment-output location (gbuffer.frag, shaders/gbuffer_layout.glsl).
 COLOUR_TARGETS = {GB_SHADE_LOCATION: "shade", GB_FRAME_LOCATION: "frame"}
 
@@ -101,21 +78,8 @@ class GBufferPass:
         self.scene = scene
         self.draws = draws
         self.visibility = bool(visibility) and not draws.lod
-        self.resolve = self.tally = self.pixels = None
-        self.classify: dict = {}  # "COUNT", "PLAN", "SCATTER": visibility_classify.comp's programs
-        self._resolved = False    # a resolve has run (and was checked for GL errors)
-        if self.visibility:
-            self.program = raster_program(ctx, "gbuffer.vert", "visibility.frag", defines)
-            batches = len(draws.batches)
-            lists = {"RESOLVE_GROUP": RESOLVE_GROUP, "VISIBILITY_BATCHES": max(batches, 1)}
-            self.resolve = compute_program(ctx, "gbuffer_resolve.comp",
-                                           {**defines, **vertex_defines(), **lists, "SURFACE_FROM_IDS": 1})
-            self.classify = {step: compute_program(ctx, "visibility_classify.comp", {**defines, **lists, f"CLASSIFY_{step}": 1})
-                             for step in ("COUNT", "PLAN", "SCATTER")}
-            with GL(ctx).checked(f"allocate the visibility buffer's tally of {batches} batches"):
-                self.tally = ctx.buffer(reserve=6 * max(batches, 1) * 4)  # visibility_classify.comp VisibilityTally
-        else:
-            self.program = raster_program(ctx, "gbuffer.vert", "gbuffer.frag", defines)
+        self.ids = VisibilityResolve(ctx, scene, draws, defines, "RESOLVE_GBUFFER") if self.visibility else None
+        self.program = self.ids.program if self.ids else raster_program(ctx, "gbuffer.vert", "gbuffer.frag", defines)
         self.size: tuple[int, int] | None = None
         self.fbo = None        # what the raster pass draws into (its depth: the occlusion queries')
         self.read_fbo = None   # the targets with the depth (`pick`)
@@ -130,20 +94,15 @@ class GBufferPass:
             t = {"shade": ctx.texture(size, 4, dtype="u4"),
                  "frame": ctx.texture(size, 4, dtype="u4"),
                  "depth": ctx.depth_texture(size)}
-            if self.visibility:
-                t["ids"] = ctx.texture(size, 2, dtype="u4")
-            if self.visibility:
-                if self.pixels is not None:
-                    self.pixels.release()
-                self.pixels = ctx.buffer(reserve=4 * size[0] * size[1])  # a word per pixel
+            if self.ids:
+                self.ids.resize(size)
         for tex in t.values():
             tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # read with texelFetch; integer targets need it
             tex.repeat_x = tex.repeat_y = False
         t["depth"].compare_func = ""  # read raw depth values, not shadow comparisons
         self.targets = t
         self.read_fbo = ctx.framebuffer([t[COLOUR_TARGETS[k]] for k in range(len(COLOUR_TARGETS))], t["depth"])
-        self.fbo = ctx.framebuffer([t["ids"]], t["depth"]) if self.visibility else self.read_fbo
-        assert VISIBILITY_LOCATION == 0  # the one attachment of the visibility buffer's framebuffer
+        self.fbo = self.ids.framebuffer(t["depth"]) if self.ids else self.read_fbo
         self.size = size
 
     def run(self, camera: ViewCamera, aspect: float, hidden=(), min_radius_ndc: float = 0.0,
@@ -167,50 +126,10 @@ class GBufferPass:
         view_proj = camera.view_projection(aspect)
         self.draws.draw(self.program, view_proj, region=self.REGION, hidden=hidden,
                         min_radius_ndc=min_radius_ndc, detail=detail)
-        if self.visibility:
-            if self._resolved:
-                self._resolve(camera, view_proj)
-            else:  # the first time, with its GL errors checked (glGetError stalls: not every frame)
-                with GL(self.ctx).checked("resolve the visibility buffer"):
-                    self._resolve(camera, view_proj)
-                self._resolved = True
-
-    def _resolve(self, camera: ViewCamera, view_proj: np.ndarray) -> None:
-        """The targets from the visibility buffer (shaders/gbuffer_resolve.comp), batch by batch."""
-        ctx, scene, t = self.ctx, self.scene, self.targets
-        t["ids"].use(VISIBILITY_UNIT)
-        t["depth"].use(VISIBILITY_DEPTH_UNIT)
-        t["shade"].bind_to_image(GB_SHADE_IMAGE, read=False, write=True)
-        t["frame"].bind_to_image(GB_FRAME_IMAGE, read=False, write=True)
-        scene.meshes.vertex_buffer.bind_to_storage_buffer(VERTEX_BINDING)
-        scene.meshes.index_buffer.bind_to_storage_buffer(INDEX_BINDING)
-        self.draws.batch_of_object().bind_to_storage_buffer(DRAW_BATCH_OF_OBJECT_BINDING)
-        scene.object_buffer.bind_to_storage_buffer(scene.object_binding)
-        scene.bind_materials()
-        scene.lightmaps.use(LIGHTMAP_UNIT)
-        self.resolve["view_proj"].write(gl_bytes(view_proj))
-        set_uniforms(self.resolve, eye=tuple(map(float, camera.eye)))
-        batches = self.draws.batches
-        self._classify()
-        for b, (_, _, textures) in enumerate(batches):
-            bind_textures(textures)
-            set_uniforms(self.resolve, batch=b)
-            self.resolve.run_indirect(self.tally, offset=4 * 3 * (len(batches) + b))  # VisibilityTally.dispatch[3 b]
-        ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT | moderngl.TEXTURE_FETCH_BARRIER_BIT)
-
-    def _classify(self) -> None:
-        """The drawn pixels listed batch by batch and each batch's dispatch (shaders/visibility_classify.comp;
-        the visibility buffer, depth and batch table are bound)."""
-        ctx = self.ctx
-        self.tally.clear()
-        self.tally.bind_to_storage_buffer(VISIBILITY_TALLY_BINDING)
-        self.pixels.bind_to_storage_buffer(VISIBILITY_PIXELS_BINDING)
-        dispatch(self.classify["COUNT"], *self.size)
-        ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
-        self.classify["PLAN"].run(1)
-        ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
-        dispatch(self.classify["SCATTER"], *self.size)
-        ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.COMMAND_BARRIER_BIT)
+        if self.ids:
+            self.targets["shade"].bind_to_image(GB_SHADE_IMAGE, read=False, write=True)
+            self.targets["frame"].bind_to_image(GB_FRAME_IMAGE, read=False, write=True)
+            self.ids.run(self.targets["depth"], view_proj, camera.eye)
 
     def pick(self, x: int, y: int) -> tuple[int, int] | None:
         """(object, material) drawn at G-buffer pixel (x, y) (GL rows: y = 0 at the bottom) of the
@@ -230,16 +149,11 @@ class GBufferPass:
 
     def _release_targets(self) -> None:
         for fbo in {id(f): f for f in (self.fbo, self.read_fbo) if f is not None}.values():
-            if self.ctx.fbo is fbo:  # deleting a bound framebuffer binds none (GL); say so
-                self.ctx.fbo = None
-            fbo.release()
+            release_framebuffer(self.ctx, fbo)
         for tex in self.targets.values():
             tex.release()
         self.fbo, self.read_fbo, self.targets = None, None, {}
 
     def release(self) -> None:
         self._release_targets()
-        self.program.release()
-        for obj in (self.resolve, self.tally, self.pixels, *self.classify.values()):
-            if obj is not None:
-                obj.release()
+        (self.ids or self.program).release()  # the visibility buffer's raster program is its own

@@ -63,13 +63,17 @@ from glint.viewer.gl import (
     GL_QUERY_RESULT,
     GL_QUERY_RESULT_AVAILABLE,
     GL_RENDERBUFFER,
+    release_framebuffer,
 )
 from glint.viewer.gl_bindings import (
     MIP_SOURCE_IMAGE,
     MIP_TARGET_IMAGE,
+    MIRROR_NORMAL_IMAGE,
     MIRROR_NORMAL_LOCATION,
     MIRROR_OBJECT_BINDING,
+    MIRROR_POSITION_IMAGE,
     MIRROR_POSITION_LOCATION,
+    MIRROR_RADIANCE_IMAGE,
     MIRROR_RADIANCE_LOCATION,
     MIRROR_SLOT_BINDING,
     SKY_UNIT,
@@ -78,6 +82,7 @@ from glint.viewer.gl_bindings import (
 from glint.viewer.gpu_sky import SKY_MODES
 from glint.viewer.mirror_camera import group_coplanar
 from glint.viewer.passes.gbuffer import GBufferPass
+from glint.viewer.passes.visibility import VisibilityResolve
 from glint.viewer.reflectors import (
     DEFAULT_BUDGET,
     MirrorPlan,
@@ -139,9 +144,12 @@ def manifest_reflectors(bake) -> list[tuple[int, Reflector]]:
 class MirrorPasses:
     name = "mirror"
 
-    def __init__(self, ctx: moderngl.Context, scene, bake, draws, defines: dict, budget: int = DEFAULT_BUDGET):
+    def __init__(self, ctx: moderngl.Context, scene, bake, draws, defines: dict, budget: int = DEFAULT_BUDGET,
+                 visibility: bool = False):
         """draws: the scene's viewer/draw_list.py DrawList (pass k draws into its region
-        GBufferPass.REGION + 1 + k)."""
+        GBufferPass.REGION + 1 + k); visibility: each pass through a visibility buffer
+        (viewer/passes/visibility.py: ids and depth rasterised, then the targets resolved per pixel in
+        compute), as the G-buffer on a GPU."""
         if not (isinstance(budget, (int, np.integer)) and budget >= 0):
             raise ValueError(f"the mirror-pass budget must be a whole number of at least 0 (got {budget!r})")
         self.ctx = ctx
@@ -160,12 +168,16 @@ class MirrorPasses:
         self.size: tuple[int, int] | None = None
         self.targets: dict[str, moderngl.TextureArray] = {}
         self.depth: moderngl.Renderbuffer | None = None
-        self._fbos: list[tuple[int, moderngl.Framebuffer]] = []
+        self._fbos: list[int] = []  # per layer its framebuffer's GL name (bound with gl.BindFramebuffer)
         self._queries: dict[str, int] = {}   # reflector name -> GL query object
         self._pending: set[str] = set()      # queries issued and not yet read
         self._drawn: list[dict] = []
         self._gl = GL(ctx)
-        self.raster = raster_program(ctx, "gbuffer.vert", "mirror.frag", {**defines, "MIRROR_CLIP": 1})
+        self.ids = (VisibilityResolve(ctx, scene, draws, {**defines, "MIRROR_CLIP": 1}, "RESOLVE_MIRROR")
+                    if visibility and self.layers else None)
+        self.raster = self.ids.program if self.ids else raster_program(ctx, "gbuffer.vert", "mirror.frag",
+                                                                       {**defines, "MIRROR_CLIP": 1})
+        self._ids_fbo: moderngl.Framebuffer | None = None  # the visibility buffer's: ids + the shared depth
         self.occluder = raster_program(ctx, "gbuffer.vert", "occlusion.frag", defines)
         self.sky = raster_program(ctx, "blit.vert", "mirror_sky.frag", {**defines, "FAR_PLANE": 1})
         self.sky_vao = ctx.vertex_array(self.sky, [])
@@ -211,7 +223,12 @@ class MirrorPasses:
         gl = self._gl
         with gl.checked(f"allocate {self.layers} mirror buffers of {size[0]} x {size[1]}"):
             self.targets = self._arrays(size, self.layers)
-            self.depth = self.ctx.depth_renderbuffer(size)
+            # a visibility buffer's classification reads the depth: a texture then
+            self.depth = self.ctx.depth_texture(size) if self.ids else self.ctx.depth_renderbuffer(size)
+            if self.ids:
+                self.depth.compare_func = ""
+                self.ids.resize(size)
+                self._ids_fbo = self.ids.framebuffer(self.depth)
         for layer in range(self.layers):
             name = ctypes.c_uint(0)
             with gl.checked(f"make the framebuffer of mirror-buffer layer {layer} ({size[0]} x {size[1]})"):
@@ -220,15 +237,16 @@ class MirrorPasses:
                 for target, location in LOCATIONS.items():
                     gl.FramebufferTextureLayer(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0 + location,
                                                self.targets[target].glo, 0, layer)
-                gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, self.depth.glo)
+                if self.ids:
+                    gl.FramebufferTexture(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, self.depth.glo, 0)
+                else:
+                    gl.FramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, self.depth.glo)
                 buffers = (ctypes.c_uint * len(LOCATIONS))(*(GL_COLOR_ATTACHMENT0 + k for k in range(len(LOCATIONS))))
                 gl.DrawBuffers(len(LOCATIONS), buffers)
                 status = gl.CheckFramebufferStatus(GL_FRAMEBUFFER)
             if status != GL_FRAMEBUFFER_COMPLETE:
                 raise RuntimeError(f"mirror-buffer framebuffer incomplete (status 0x{status:x})")
-            fbo = self.ctx.detect_framebuffer(name.value)  # moderngl's handle, for use() and viewport
-            fbo.viewport = (0, 0, *size)
-            self._fbos.append((name.value, fbo))
+            self._fbos.append(name.value)
         self.size = size
 
     # -- per frame ---------------------------------------------------------------------------------
@@ -273,9 +291,8 @@ class MirrorPasses:
 
     def _draw_pass(self, k: int, p, camera: ViewCamera, aspect: float, hidden: set) -> dict:
         ctx, gl = self.ctx, self._gl
-        glo, fbo = self._fbos[k]
-        fbo.use()
-        gl.BindFramebuffer(GL_FRAMEBUFFER, glo)
+        glo = self._fbos[k]
+        self._bind_layer(glo)
         zero = (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0)
         sky_map = self.scene.sky_mode == SKY_MODES["SKY_MAP"]
         # A constant sky (or none) is the clear colour; a sky map is drawn after the scene.
@@ -296,6 +313,9 @@ class MirrorPasses:
                      clip_plane=tuple(map(float, mirror.clip_plane())))
         members = {self.object_of[r.name] for r in p.members}
         region = GBufferPass.REGION + 1 + k
+        if self.ids:  # the targets were cleared above; the raster pass writes ids and depth
+            self._ids_fbo.viewport = (0, 0, *self.size)
+            self._ids_fbo.use()
         try:
             # geometry wholly behind the mirror is culled (it would be clipped anyway), the reflectors
             # of this plane left out
@@ -304,9 +324,24 @@ class MirrorPasses:
         finally:
             gl.Disable(GL_CLIP_DISTANCE0)
             ctx.front_face = "ccw"
+        if self.ids:  # mirror.frag's targets from the ids, at layer k (viewer/passes/visibility.py)
+            for target, unit in (("radiance", MIRROR_RADIANCE_IMAGE), ("position", MIRROR_POSITION_IMAGE),
+                                 ("normal", MIRROR_NORMAL_IMAGE)):
+                self.targets[target].bind_to_image(unit, read=False, write=True, level=0)
+            self.ids.run(self.depth, view_proj, mirror.eye, layer=k)
+            self._bind_layer(glo)
         if sky_map:
             self._draw_sky(mirror, camera, aspect, p.guard)
         return {"reflectors": p.names, "region": region}
+
+    def _bind_layer(self, glo: int) -> None:
+        """A layer's framebuffer and viewport, by their GL names: moderngl's handle of a framebuffer it did
+        not make (detect_framebuffer) queries attachments no layer has (GL_INVALID_OPERATION), and one
+        left bound in moderngl's state after its deletion breaks moderngl's next framebuffer."""
+        self._gl.BindFramebuffer(GL_FRAMEBUFFER, glo)
+        self._gl.Viewport(0, 0, *self.size)
+        self._gl.DepthMask(1)  # what moderngl's use() would set: the clears obey it
+        self._gl.ColorMask(1, 1, 1, 1)
 
     def _draw_sky(self, mirror, camera: ViewCamera, aspect: float, guard: float = 1.0) -> None:
         """The sky on the texels the scene left at the clear depth (the pass's framebuffer is bound);
@@ -442,9 +477,9 @@ class MirrorPasses:
     # -- cleaning up -------------------------------------------------------------------------------
     def _release_targets(self) -> None:
         gl = self._gl
-        for glo, fbo in self._fbos:
-            if self.ctx.fbo is fbo:
-                self.ctx.fbo = None
+        release_framebuffer(self.ctx, self._ids_fbo)
+        self._ids_fbo = None
+        for glo in self._fbos:
             gl.DeleteFramebuffers(1, ctypes.byref(ctypes.c_uint(glo)))
         self._fbos = []
         for tex in self.targets.values():
@@ -463,7 +498,7 @@ class MirrorPasses:
         self._queries.clear()
         for tex in self._dummy.values():
             tex.release()
-        for obj in (self.sky_vao, self.raster, self.occluder, self.sky, self.mips, self.slot_buffer,
+        for obj in (self.sky_vao, self.ids or self.raster, self.occluder, self.sky, self.mips, self.slot_buffer,
                     self.object_buffer):
             obj.release()
 

@@ -1,16 +1,18 @@
-// The visibility buffer's resolve (viewer/passes/gbuffer.py with `visibility`): per pixel, the G-buffer
-// that gbuffer.frag would have written there (gbuffer_layout.glsl), from the triangle the raster pass
-// left in the visibility buffer (visibility.glsl): its three vertices fetched from the scene's vertex
-// and index buffers, interpolated at the pixel's centre with perspective-correct barycentrics, and the
-// texture coordinates' derivatives taken as the change to the next pixel right and up on the same
-// triangle (what a fragment's dFdx / dFdy measure over its 2 x 2 quad). Defined SURFACE_FROM_IDS,
-// raster_surface.glsl builds the same surface from them.
+// A visibility buffer's resolve (viewer/passes/visibility.py): per pixel, what the raster pass's own
+// fragment shader would have written there -- with RESOLVE_GBUFFER the G-buffer's two words
+// (gbuffer.frag, gbuffer_layout.glsl), with RESOLVE_MIRROR a mirror buffer's radiance, position and
+// normal at layer `layer` (mirror.frag) -- from the triangle the raster pass left in the visibility
+// buffer (visibility.glsl): its three vertices fetched from the scene's vertex and index buffers,
+// interpolated at the pixel's centre with perspective-correct barycentrics, and the texture
+// coordinates' derivatives those of the pixel's 2 x 2 quad on the same triangle (what a fragment's
+// dFdx / dFdy measure there). Defined SURFACE_FROM_IDS, raster_surface.glsl builds the same surface
+// from them.
 //
 // One dispatch per texture batch (viewer/draw_list.py), the batch's textures bound, over the batch's
 // own pixels, which visibility_classify.comp listed (the dispatch's size is on the GPU).
 //
 // Reads: the visibility buffer, the pixel lists, the vertex and index buffers, the object and material
-// tables, the light maps and the batch's textures. Writes: the G-buffer's two targets, as images.
+// tables, the light maps and the batch's textures. Writes: the owner's images.
 
 #include "raster_surface.glsl"
 #include "gbuffer_layout.glsl"
@@ -23,8 +25,15 @@ layout(std430, binding = VISIBILITY_TALLY_BINDING) readonly buffer VisibilityTal
 };
 layout(std430, binding = VISIBILITY_PIXELS_BINDING) readonly buffer VisibilityPixels { uint pixels[]; };
 layout(binding = VISIBILITY_UNIT) uniform usampler2D visibility_ids;
+#ifdef RESOLVE_MIRROR
+layout(binding = MIRROR_RADIANCE_IMAGE, rgba16f) writeonly uniform image2DArray mirror_radiance_image;
+layout(binding = MIRROR_POSITION_IMAGE, rgba32f) writeonly uniform image2DArray mirror_position_image;
+layout(binding = MIRROR_NORMAL_IMAGE, rgba16f) writeonly uniform image2DArray mirror_normal_image;
+uniform int layer;  // the pass's slot
+#else
 layout(binding = GB_SHADE_IMAGE, rgba32ui) writeonly uniform uimage2D gb_shade;
 layout(binding = GB_FRAME_IMAGE, rgba32ui) writeonly uniform uimage2D gb_frame;
+#endif
 
 // The scene's vertex buffer as 32-bit words (VERTEX_WORDS per vertex, fields at the VERTEX_* word
 // offsets: viewer/gpu_meshes.py VERTEX_DTYPE) and its index buffer of global vertex indices.
@@ -115,6 +124,14 @@ void main() {
     i.face_normal = cross(p1 - p0, p2 - p0);
 
     RasterSurface s = raster_surface(i);
+#ifdef RESOLVE_MIRROR
+    // mirror.frag's: diffuse + emission towards the mirrored eye, the unmirrored point, the mesh normal
+    vec3 L = s.dark ? vec3(0.0) : s.diffuse + constant_emission(materials[object_material(object)]);
+    imageStore(mirror_radiance_image, ivec3(pixel, layer), vec4(clean_half_radiance(L), 1.0));
+    imageStore(mirror_position_image, ivec3(pixel, layer), vec4(i.position, 1.0));
+    imageStore(mirror_normal_image, ivec3(pixel, layer), vec4(s.mesh_normal, 0.0));
+#else
     imageStore(gb_shade, pixel, uvec4(floatBitsToUint(s.diffuse), gb_pack_ids(object_material(object), object)));
     imageStore(gb_frame, pixel, gb_pack_frame(s.normal, s.tangent, s.bitangent_sign, s.dark, s.normal_mapped, s.mr));
+#endif
 }
