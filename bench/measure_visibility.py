@@ -4,10 +4,10 @@ issue 27): the same frames, how close and how fast.
     python3 -m glint.bench.measure_visibility [--scenes living-room many-1000 ...] [--size 640x360]
                                               [--out DIR]
 
-Per scene and camera, two renderers in one process, one each way, drawing walkthrough frames
-alternately in blocks (a machine's changing load falls on both): medians of the G-buffer pass's time
-(viewer/timing.py: glFinish-bracketed on a software renderer, timer queries on a GPU) and of the whole
-frame's wall time (render() and glFinish). Then one frame each way compared pixel by pixel (linear
+Per scene and camera, two renderers in one process, one each way (the G-buffer and the mirror passes),
+drawing walkthrough frames alternately in blocks (a machine's changing load falls on both): medians of
+the G-buffer's and the mirror passes' times (viewer/timing.py: glFinish-bracketed on a software
+renderer, timer queries on a GPU) and of the whole frame's wall time (render() and glFinish). Then one frame each way compared pixel by pixel (linear
 radiance): the largest relative difference |a - b| / max(|a|, |b|, 1e-6) of any channel, the pixels
 over 1e-3, and whether the depth is the same. Scenes: built-in names, or many-N (N boxes:
 bench/measure_draw_count.py); draft bakes are made in DIR when missing.
@@ -49,9 +49,9 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     ctx = moderngl.create_standalone_context(backend="egl", require=430)
     print(f"{describe(ctx)}, {width}x{height}, walkthrough frames, medians of {BLOCKS * FRAMES} per side")
-    print("| scene, camera | G-buffer ms: raster / visibility | frame ms: raster / visibility | frame ratio "
-          "| largest relative difference | pixels over 1e-3 | same depth |")
-    print("|---|---|---|---:|---:|---:|---|")
+    print("| scene, camera | G-buffer ms: raster / visibility | mirror passes ms: raster / visibility "
+          "| frame ms: raster / visibility | frame ratio | largest relative difference | pixels over 1e-3 | same depth |")
+    print("|---|---|---|---|---:|---:|---:|---|")
     for name in args.scenes:
         bake = Bake(bake_for(name, args.out))
         for entry in bake.model.cameras:
@@ -60,12 +60,15 @@ def main(argv=None) -> int:
             try:
                 frame = alternate(ctx, {vis: (lambda r=r, camera=camera: r.render(camera, width, height))
                                         for vis, r in renderers.items()})
-                gbuffer = {vis: r.timer.median_ms.get("gbuffer", float("nan")) for vis, r in renderers.items()}
+                passes = {vis: r.timer.median_ms for vis, r in renderers.items()}
+                gbuffer = {vis: m.get("gbuffer", float("nan")) for vis, m in passes.items()}
+                mirror = {vis: m.get("mirror_passes") for vis, m in passes.items()}
+                mirror_ms = "-" if mirror[False] is None else f"{mirror[False]:.2f} / {mirror[True]:.2f}"
                 images = {vis: r.read_linear() for vis, r in renderers.items()}
                 depth = {vis: np.frombuffer(r.gbuffer.targets["depth"].read(), np.float32) for vis, r in renderers.items()}
                 worst, over = compare(images[False], images[True])
                 a, b = (statistics.median(frame[k]) for k in (False, True))
-                print(f"| {name}, {entry.name} | {gbuffer[False]:.2f} / {gbuffer[True]:.2f} | {a:.2f} / {b:.2f} "
+                print(f"| {name}, {entry.name} | {gbuffer[False]:.2f} / {gbuffer[True]:.2f} | {mirror_ms} | {a:.2f} / {b:.2f} "
                       f"| {b / a:.3f} | {worst:.2e} | {over} of {width * height} "
                       f"| {'yes' if np.array_equal(depth[False], depth[True]) else 'no'} |", flush=True)
             finally:

@@ -39,15 +39,38 @@ layout(local_size_x = LOCAL_SIZE, local_size_y = LOCAL_SIZE) in;
 layout(binding = VISIBILITY_UNIT) uniform usampler2D visibility_ids;
 layout(binding = VISIBILITY_DEPTH_UNIT) uniform sampler2D visibility_depth;
 
+// Per work group first, then once per group and batch in the buffer: a frame's pixels fall into a few
+// batches, and millions of atomic additions to the same few words would queue up on a GPU.
+shared uint group_count[VISIBILITY_BATCHES];
+shared uint group_base[VISIBILITY_BATCHES];
+
 void main() {
+    const uint GROUP = uint(LOCAL_SIZE * LOCAL_SIZE);
+    uint local = gl_LocalInvocationIndex;
+    for (uint b = local; b < uint(VISIBILITY_BATCHES); b += GROUP)
+        group_count[b] = 0u;
+    barrier();
+
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    if (any(greaterThanEqual(pixel, textureSize(visibility_ids, 0))) || texelFetch(visibility_depth, pixel, 0).r >= 1.0)
-        return;
-    int batch = batch_of_object[vis_object(texelFetch(visibility_ids, pixel, 0).xy)];
+    bool drawn = all(lessThan(pixel, textureSize(visibility_ids, 0)))
+                 && texelFetch(visibility_depth, pixel, 0).r < 1.0;
+    int batch = drawn ? batch_of_object[vis_object(texelFetch(visibility_ids, pixel, 0).xy)] : 0;
+    uint slot = drawn ? atomicAdd(group_count[batch], 1u) : 0u;
+    barrier();
+
+    for (uint b = local; b < uint(VISIBILITY_BATCHES); b += GROUP) {
+        uint n = group_count[b];
 #ifdef CLASSIFY_COUNT
-    atomicAdd(counts[batch], 1u);
+        if (n > 0u)
+            atomicAdd(counts[b], n);
 #else
-    pixels[offsets[batch] + atomicAdd(cursors[batch], 1u)] = vis_pack_pixel(pixel);
+        group_base[b] = n > 0u ? offsets[b] + atomicAdd(cursors[b], n) : 0u;
+#endif
+    }
+#ifdef CLASSIFY_SCATTER
+    barrier();
+    if (drawn)
+        pixels[group_base[batch] + slot] = vis_pack_pixel(pixel);
 #endif
 }
 #endif

@@ -16,7 +16,8 @@ Two ways to the same targets (`visibility`):
   same surface (shaders/raster_surface.glsl) either way; only the texture coordinates' derivatives,
   which pick the textures' MIP levels, are the triangle's own at the pixel's quad instead of the
   hardware's differences. Scenes drawn at a level of detail (the bake's cube-map renders) keep the
-  raster way: the resolve finds a pixel's triangle in its object's own range of the index buffer.
+  raster way: the resolve finds a pixel's triangle in its object's own range of the index buffer; so
+  do scenes of more than MAX_BATCHES texture batches (viewer/passes/visibility.py).
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ from glint.core.constants import GB_DARK_BIT, GB_ID_BITS
 from glint.viewer.camera import ViewCamera
 from glint.viewer.gl import GL, release_framebuffer
 from glint.viewer.gl_bindings import GB_FRAME_IMAGE, GB_FRAME_LOCATION, GB_SHADE_IMAGE, GB_SHADE_LOCATION
-from glint.viewer.passes.visibility import VisibilityResolve
+from glint.viewer.passes.visibility import MAX_BATCHES, VisibilityResolve
 from glint.viewer.shader_source import raster_program, set_uniforms
 
 # The colour targets by fragment-output location (gbuffer.frag, shaders/gbuffer_layout.glsl).
@@ -77,7 +78,7 @@ class GBufferPass:
         self.ctx = ctx
         self.scene = scene
         self.draws = draws
-        self.visibility = bool(visibility) and not draws.lod
+        self.visibility = bool(visibility) and not draws.lod and len(draws.batches) <= MAX_BATCHES
         self.ids = VisibilityResolve(ctx, scene, draws, defines, "RESOLVE_GBUFFER") if self.visibility else None
         self.program = self.ids.program if self.ids else raster_program(ctx, "gbuffer.vert", "gbuffer.frag", defines)
         self.size: tuple[int, int] | None = None

@@ -43,6 +43,9 @@ from glint.viewer.gpu_meshes import vertex_defines
 from glint.viewer.shader_source import compute_program, dispatch, raster_program, set_uniforms
 
 RESOLVE_GROUP = 64  # visibility_resolve.comp's work-group size (one invocation per listed pixel)
+# visibility_classify.comp keeps two words per batch in shared memory: 16 KiB at this many, half of
+# the 32 KiB every GL 4.3 driver offers; a scene with more textured materials keeps the raster passes.
+MAX_BATCHES = 2048
 TARGETS = ("RESOLVE_GBUFFER", "RESOLVE_MIRROR")
 
 
