@@ -2,7 +2,7 @@
 
     python3 -m glint.bench.measure_frame_times [--sizes 1920x1080,3840x2160] [--supersample 1,2] [--frames 60]
                                         [--scenes living-room,...] [--bake-root DIR] [--out DIR]
-                                        [--weights albedo,eq4.25]
+                                        [--weights albedo,eq4.25] [--gbuffer auto,raster,visibility]
 
 For every scene, camera, size and supersampling factor: --warmup untimed frames, then --frames
 walkthrough frames of the same view; printed and written (DIR/frame_times.json, .md) are the
@@ -14,6 +14,9 @@ number: CPU work and driver overhead included). Then the same for still-camera f
 are the scenes' default bakes (`glint bake SCENE`); --bake-root DIR uses DIR/SCENE.bake instead
 (made when missing). --weights: the walkthrough estimators to time, each a renderer of its own
 (Renderer(weights=...): "albedo", the default, "eq4.25", "eq4.24"), one after the other per view.
+--gbuffer likewise: the G-buffer and mirror passes rasterised ("raster") or through a visibility buffer
+("visibility"; viewer/passes/gbuffer.py), or as the renderer picks ("auto", the default: the
+visibility buffer on a GPU); the rows say which ran.
 """
 from __future__ import annotations
 
@@ -30,6 +33,8 @@ from glint.viewer.camera import ViewCamera
 from glint.viewer.context import headless_context
 from glint.viewer.gl import describe
 from glint.viewer.renderer import Renderer
+
+GBUFFER_CHOICES = {"auto": None, "raster": False, "visibility": True}  # --gbuffer -> Renderer(visibility=...)
 
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
@@ -69,13 +74,14 @@ def main() -> None:
     ap.add_argument("--bake-root", type=Path)
     ap.add_argument("--out", type=Path, default=Path("/tmp/glint-frame-times"))
     ap.add_argument("--weights", default="albedo")
+    ap.add_argument("--gbuffer", default="auto")
     args = ap.parse_args()
     sizes = [tuple(int(x) for x in s.lower().split("x")) for s in args.sizes.split(",")]
     factors = [int(s) for s in args.supersample.split(",")]
     ctx = headless_context()
     rows = []
     header = (f"{'scene':17s} {'camera':14s} {'size':>9s} ss {'weights':7s} {'mode':11s} {'gpu total':>9s} {'wall':>8s}  "
-              "passes (ms)")
+              "G-buffer    passes (ms)")
     print(describe(ctx))
     print(header)
     for scene in args.scenes.split(","):
@@ -83,17 +89,20 @@ def main() -> None:
         for cam in bake.model.cameras:
             camera = ViewCamera.from_manifest(cam)
             for ss in factors:
-                for weights in args.weights.split(","):
-                    renderer = Renderer(ctx, bake, supersample=ss, samples_per_frame=4, weights=weights)
+                for weights, gbuffer in ((w, g) for w in args.weights.split(",") for g in args.gbuffer.split(",")):
+                    renderer = Renderer(ctx, bake, supersample=ss, samples_per_frame=4, weights=weights,
+                                        visibility=GBUFFER_CHOICES[gbuffer])
+                    gbuffer = "visibility" if renderer.gbuffer.visibility else "raster"
                     for size in sizes:
                         for mode in ("walkthrough", "converge"):
                             r = time_view(renderer, camera, size, args.frames, args.warmup, mode)
                             r.update(scene=scene, camera=cam.name, size=f"{size[0]}x{size[1]}", supersample=ss,
-                                     mode=mode, weights=weights)
+                                     mode=mode, weights=weights, gbuffer=gbuffer)
                             rows.append(r)
                             passes = " ".join(f"{k}={v:.2f}" for k, v in r["passes_ms"].items())
                             print(f"{scene:17s} {cam.name[:14]:14s} {r['size']:>9s} {ss:2d} {weights:7s} {mode:11s} "
-                                  f"{r['gpu_total_ms']:9.2f} {r['wall_ms_per_frame']:8.2f}  {passes}", flush=True)
+                                  f"{r['gpu_total_ms']:9.2f} {r['wall_ms_per_frame']:8.2f}  {gbuffer:10s}  {passes}",
+                                  flush=True)
                     renderer.release()
     device = describe(ctx)
     ctx.release()
@@ -101,11 +110,13 @@ def main() -> None:
     atomic_write_text(args.out / "frame_times.json", json.dumps(
         {"device": device, "frames": args.frames, "warmup": args.warmup, "rows": rows}, indent=1) + "\n")
     lines = [f"Device: {device}; medians of {args.frames} frames after {args.warmup} warm-up frames.", "",
-             "| scene | camera | size | supersample | weights | mode | GPU ms (sum of passes) | wall ms/frame | passes (ms) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| scene | camera | size | supersample | weights | G-buffer | mode | GPU ms (sum of passes) | wall ms/frame "
+             "| passes (ms) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         passes = ", ".join(f"{k} {v:.2f}" for k, v in r["passes_ms"].items())
-        lines.append(f"| {r['scene']} | {r['camera']} | {r['size']} | {r['supersample']} | {r['weights']} | {r['mode']} | "
+        lines.append(f"| {r['scene']} | {r['camera']} | {r['size']} | {r['supersample']} | {r['weights']} "
+                     f"| {r['gbuffer']} | {r['mode']} | "
                      f"{r['gpu_total_ms']:.2f} | {r['wall_ms_per_frame']:.2f} | {passes} |")
     atomic_write_text(args.out / "frame_times.md", "\n".join(lines) + "\n")
 
