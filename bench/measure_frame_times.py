@@ -110,8 +110,8 @@ def main() -> None:
     atomic_write_text(args.out / "frame_times.json", json.dumps(
         {"device": device, "frames": args.frames, "warmup": args.warmup, "rows": rows}, indent=1) + "\n")
     lines = [f"Device: {device}; medians of {args.frames} frames after {args.warmup} warm-up frames.", "",
-             "| scene | camera | size | supersample | weights | G-buffer | mode | GPU ms (sum of passes) | wall ms/frame "
-             "| passes (ms) |",
+             ("| scene | camera | size | supersample | weights | G-buffer | mode | GPU ms (sum of passes) | wall ms/frame "
+              "| passes (ms) |"),
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         passes = ", ".join(f"{k} {v:.2f}" for k, v in r["passes_ms"].items())
