@@ -38,6 +38,19 @@ def wall_points():
     return np.array(points), np.array(normals)
 
 
+def mitsuba_irradiance(scene, points, normals, cache: str) -> np.ndarray:
+    """Mitsuba 3's irradiance at `points` facing `normals` (bench/mitsuba_reference.py's
+    scene_irradiance, scalar_rgb, 2048 samples per point), read from tests/data/mitsuba/`cache`.npz
+    when its key matches the scene, points, variant and code (tests/mitsuba_cache.py), else rendered."""
+    import mitsuba_cache
+
+    from glint.bench import mitsuba_reference
+
+    return mitsuba_cache.reference(cache, lambda: scene_irradiance(scene, points, normals, spp=2048),
+                                   variant="scalar_rgb", code=[mitsuba_irradiance, mitsuba_reference], scene=scene,
+                                   points=points, normals=normals)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("M", [0.05, 0.001])  # glTF roughness sqrt(M): a Beckmann m near M
 def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path, M):
@@ -52,7 +65,8 @@ def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path, M):
     against the mixture) gives signed mean -2.8 %. (The lobe pdf without Eq. 4.9's cos(theta_h)
     passes here: cos(theta_h) ~ 1 for m = 0.05.) At m = 0.001 the bake's lobe is widened to
     M_REGULARISE = 0.02 (bake/scatter.py), Mitsuba's is not: the case bounds the regularisation's
-    bias on a near-mirror floor under an area lamp (measured 1.5 %, signed -0.5 %)."""
+    bias on a near-mirror floor under an area lamp (measured 1.5 %, signed -0.5 %).
+    Mitsuba's irradiance is cached in tests/data/mitsuba/metal_floor_room_M.npz (`mitsuba_irradiance`)."""
     scene = load_scene(write_metal_floor_room(tmp_path / "room.glb", M))
     floor = next(m for m in scene.materials if m.name == "Floor")
     # the metal's lobes as the loader maps them (fitted to the glTF BRDF, issue 24): the first's m near M,
@@ -61,7 +75,7 @@ def test_metal_floor_room_irradiance_matches_mitsuba(tmp_path, M):
     assert 0.5 * M <= floor.lobes[0].mx <= 2 * M and floor.lobes[0].alpha > 0.3
     points, normals = wall_points()
     ours = compute_irradiance(scene, RayTracer(scene), points, normals, 16384, seed=1).irradiance
-    reference = scene_irradiance(scene, points, normals, spp=2048)
+    reference = mitsuba_irradiance(scene, points, normals, f"metal_floor_room_{M}")
     rel = np.abs(ours - reference).sum(axis=1) / reference.sum(axis=1)
     signed = (ours - reference).sum(axis=1) / reference.sum(axis=1)
     print(f"mean relative error {rel.mean():.4f}, max {rel.max():.4f}, signed mean {signed.mean():+.4f}")

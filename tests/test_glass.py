@@ -157,7 +157,8 @@ def test_glass_bottle_against_mitsuba(tmp_path):
     Deliberate bugs this catches (tried): the glass lobes with Kurt's alpha = 0 (before: the thin
     transmit lobe's albedo (1 - F) cos theta_o, the lost ~20 %) gives ratio 0.71, block error
     0.22; the transmission x 0.8 gives 0.84, 0.15; the far wall's reflection left out (volume.glsl's
-    second look-up at weight 0) gives 0.64, 0.31."""
+    second look-up at weight 0) gives 0.64, 0.31.
+    The Mitsuba reference is cached in tests/data/mitsuba/glass_bottle.npz (`mitsuba_reference`)."""
     assert_like_mitsuba(write_bottle(tmp_path / "bottle.glb"), "Bottle", spp=64, ratio=(0.85, 1.15), block_error=0.13)
 
 
@@ -195,7 +196,8 @@ def test_solid_glass_sphere_against_mitsuba(tmp_path):
     0.29 / 0.30 (ratio 0.93); the partial internal reflection at the exit left out (as before: only
     total internal reflection followed; for the sphere seen head-on the sky behind the viewer at
     (1 - F)^2 F = 3.7 %, against a backdrop 6 times darker) gives ratio 0.77 / 0.78, block error
-    0.22 / 0.21."""
+    0.22 / 0.21. The Mitsuba reference is cached in tests/data/mitsuba/glass_sphere.npz
+    (`mitsuba_reference`)."""
     assert_like_mitsuba(write_sphere(tmp_path / "sphere.glb"), "Sphere", spp=32, ratio=(0.9, 1.1), block_error=0.10)
 
 
@@ -215,12 +217,8 @@ def capture_against_mitsuba(path: Path, name: str, *, converge: int, spp: int):
     and Mitsuba 3 rendering the same scene (bench/mitsuba_scene.py: the glass solid as its
     two-interface `dielectric`, `spp` samples per pixel), linear RGB both, and the pixels of object
     `name` (object_pixels)."""
-    import mitsuba as mi
-
-    from glint.bench import mitsuba_scene
     from glint.cli import main
     from glint.core.image_io import read_image
-    from glint.viewer.camera import ViewCamera
 
     out = path.with_suffix(".exr")
     assert main(["capture", str(path), "-o", str(out), "--size", f"{SIZE}x{SIZE}", "--eye", ",".join(map(str, EYE)),
@@ -229,17 +227,36 @@ def capture_against_mitsuba(path: Path, name: str, *, converge: int, spp: int):
                  "--bake-dir", str(path.with_suffix(".bake"))]) == 0
     image = read_image(out)[..., :3].astype(np.float64)
 
-    mi.set_variant("scalar_rgb")
     scene = load_scene(path)
+    reference = mitsuba_reference(scene, f"glass_{path.stem}", spp=spp).astype(np.float64)
+    return image, reference, object_pixels(scene, name)
+
+
+def mitsuba_reference(scene, cache: str, *, spp: int) -> np.ndarray:
+    """Mitsuba 3's (SIZE, SIZE, 3) image of the glass scene from EYE (scalar_rgb, `spp` samples per
+    pixel, bench/mitsuba_scene.py), read from tests/data/mitsuba/`cache`.npz when its key matches
+    the scene, sensor, variant and code (tests/mitsuba_cache.py), else rendered."""
+    import mitsuba as mi
+    import mitsuba_cache
+
+    from glint.bench import mitsuba_scene
+    from glint.viewer.camera import ViewCamera
+
+    mi.set_variant("scalar_rgb")
     eye = np.array(EYE)
     forward = (np.array(TARGET) - eye) / np.linalg.norm(np.array(TARGET) - eye)
     camera = ViewCamera(eye=eye, forward=forward, up=np.array([0.0, 1.0, 0.0]), yfov=math.radians(FOV),
                         znear=0.01, zfar=100.0)
-    scene_dict, _ = mitsuba_scene.convert(scene, [mitsuba_scene.sensor_dict(camera, SIZE, SIZE, spp=spp)])
+    sensor = mitsuba_scene.sensor_dict(camera, SIZE, SIZE, spp=spp)
     glass = next(m for m in scene.materials if m.name == "Glass")
     assert mitsuba_scene.bsdf_dict(glass)["type"] == "dielectric" and glass.ior == IOR
-    reference = mitsuba_scene.render(mi.load_dict(scene_dict)).astype(np.float64)
-    return image, reference, object_pixels(scene, name)
+
+    def live():
+        scene_dict, _ = mitsuba_scene.convert(scene, [sensor])
+        return mitsuba_scene.render(mi.load_dict(scene_dict))
+
+    return mitsuba_cache.reference(cache, live, variant="scalar_rgb", code=[mitsuba_reference], scene=scene,
+                                   sensor=sensor)
 
 
 def luminance_figures(image: np.ndarray, reference: np.ndarray, mask: np.ndarray, label: str) -> tuple[float, float]:

@@ -15,6 +15,10 @@ by one pixel:
   per-pixel noise at its few samples averages out in a block.
 The bounds and the figures measured, with the deliberate bugs each test catches, are in the
 tests' docstrings.
+
+Mitsuba's images (64 spp, ~15-50 s each here) are cached: tests/data/mitsuba/glossy_*.npz, the
+same renders saved with a key of their inputs and code (tests/mitsuba_cache.py); a test whose key
+does not match renders with Mitsuba as before and warns. Refresh: tests/data/README.md.
 """
 from __future__ import annotations
 
@@ -90,15 +94,25 @@ def camera():
     return Camera("c", eye, forward, up / np.linalg.norm(up), np.radians(FOV))
 
 
-def mitsuba_image(path: Path, spp: int) -> np.ndarray:
+def mitsuba_image(path: Path, spp: int, cache: str) -> np.ndarray:
+    """Mitsuba 3's image of the scene at `path` (bench/mitsuba_scene.py, the fastest variant that
+    works here, `spp` samples per pixel), read from tests/data/mitsuba/`cache`.npz when its key
+    matches the scene, sensor, variant and code (tests/mitsuba_cache.py), else rendered."""
     import mitsuba as mi
+    import mitsuba_cache
 
-    from glint.bench.mitsuba import choose_variant
     from glint.bench.mitsuba_scene import convert, render, sensor_dict
 
-    choose_variant("auto")
-    scene_dict, _ = convert(load_scene(path), [sensor_dict(camera(), SIZE, SIZE, spp=spp)])
-    return render(mi.load_dict(scene_dict), spp=spp).astype(np.float64)
+    variant = mitsuba_cache.auto_variant()
+    mi.set_variant(variant)
+    scene, sensor = load_scene(path), sensor_dict(camera(), SIZE, SIZE, spp=spp)
+
+    def live():
+        scene_dict, _ = convert(scene, [sensor])
+        return render(mi.load_dict(scene_dict), spp=spp)
+
+    return mitsuba_cache.reference(cache, live, variant=variant, code=[mitsuba_image], scene=scene, sensor=sensor,
+                                   spp=spp).astype(np.float64)
 
 
 def regions(path: Path) -> dict[str, np.ndarray]:
@@ -131,7 +145,7 @@ def compare(tmp_path, kind: str, m: float, glossy: str) -> dict[str, tuple[float
     Eq. 4.25 it was compared with Mitsuba times that estimator's excess over the albedo, which grows
     towards grazing views (x1.12 at 60 degrees, x1.5 at 80 for a metal lobe of m 0.2)."""
     path = write_scene(tmp_path / "scene.glb", kind, m, glossy)
-    reference = mitsuba_image(path, spp=64)
+    reference = mitsuba_image(path, spp=64, cache=f"glossy_{glossy.lower()}_{kind}_{m}")
     walkthrough, still = capture(path), capture(path, converge=32)
     assert np.isfinite(walkthrough).all() and np.isfinite(still).all()
     mask = regions(path)[glossy]
@@ -167,7 +181,8 @@ def test_glossy_ball_matches_mitsuba(tmp_path, kind, m):
     - no Fresnel term (schlick_F = 1 in shaders/bsdf.glsl): the dielectric's bias +161 % (0.05)
       and +151 .. +159 % (0.2), both modes;
     - the walkthrough's Eq. 4.25 normalisation (Renderer weights="eq4.25"), which leans towards the
-      samples of large f cos / p: metal 0.2 walkthrough bias +3.66 %."""
+      samples of large f cos / p: metal 0.2 walkthrough bias +3.66 %.
+    The reference is cached in tests/data/mitsuba/glossy_ball_KIND_M.npz (module docstring)."""
     out = compare(tmp_path, kind, m, "Ball")
     for name, (bias, mae) in out.items():
         assert abs(bias) <= (0.035 if (kind, m, name) == ("metal", 0.2, "walkthrough") else 0.02), (name, bias)
@@ -204,7 +219,8 @@ def test_glossy_floor_matches_mitsuba(tmp_path, kind, m):
     Deliberate bugs this catches (tried):
     - mirror-buffer radiance x 0.92 (mirror_buffer.glsl mirror_radiance_at): the metal floor's
       still bias -9.2 % (m 0.05) and -6.8 % (m 0.2), past the 4 % bound;
-    - no Fresnel term: the dielectric's bias +165 .. +204 %."""
+    - no Fresnel term: the dielectric's bias +165 .. +204 %.
+    The reference is cached in tests/data/mitsuba/glossy_floor_KIND_M.npz (module docstring)."""
     (still_bias, still_mae), (walk_bias, walk_mae) = FLOOR_BOUNDS[(kind, m)]
     out = compare(tmp_path, kind, m, "Floor")
     bias, mae = out["still"]

@@ -76,21 +76,31 @@ def capture(path: Path, converge: int = 16) -> np.ndarray:
     return read_image(out)[..., :3]
 
 
-def mitsuba_image(path: Path, spp: int = 256) -> np.ndarray:
+def mitsuba_image(path: Path, cache: str, spp: int = 256) -> np.ndarray:
+    """Mitsuba 3's image of the scene at `path` (bench/mitsuba_scene.py, the fastest variant that
+    works here, `spp` samples per pixel), read from tests/data/mitsuba/`cache`.npz when its key
+    matches the scene, sensor, variant and code (tests/mitsuba_cache.py), else rendered."""
     import mitsuba as mi
+    import mitsuba_cache
 
-    from glint.bench.mitsuba import choose_variant
     from glint.bench.mitsuba_scene import convert, render, sensor_dict
     from glint.core.scene import Camera
 
-    choose_variant("auto")
+    variant = mitsuba_cache.auto_variant()
+    mi.set_variant(variant)
     eye = np.array(EYE)
     forward = np.array([0.0, 0.6, -0.6]) - eye
     forward /= np.linalg.norm(forward)
     up = np.array([0.0, 1.0, 0.0]) - forward[1] * forward
     camera = Camera("c", eye, forward, up / np.linalg.norm(up), math.radians(FOV))
-    scene_dict, _ = convert(load_scene(path), [sensor_dict(camera, SIZE, SIZE, spp=spp)])
-    return render(mi.load_dict(scene_dict), spp=spp)
+    scene, sensor = load_scene(path), sensor_dict(camera, SIZE, SIZE, spp=spp)
+
+    def live():
+        scene_dict, _ = convert(scene, [sensor])
+        return render(mi.load_dict(scene_dict), spp=spp)
+
+    return mitsuba_cache.reference(cache, live, variant=variant, code=[mitsuba_image], scene=scene, sensor=sensor,
+                                   spp=spp)
 
 
 def luminance(image: np.ndarray) -> np.ndarray:
@@ -121,8 +131,11 @@ def test_normal_mapped_floor_matches_mitsuba(tmp_path):
     Deliberate bugs this catches (tried): the normal map ignored (MAT_NORMAL_TEXTURE never set in
     viewer/gpu_materials.py): 0.78; the green channel flipped (tn.y negated in raster_surface.glsl
     `normal_mapped`): 0.37; the tangent frame wrong (b = -w n x t, the handedness of
-    viewer/tangent_frames.py `tangents` reversed): 0.37; t and b swapped in `normal_mapped`: 0.69."""
-    reference = mitsuba_image(write_scene(tmp_path / "reference.glb", normal_map=band_normal_map()), spp=32)
+    viewer/tangent_frames.py `tangents` reversed): 0.37; t and b swapped in `normal_mapped`: 0.69.
+    The Mitsuba reference is cached in tests/data/mitsuba/normal_mapped_floor.npz with a key of its
+    inputs and code (tests/mitsuba_cache.py); a stale key renders it as before and warns."""
+    reference = mitsuba_image(write_scene(tmp_path / "reference.glb", normal_map=band_normal_map()),
+                              "normal_mapped_floor", spp=32)
     image = capture(write_scene(tmp_path / "floor.glb", normal_map=band_normal_map()))
     floor = slice(SIZE // 2, SIZE)
     assert np.isfinite(image).all()

@@ -122,6 +122,32 @@ def block_errors(image: np.ndarray, reference: np.ndarray, k: int = 6) -> np.nda
     return np.abs(ours[lit] / theirs[lit] - 1)
 
 
+def mitsuba_reference(path: Path) -> np.ndarray:
+    """Mitsuba 3's (SIZE, SIZE, 3) image of the bar scene at `path` from EYE (scalar_rgb, 128 spp,
+    bench/mitsuba_scene.py), read from tests/data/mitsuba/roughness_striped_floor.npz when its key
+    matches the scene, sensor, variant and code (tests/mitsuba_cache.py), else rendered."""
+    import mitsuba as mi
+    import mitsuba_cache
+
+    from glint.bench import mitsuba_scene
+    from glint.core.scene import Camera
+
+    mi.set_variant("scalar_rgb")
+    eye = np.array(EYE)
+    forward = np.array(TARGET) - eye
+    forward /= np.linalg.norm(forward)
+    up = np.array([0.0, 1.0, 0.0]) - forward * forward[1]
+    camera = Camera("c", eye, forward, up / np.linalg.norm(up), np.radians(FOV))
+    scene, sensor = load_scene(path), mitsuba_scene.sensor_dict(camera, SIZE, SIZE, 128)
+
+    def live():
+        converted, _ = mitsuba_scene.convert(scene, [sensor])
+        return mitsuba_scene.render(mi.load_dict(converted), spp=128)
+
+    return mitsuba_cache.reference("roughness_striped_floor", live, variant="scalar_rgb", code=[mitsuba_reference],
+                                   scene=scene, sensor=sensor, spp=128)
+
+
 @pytest.mark.slow
 def test_roughness_striped_metal_floor_matches_mitsuba(tmp_path):
     """A metal floor (base BASE, metallic 1, roughnessFactor 1) striped by its texture into
@@ -140,13 +166,11 @@ def test_roughness_striped_metal_floor_matches_mitsuba(tmp_path):
     - m' = r g instead of (r g)^2: 0.58 / 0.31;
     - step 2 of the mirror-buffer projection taking the direction at infinity wherever step 1's
       point shows background (what it did before; shaders/mirror_buffer.glsl): still median 0.18,
-      the bar's reflection spilling past its edges."""
-    import mitsuba as mi
-
-    from glint.bench import mitsuba_scene
+      the bar's reflection spilling past its edges.
+    The Mitsuba reference is cached in tests/data/mitsuba/roughness_striped_floor.npz with a key of
+    its inputs and code (tests/mitsuba_cache.py); a stale key renders it as before and warns."""
     from glint.cli import main
     from glint.core.image_io import read_image
-    from glint.core.scene import Camera
 
     path = write_bar_scene(tmp_path / "bar.glb", stripes())
     common = ["--size", f"{SIZE}x{SIZE}", "--eye", ",".join(map(str, EYE)), "--target", ",".join(map(str, TARGET)),
@@ -157,14 +181,7 @@ def test_roughness_striped_metal_floor_matches_mitsuba(tmp_path):
         assert main(["capture", str(path), "-o", str(tmp_path / f"{name}.exr"), *common, *extra]) == 0
         images[name] = read_image(tmp_path / f"{name}.exr")[..., :3].astype(np.float64)
 
-    mi.set_variant("scalar_rgb")
-    eye = np.array(EYE)
-    forward = np.array(TARGET) - eye
-    forward /= np.linalg.norm(forward)
-    up = np.array([0.0, 1.0, 0.0]) - forward * forward[1]
-    camera = Camera("c", eye, forward, up / np.linalg.norm(up), np.radians(FOV))
-    converted, _ = mitsuba_scene.convert(load_scene(path), [mitsuba_scene.sensor_dict(camera, SIZE, SIZE, 128)])
-    reference = mitsuba_scene.render(mi.load_dict(converted), spp=128).astype(np.float64)
+    reference = mitsuba_reference(path).astype(np.float64)
 
     walk, still = block_errors(images["walkthrough"], reference), block_errors(images["still"], reference)
     print(f"walkthrough mean {walk.mean():.3f}, still median {np.median(still):.3f}")
