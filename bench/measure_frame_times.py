@@ -3,6 +3,7 @@
     python3 -m glint.bench.measure_frame_times [--sizes 1920x1080,3840x2160] [--supersample 1,2] [--frames 60]
                                         [--scenes living-room,...] [--bake-root DIR] [--out DIR]
                                         [--weights albedo,eq4.25] [--gbuffer auto,raster,visibility]
+                                        [--quality draft]
 
 For every scene, camera, size and supersampling factor: --warmup untimed frames, then --frames
 walkthrough frames of the same view; printed and written (DIR/frame_times.json, .md) are the
@@ -12,8 +13,9 @@ frame as the program sees it (the frames back to back, one glFinish at the end, 
 number: CPU work and driver overhead included). Then the same for still-camera frames
 ("converge": 4 quasi-random samples per lobe and pixel, added to the running mean). The bakes
 are the scenes' default bakes (`glint bake SCENE`); --bake-root DIR uses DIR/SCENE.bake instead
-(made when missing). --weights: the walkthrough estimators to time, each a renderer of its own
-(Renderer(weights=...): "albedo", the default, "eq4.25", "eq4.24"), one after the other per view.
+(made when missing); --quality PRESET bakes them at that preset. --weights: the walkthrough
+estimators to time, each a renderer of its own (Renderer(weights=...): "albedo", the default,
+"eq4.25", "eq4.24"), one after the other per view.
 --gbuffer likewise: the G-buffer and mirror passes rasterised ("raster") or through a visibility buffer
 ("visibility"; viewer/passes/gbuffer.py), or as the renderer picks ("auto", the default: the
 visibility buffer on a GPU); the rows say which ran.
@@ -39,10 +41,11 @@ GBUFFER_CHOICES = {"auto": None, "raster": False, "visibility": True}  # --gbuff
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
 
-def load_bake(scene: str, bake_root: Path | None):
+def load_bake(scene: str, bake_root: Path | None, quality: str | None = None):
     loaded, builtin = open_scene(scene)
     out = bake_root / f"{scene}.bake" if bake_root else default_bake_dir(loaded.source, builtin)
-    bake_scene(loaded, resolve_settings(loaded.bake_settings), out, progress=False)  # no-op when up to date
+    settings = resolve_settings(loaded.bake_settings, **({"quality": quality} if quality else {}))
+    bake_scene(loaded, settings, out, progress=False)  # no-op when up to date
     return Bake(out)
 
 
@@ -75,6 +78,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("/tmp/glint-frame-times"))
     ap.add_argument("--weights", default="albedo")
     ap.add_argument("--gbuffer", default="auto")
+    ap.add_argument("--quality", help="the bakes' quality preset (default: the scene's own settings)")
     args = ap.parse_args()
     sizes = [tuple(int(x) for x in s.lower().split("x")) for s in args.sizes.split(",")]
     factors = [int(s) for s in args.supersample.split(",")]
@@ -85,7 +89,7 @@ def main() -> None:
     print(describe(ctx))
     print(header)
     for scene in args.scenes.split(","):
-        bake = load_bake(scene, args.bake_root)
+        bake = load_bake(scene, args.bake_root, args.quality)
         for cam in bake.model.cameras:
             camera = ViewCamera.from_manifest(cam)
             for ss in factors:
