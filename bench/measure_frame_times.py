@@ -34,9 +34,8 @@ from glint.services import bake_scene, open_scene
 from glint.viewer.camera import ViewCamera
 from glint.viewer.context import headless_context
 from glint.viewer.gl import describe
-from glint.viewer.renderer import Renderer
+from glint.viewer.renderer import GBUFFER_WAYS, Renderer
 
-GBUFFER_CHOICES = {"auto": None, "raster": False, "visibility": True}  # --gbuffer -> Renderer(visibility=...)
 
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
@@ -95,7 +94,7 @@ def main() -> None:
             for ss in factors:
                 for weights, gbuffer in ((w, g) for w in args.weights.split(",") for g in args.gbuffer.split(",")):
                     renderer = Renderer(ctx, bake, supersample=ss, samples_per_frame=4, weights=weights,
-                                        visibility=GBUFFER_CHOICES[gbuffer])
+                                        visibility=GBUFFER_WAYS[gbuffer])
                     gbuffer = "visibility" if renderer.gbuffer.visibility else "raster"
                     for size in sizes:
                         for mode in ("walkthrough", "converge"):

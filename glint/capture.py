@@ -55,7 +55,7 @@ from glint.viewer.camera import (
 from glint.viewer.context import headless_context
 from glint.viewer.progressive import DEFAULT_SAMPLES_PER_FRAME
 from glint.viewer.reflectors import DEFAULT_BUDGET
-from glint.viewer.renderer import Renderer
+from glint.viewer.renderer import GBUFFER_WAYS, Renderer
 from glint.viewer.skipping import frame_section, skipping_section
 
 EXTENSIONS = {".png": "tone-mapped sRGB, 8 bits", ".exr": "linear radiance, float32"}
@@ -119,7 +119,7 @@ def add_capture_options(p: argparse.ArgumentParser) -> None:
     specular.add_argument("--mirror-budget", metavar="N",
                           help=f"mirror passes per frame at most, for planar reflectors (section 4.5; default "
                                f"{DEFAULT_BUDGET}; 0: none, planar objects show their diffuse part)")
-    image.add_argument("--gbuffer", choices=("auto", "raster", "visibility"), default="auto",
+    image.add_argument("--gbuffer", choices=tuple(GBUFFER_WAYS), default="auto",
                        help="how the G-buffer is made: rasterised with every surface value per fragment, or a "
                             "visibility buffer (ids per pixel, the surface worked out once per pixel in compute); "
                             "auto (default): the visibility buffer on a GPU, the raster pass on a software "
@@ -129,9 +129,6 @@ def add_capture_options(p: argparse.ArgumentParser) -> None:
     add_bake_options(p.add_argument_group("bake (done first when missing or stale)"), out_flags=("--bake-dir",))
     add_edit_option(p.add_argument_group("edits (the sidecar's keys, docs/SCENES.md)"))
     p.set_defaults(run=cmd_capture)
-
-
-GBUFFER_CHOICES = {"auto": None, "raster": False, "visibility": True}  # --gbuffer -> Renderer(visibility=...)
 
 
 # -- argument checks (all before the bake, so mistakes cost nothing) ------------------------------
@@ -244,7 +241,7 @@ def cmd_capture(args) -> int:
         renderer = Renderer(ctx, bake, supersample=parsed["supersample"], exposure=parsed["exposure"],
                             lobe_samples=parsed["lobe_samples"], weights=args.weights,
                             walkthrough=args.walkthrough_method, max_frames=max(converge, 1),
-                            visibility=GBUFFER_CHOICES[args.gbuffer], **budget)
+                            visibility=GBUFFER_WAYS[args.gbuffer], **budget)
         renderer.check_size(width, height)
         mode = "converge" if converge else "walkthrough"
         started = time.perf_counter()

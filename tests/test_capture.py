@@ -154,6 +154,24 @@ def test_stats_file(room, tmp_path):
         assert isinstance(counts[key], int) and counts[key] == manifest[key], key
 
 
+def test_gbuffer_option_chooses_the_way_and_stats_say_which(room, tmp_path):
+    """--gbuffer raster / visibility: the stats name the way that ran (auto on llvmpipe: raster, a
+    software renderer's faster one), and the two frames agree within 1e-3 relative per pixel
+    (linear EXR; tests/test_visibility_buffer.py compares the targets themselves).
+
+    Deliberate bug this catches (tried): the option not handed to the renderer (auto always): the
+    visibility run's stats say raster."""
+    images = {}
+    for way in ("auto", "raster", "visibility"):
+        out = tmp_path / f"{way}.exr"
+        assert capture(room, out, "--gbuffer", way, "--stats", tmp_path / f"{way}.json") == 0
+        assert json.loads((tmp_path / f"{way}.json").read_text())["gbuffer"] == ("raster" if way == "auto" else way)
+        images[way] = read_image(out)
+    a, b = images["raster"], images["visibility"]
+    assert np.array_equal(images["auto"], a)
+    assert (np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-6)).max() <= 1e-3
+
+
 # -- errors: one line, before any work, nothing written -------------------------------------------
 @pytest.mark.parametrize("size, words", [("12x", ["--size", "WIDTHxHEIGHT"]), ("0x10", ["at least 1"]),
                                          ("big", ["--size"])])

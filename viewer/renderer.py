@@ -75,6 +75,9 @@ WALKTHROUGH_METHODS = {"patterns": "SPECULAR_PATTERNS", "filtered-importance": "
 # lobe's 99 % ellipse (Eq. 4.16) for transmission lobes (the default; viewer/lobe_patterns.py,
 # "Footprint"), A / n for all lobes, or the second moment for all lobes.
 FOOTPRINTS = {"moment": 0, "thesis": 1, "moment-all": 2}
+# How the G-buffer and the mirror passes are made, by name (glint capture --gbuffer, the measurement
+# tools) -> Renderer(visibility=...): as the renderer picks, rasterised, through a visibility buffer.
+GBUFFER_WAYS = {"auto": None, "raster": False, "visibility": True}
 
 
 class Renderer:
