@@ -36,7 +36,6 @@ from glint.viewer.context import headless_context
 from glint.viewer.gl import describe
 from glint.viewer.renderer import GBUFFER_WAYS, Renderer
 
-
 SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
 
