@@ -198,8 +198,9 @@ def test_scene_with_levels_of_detail_keeps_the_raster_pass(ctx, yard):
 
 
 def test_frames_and_releases_leave_no_gl_error(ctx, yard):
-    """Renderers made, drawn at two sizes (targets remade) and released one after the other, either
-    way, with a mirror pass, leave no GL error flag set, nor does a framebuffer made afterwards
+    """Renderers made, drawn at two sizes (targets remade), with and without supersampling, walkthrough
+    and still-camera frames, and released one after the other, either way, with a mirror pass, leave
+    no GL error flag set, nor does a framebuffer made afterwards
     (glGetError after each: an error no check ties to its cause is one that goes unnoticed).
 
     Deliberate bugs this catches (tried): the mirror layers' framebuffers wrapped by moderngl's
@@ -208,10 +209,13 @@ def test_frames_and_releases_leave_no_gl_error(ctx, yard):
     `release_framebuffer`): GL_INVALID_OPERATION at the next framebuffer moderngl makes."""
     gl = GL(ctx)
     gl.errors()
-    for visibility in (False, True, False):
-        with Renderer(ctx, yard, visibility=visibility) as r:
+    for visibility, supersample in ((False, 1), (True, 2), (False, 2), (True, 1)):
+        with Renderer(ctx, yard, visibility=visibility, supersample=supersample) as r:
             r.render(CAMERA, *SIZE)
             r.render(CAMERA, 96, 64)
-            assert gl.errors() == [], visibility
+            for _ in range(2):  # still-camera frames: the accumulation, the G-buffer kept
+                r.render(CAMERA, 96, 64, mode="converge")
+            r.read_linear()
+            assert gl.errors() == [], (visibility, supersample)
     ctx.framebuffer([ctx.texture((4, 4), 4)]).release()
     assert gl.errors() == []
