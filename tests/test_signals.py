@@ -2,7 +2,7 @@
 processes stopped, its temporary directory removed, the previous bake intact, one line on stderr, exit
 128 + the signal; a SIGKILLed bake's leftovers are removed by the next bake of its directory.
 
-Each test runs a real `python -m glint bake living-room -j 2` (about 4 s of light maps on 2 cores) and
+Each test runs a real `python -m glint bake living-room -j 2` (about 14 s on 2 cores, `BAKE`) and
 signals it once its temporary directory and its two pool workers exist."""
 from __future__ import annotations
 
@@ -18,7 +18,10 @@ import pytest
 
 psutil = pytest.importorskip("psutil")
 
-BAKE = ["bake", "living-room", "-q", "draft", "-j", "2"]
+# 128 samples per texel, where draft has 32: the whole bake takes about 14 s on 2 cores instead of 6, so the
+# signal, sent as soon as the workers exist (after about 1.3 s), lands while they work (one CI run saw the
+# 32-sample SIGINT case's bake exit 0, and the next test then met its finished re-bake).
+BAKE = ["bake", "living-room", "-q", "draft", "--samples", "128", "-j", "2"]
 
 
 def contents(root: Path) -> dict:
@@ -77,8 +80,9 @@ def test_a_signal_ends_a_bake_cleanly(previous, signum, group, status, line):
         os.killpg(bake.pid, signum)
     else:  # as `kill` or a CI timeout: to the command only
         os.kill(bake.pid, signum)
+    sent = time.monotonic()
     out, err = bake.communicate(timeout=60)
-    assert bake.returncode == status
+    assert bake.returncode == status, f"exit {bake.returncode} {time.monotonic() - sent:.2f} s after the signal: {err}"
     assert err.splitlines() == [line], err
     assert running(workers) == []
     assert sorted(os.listdir(root)) == ["lr"]  # no .lr.*.tmp, nothing set aside
