@@ -924,3 +924,45 @@ def test_wide_lobe_near_the_border_stays_inside_the_guarded_buffer(ctx, tmp_path
         inside[name] = float(np.mean(fractions))
     assert inside["view"] < 0.9, inside  # the problem: much of the lobe left the view's own field
     assert inside["guarded"] > 0.97, inside
+
+
+SIZE_RECT = (288, 192)  # a lobe's spread over several SCISSOR_MARGINs
+
+
+@pytest.mark.parametrize("visibility", [False, True], ids=["raster", "visibility-buffer"])
+def test_mirror_pass_in_its_rectangle_renders_the_same_image(ctx, tmp_path, visibility):
+    """Renderer(mirror_scissor=True) (viewer/reflectors.py `scissor_rect`, an experiment off by
+    default): a glossy tile (m = 0.05, 0.3 m) on a black floor, reflecting emissive columns of three
+    colours that stand around it, one close to each edge; the tile's pass rasterises a rectangle under
+    half of its buffer, and the walkthrough frame and 8 still-camera frames (288 x 192) equal those of
+    the whole buffer bit for bit (the built-in scenes' too: docs/VIEWER.md, "Mirror passes in a
+    rectangle").
+
+    Deliberate bug this catches (tried): the rectangle not widened by the lobe's reach (the tile's
+    projected bounds and SCISSOR_MARGIN alone): the converged image up to 0.36 off where the tile's
+    lobes reach past its rectangle. Either way of rasterising (the visibility buffer's listing reads
+    the depth, cleared outside the rectangle)."""
+    meshes = [quad((0, 0, 0), (4, 0, 0), (0, 0, -4)), quad((0, 0.001, -0.5), (0.15, 0, 0), (0, 0, -0.15))]
+    colours = [RED, GREEN, BLUE]
+    for k, (x, z) in enumerate(((0.0, -0.85), (-0.32, -0.45), (0.32, -0.55))):
+        meshes.append(quad((x, 0.4, z), (0.06, 0, 0), (0, 0.4, 0)))  # facing +z, towards the camera's side
+    mats = [material("floor", kd=BLACK), material("tile", kd=BLACK, lobes=[glossy(0.05)])]
+    mats += [material(f"column {k}", kd=BLACK, emission=c) for k, c in enumerate(colours)]
+    bake = planar_bake(tmp_path / "b", meshes, mats, [0, 1, 2, 3, 4], {1: ((0, 0.001, -0.5), (0, 1, 0))},
+                        sky={"radiance": [0.2, 0.2, 0.2]})
+    camera = ViewCamera.look_at((0.0, 0.9, 1.2), (0.0, 0.0, -0.6), (0, 1, 0), math.radians(40), znear=0.01, zfar=50)
+    images, rects = {}, {}
+    for on in (False, True):
+        with Renderer(ctx, bake, mirror_scissor=on, max_frames=8, visibility=visibility) as r:
+            r.render(camera, *SIZE_RECT)
+            walk = r.read_linear()
+            rects[on] = [d["scissor"] for d in r.stats["mirror"]["passes"]]
+            for _ in range(8):
+                r.render(camera, *SIZE_RECT, mode="converge")
+            images[on] = (walk, r.read_linear())
+    (rect,) = rects[True]
+    assert rects[False] == [None] and rect is not None and rect[2] * rect[3] < 0.5 * SIZE_RECT[0] * SIZE_RECT[1]
+    tile = np.abs(images[False][0] - np.array([0.0, 0.0, 0.0])).max(axis=-1) > 1e-3
+    assert tile.sum() > 20  # the tile shows the columns
+    for a, b in zip(images[False], images[True]):
+        assert np.array_equal(a, b), np.abs(a - b).max()

@@ -47,6 +47,7 @@ GL_FRAMEBUFFER, GL_RENDERBUFFER, GL_FRAMEBUFFER_COMPLETE = 0x8D40, 0x8D41, 0x8CD
 GL_COLOR_ATTACHMENT0, GL_DEPTH_ATTACHMENT = 0x8CE0, 0x8D00
 GL_COLOR, GL_DEPTH = 0x1800, 0x1801
 GL_CLIP_DISTANCE0 = 0x3000
+GL_SCISSOR_TEST = 0x0C11
 GL_ANY_SAMPLES_PASSED_CONSERVATIVE = 0x8D6A
 # glDrawElementsIndirect's command: count, instanceCount, firstIndex, baseVertex, baseInstance (5 x uint32)
 DRAW_ELEMENTS_INDIRECT_COMMAND_BYTES = 20
@@ -183,6 +184,7 @@ class GL:
         self.FramebufferRenderbuffer = fn("glFramebufferRenderbuffer", None, u, u, u, u)
         self.FramebufferTexture = fn("glFramebufferTexture", None, u, u, u, i)
         self.Viewport = fn("glViewport", None, i, i, i, i)
+        self.Scissor = fn("glScissor", None, i, i, i, i)
         self.CheckFramebufferStatus = fn("glCheckFramebufferStatus", u, u)
         self.DrawBuffers = fn("glDrawBuffers", None, i, pu)
         self.ClearBufferfv = fn("glClearBufferfv", None, u, i, ctypes.POINTER(ctypes.c_float))

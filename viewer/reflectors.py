@@ -170,6 +170,42 @@ def guard_scale(camera: ViewCamera, aspect: float, reach: float) -> float:
     return min(scale, GUARD_MAX_SCALE)
 
 
+# Pixels added on every side of a scissored mirror pass's rectangle (`scissor_rect`) beyond its members'
+# lobe reach: the bilinear look-up and a few MIP levels' texels.
+SCISSOR_MARGIN = 8
+
+
+def scissor_rect(p: MirrorPass, aspect: float, size: tuple[int, int], yfov: float) -> tuple[int, int, int, int] | None:
+    """(x, y, width, height) in the pass's mirror-buffer pixels (GL: y from the bottom) that the pass's
+    look-ups are estimated to reach: its members' bounds projected with the pass's view-projection, each
+    axis's extent widened by their widest lobe's reach as an angle seen from the mirrored eye (a ray
+    leaving a reflector point at an angle theta to its mirror direction is seen at less than theta
+    from that point), plus SCISSOR_MARGIN pixels; None where that is the whole buffer or a corner lies
+    behind the mirrored eye. An estimate, not a bound: a look-up's MIP level can read beyond it
+    (docs/VIEWER.md, "Mirror passes in a rectangle")."""
+    w, h = int(size[0]), int(size[1])
+    lo = np.min([np.asarray(r.bounds, np.float64)[0] for r in p.members], axis=0)
+    hi = np.max([np.asarray(r.bounds, np.float64)[1] for r in p.members], axis=0)
+    corners = np.array([[x, y, z, 1.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    clip = corners @ np.asarray(p.view_projection(aspect), np.float64).T
+    if not np.all(clip[:, 3] > 1e-6):
+        return None
+    ndc = clip[:, :2] / clip[:, 3:4]
+    reach = min(max(r.reach for r in p.members), GUARD_MAX_HALF_ANGLE)
+    limit = np.radians(89.0)
+    out = []
+    for axis, pixels, half in ((0, w, np.tan(yfov / 2.0) * aspect * p.guard), (1, h, np.tan(yfov / 2.0) * p.guard)):
+        a0 = max(np.arctan(ndc[:, axis].min() * half) - reach, -limit)  # angles from the axis, widened
+        a1 = min(np.arctan(ndc[:, axis].max() * half) + reach, limit)
+        n0, n1 = np.tan(a0) / half, np.tan(a1) / half
+        out.append((max(int(np.floor((n0 + 1.0) / 2.0 * pixels)) - SCISSOR_MARGIN, 0),
+                    min(int(np.ceil((n1 + 1.0) / 2.0 * pixels)) + SCISSOR_MARGIN, pixels)))
+    (x0, x1), (y0, y1) = out
+    if x1 <= x0 or y1 <= y0 or (x0, y0, x1, y1) == (0, 0, w, h):
+        return None
+    return x0, y0, x1 - x0, y1 - y0
+
+
 @dataclass
 class Skipped:
     reflector: Reflector

@@ -86,7 +86,8 @@ class Renderer:
                  samples_per_frame: int = DEFAULT_SAMPLES_PER_FRAME, max_frames: int = DEFAULT_MAX_FRAMES,
                  blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto",
                  footprint: str = "moment", timing: bool = True, small_objects: float = 0.0,
-                 display: bool = True, lod: float = 0.0, visibility: bool | None = None):
+                 display: bool = True, lod: float = 0.0, visibility: bool | None = None,
+                 mirror_scissor: bool = False):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "albedo" (the default), "eq4.25" or "eq4.24" (the walkthrough's estimator); walkthrough: a key of
         WALKTHROUGH_METHODS (anything but the defaults is a comparison method, above); samples_per_frame, max_frames, blend_frames: the still camera's
@@ -104,7 +105,9 @@ class Renderer:
         coarsest that keeps `lod` triangles per G-buffer pixel it covers (0: every object whole;
         the bake's cube-map renders, whose texels are larger than most triangles); visibility: the
         G-buffer through a visibility buffer (viewer/passes/gbuffer.py; None: unless the renderer is
-        a software one, where it is no faster: docs/VIEWER.md; never with `lod`)."""
+        a software one, where it is no faster: docs/VIEWER.md; never with `lod`); mirror_scissor: each
+        mirror pass rasterises only the rectangle its look-ups are estimated to reach (an experiment,
+        off by default: viewer/passes/mirror.py)."""
         check_context(ctx)
         if walkthrough not in WALKTHROUGH_METHODS:
             raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
@@ -127,7 +130,7 @@ class Renderer:
             visibility = not software_renderer(ctx)
         self.gbuffer = GBufferPass(ctx, self.scene, self.draws, defines, visibility=visibility)
         self.mirror = MirrorPasses(ctx, self.scene, bake, self.draws, defines, budget=int(mirror_budget),
-                                   visibility=self.gbuffer.visibility)
+                                   visibility=self.gbuffer.visibility, scissor=mirror_scissor)
         self.mirror.set_units(mirror_unit)
         self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
         self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror,

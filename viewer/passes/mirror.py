@@ -63,6 +63,7 @@ from glint.viewer.gl import (
     GL_QUERY_RESULT,
     GL_QUERY_RESULT_AVAILABLE,
     GL_RENDERBUFFER,
+    GL_SCISSOR_TEST,
     release_framebuffer,
 )
 from glint.viewer.gl_bindings import (
@@ -90,6 +91,7 @@ from glint.viewer.reflectors import (
     Reflector,
     lobe_reach,
     plan_mirror_passes,
+    scissor_rect,
 )
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
 
@@ -145,11 +147,13 @@ class MirrorPasses:
     name = "mirror"
 
     def __init__(self, ctx: moderngl.Context, scene, bake, draws, defines: dict, budget: int = DEFAULT_BUDGET,
-                 visibility: bool = False):
+                 visibility: bool = False, scissor: bool = False):
         """draws: the scene's viewer/draw_list.py DrawList (pass k draws into its region
         GBufferPass.REGION + 1 + k); visibility: each pass through a visibility buffer
         (viewer/passes/visibility.py: ids and depth rasterised, then the targets resolved per pixel in
-        compute), as the G-buffer on a GPU."""
+        compute), as the G-buffer on a GPU; scissor: each pass rasterises only the rectangle its
+        reflectors' look-ups are estimated to reach (viewer/reflectors.py `scissor_rect`; an
+        experiment, off by default: docs/VIEWER.md, "Mirror passes in a rectangle")."""
         if not (isinstance(budget, (int, np.integer)) and budget >= 0):
             raise ValueError(f"the mirror-pass budget must be a whole number of at least 0 (got {budget!r})")
         self.ctx = ctx
@@ -161,6 +165,7 @@ class MirrorPasses:
         self.object_of = {r.name: i for i, r in self.objects}
         planes = group_coplanar([(r.name, r.point, r.normal) for r in self.reflectors]) if self.reflectors else []
         self.layers = min(self.budget, len(planes))  # passes one frame can ever need
+        self.scissor = bool(scissor)
         draws.reserve(GBufferPass.REGION + 1 + self.layers)  # pass k draws into region 1 + k
         self.occlusion = OcclusionResults()
         self.frame = 0
@@ -316,6 +321,10 @@ class MirrorPasses:
         if self.ids:  # the targets were cleared above; the raster pass writes ids and depth
             self._ids_fbo.viewport = (0, 0, *self.size)
             self._ids_fbo.use()
+        rect = scissor_rect(p, aspect, self.size, camera.yfov) if self.scissor else None
+        if rect is not None:  # after the clears: outside it the buffer holds the sky (below)
+            gl.Enable(GL_SCISSOR_TEST)
+            gl.Scissor(*rect)
         try:
             # geometry wholly behind the mirror is culled (it would be clipped anyway), the reflectors
             # of this plane left out
@@ -323,6 +332,7 @@ class MirrorPasses:
                             clip_plane=mirror.clip_plane())
         finally:
             gl.Disable(GL_CLIP_DISTANCE0)
+            gl.Disable(GL_SCISSOR_TEST)
             ctx.front_face = "ccw"
         if self.ids:  # mirror.frag's targets from the ids, at layer k (viewer/passes/visibility.py)
             for target, unit in (("radiance", MIRROR_RADIANCE_IMAGE), ("position", MIRROR_POSITION_IMAGE),
@@ -332,7 +342,7 @@ class MirrorPasses:
             self._bind_layer(glo)
         if sky_map:
             self._draw_sky(mirror, camera, aspect, p.guard)
-        return {"reflectors": p.names, "region": region}
+        return {"reflectors": p.names, "region": region, "scissor": rect}
 
     def _bind_layer(self, glo: int) -> None:
         """A layer's framebuffer and viewport, by their GL names: moderngl's handle of a framebuffer it did
@@ -471,7 +481,8 @@ class MirrorPasses:
     def _pass_record(self, drawn: dict) -> dict:
         """What a pass drew (reads its draw states back from the GPU)."""
         r = self.draws.record(drawn["region"])
-        return {"reflectors": drawn["reflectors"], "objects_drawn": r["objects_drawn"], "triangles": r["triangles"],
+        return {"reflectors": drawn["reflectors"], "scissor": drawn.get("scissor"),
+                "objects_drawn": r["objects_drawn"], "triangles": r["triangles"],
                 "objects_behind_plane": len(r["objects_behind_plane"]), "objects_outside_view": len(r["objects_culled"])}
 
     # -- cleaning up -------------------------------------------------------------------------------
