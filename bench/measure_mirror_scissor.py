@@ -13,59 +13,32 @@ bakes are made in DIR when missing.
 """
 from __future__ import annotations
 
-import argparse
-import statistics
 import sys
-from pathlib import Path
 
 
 def main(argv=None) -> int:
-    import moderngl
     import numpy as np
 
-    from glint.bench.measure_draw_count import BLOCKS, FRAMES, alternate, bake_for
-    from glint.bench.measure_visibility import compare
-    from glint.core.bake_dir import Bake
-    from glint.viewer.camera import ViewCamera
-    from glint.viewer.gl import describe
-    from glint.viewer.renderer import Renderer
+    from glint.bench.measure_visibility import compare, paired_views, setup
 
-    p = argparse.ArgumentParser(prog="python3 -m glint.bench.measure_mirror_scissor", description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", nargs="+", default=["living-room", "planar-classes"])
-    p.add_argument("--size", default="640x360")
-    p.add_argument("--out", type=Path, default=Path("mirror-scissor"))
-    args = p.parse_args(argv)
-    width, height = (int(v) for v in args.size.split("x"))
-    args.out.mkdir(parents=True, exist_ok=True)
-    ctx = moderngl.create_standalone_context(backend="egl", require=430)
-    print(f"{describe(ctx)}, {width}x{height}, walkthrough frames, medians of {BLOCKS * FRAMES} per side")
+    args, ctx, width, height = setup("measure_mirror_scissor", __doc__, ["living-room", "planar-classes"],
+                                     "mirror-scissor", argv)
     print("| scene, camera | passes: share of the buffer rasterised | mirror passes ms: whole / rectangle "
           "| frame ms: whole / rectangle | largest relative difference | pixels over 1e-3 | over 1e-2 |")
     print("|---|---|---|---|---:|---:|---:|")
-    for name in args.scenes:
-        bake = Bake(bake_for(name, args.out))
-        for entry in bake.model.cameras:
-            camera = ViewCamera.from_manifest(entry)
-            renderers = {on: Renderer(ctx, bake, mirror_scissor=on) for on in (False, True)}
-            try:
-                frame = alternate(ctx, {on: (lambda r=r, camera=camera: r.render(camera, width, height))
-                                        for on, r in renderers.items()})
-                mirror = {on: r.timer.median_ms.get("mirror_passes", float("nan")) for on, r in renderers.items()}
-                shares = []
-                for d in renderers[True].stats["mirror"]["passes"]:
-                    rect = d.get("scissor")
-                    shares.append(1.0 if rect is None else rect[2] * rect[3] / (width * height))
-                images = {on: r.read_linear() for on, r in renderers.items()}
-                worst, over = compare(images[False], images[True])
-                rel = (np.abs(images[False] - images[True])
-                       / np.maximum(np.maximum(np.abs(images[False]), np.abs(images[True])), 1e-6)).max(axis=-1)
-                a, b = (statistics.median(frame[k]) for k in (False, True))
-                print(f"| {name}, {entry.name} | {', '.join(f'{s:.2f}' for s in shares) or '-'} "
-                      f"| {mirror[False]:.2f} / {mirror[True]:.2f} | {a:.2f} / {b:.2f} | {worst:.2e} "
-                      f"| {over} of {width * height} | {int((rel > 1e-2).sum())} |", flush=True)
-            finally:
-                for r in renderers.values():
-                    r.release()
+    for name, entry, renderers, frame in paired_views(ctx, args, width, height, "mirror_scissor"):
+        mirror = {on: r.timer.median_ms.get("mirror_passes", float("nan")) for on, r in renderers.items()}
+        shares = []
+        for d in renderers[True].stats["mirror"]["passes"]:
+            rect = d.get("scissor")
+            shares.append(1.0 if rect is None else rect[2] * rect[3] / (width * height))
+        images = {on: r.read_linear() for on, r in renderers.items()}
+        worst, over = compare(images[False], images[True])
+        rel = (np.abs(images[False] - images[True])
+               / np.maximum(np.maximum(np.abs(images[False]), np.abs(images[True])), 1e-6)).max(axis=-1)
+        print(f"| {name}, {entry.name} | {', '.join(f'{s:.2f}' for s in shares) or '-'} "
+              f"| {mirror[False]:.2f} / {mirror[True]:.2f} | {frame[False]:.2f} / {frame[True]:.2f} | {worst:.2e} "
+              f"| {over} of {width * height} | {int((rel > 1e-2).sum())} |", flush=True)
     return 0
 
 

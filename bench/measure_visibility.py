@@ -29,51 +29,70 @@ def compare(a, b) -> tuple[float, int]:
     return float(worst.max()), int((worst > 1e-3).sum())
 
 
-def main(argv=None) -> int:
+def setup(prog: str, doc: str, scenes: list[str], out: str, argv=None):
+    """The two A/B tools' command line (--scenes, --size, --out) and context: (args, ctx, width, height);
+    prints the device and what the medians are of."""
     import moderngl
-    import numpy as np
 
-    from glint.bench.measure_draw_count import BLOCKS, FRAMES, alternate, bake_for
-    from glint.core.bake_dir import Bake
-    from glint.viewer.camera import ViewCamera
+    from glint.bench.measure_draw_count import BLOCKS, FRAMES
     from glint.viewer.gl import describe
-    from glint.viewer.renderer import Renderer
 
-    p = argparse.ArgumentParser(prog="python3 -m glint.bench.measure_visibility", description=__doc__.splitlines()[0])
-    p.add_argument("--scenes", nargs="+", default=["cornell-box", "living-room", "material-classes", "planar-classes",
-                                                   "many-1000"])
+    p = argparse.ArgumentParser(prog=f"python3 -m glint.bench.{prog}", description=doc.splitlines()[0])
+    p.add_argument("--scenes", nargs="+", default=scenes)
     p.add_argument("--size", default="640x360")
-    p.add_argument("--out", type=Path, default=Path("visibility"))
+    p.add_argument("--out", type=Path, default=Path(out))
     args = p.parse_args(argv)
     width, height = (int(v) for v in args.size.split("x"))
     args.out.mkdir(parents=True, exist_ok=True)
     ctx = moderngl.create_standalone_context(backend="egl", require=430)
     print(f"{describe(ctx)}, {width}x{height}, walkthrough frames, medians of {BLOCKS * FRAMES} per side")
-    print("| scene, camera | G-buffer ms: raster / visibility | mirror passes ms: raster / visibility "
-          "| frame ms: raster / visibility | frame ratio | largest relative difference | pixels over 1e-3 | same depth |")
-    print("|---|---|---|---|---:|---:|---:|---|")
+    return args, ctx, width, height
+
+
+def paired_views(ctx, args, width: int, height: int, option: str):
+    """For every camera of every scene of `args` (draft bakes in args.out): two renderers,
+    Renderer(option=False) and Renderer(option=True), drawing walkthrough frames alternately
+    (measure_draw_count.py `alternate`); yields (scene, camera entry, {False: r, True: r}, {False: ms,
+    True: ms} medians of the frame's wall time) and releases the renderers after."""
+    from glint.bench.measure_draw_count import alternate, bake_for
+    from glint.core.bake_dir import Bake
+    from glint.viewer.camera import ViewCamera
+    from glint.viewer.renderer import Renderer
+
     for name in args.scenes:
         bake = Bake(bake_for(name, args.out))
         for entry in bake.model.cameras:
             camera = ViewCamera.from_manifest(entry)
-            renderers = {vis: Renderer(ctx, bake, visibility=vis) for vis in (False, True)}
+            renderers = {on: Renderer(ctx, bake, **{option: on}) for on in (False, True)}
             try:
-                frame = alternate(ctx, {vis: (lambda r=r, camera=camera: r.render(camera, width, height))
-                                        for vis, r in renderers.items()})
-                passes = {vis: r.timer.median_ms for vis, r in renderers.items()}
-                gbuffer = {vis: m.get("gbuffer", float("nan")) for vis, m in passes.items()}
-                mirror = {vis: m.get("mirror_passes") for vis, m in passes.items()}
-                mirror_ms = "-" if mirror[False] is None else f"{mirror[False]:.2f} / {mirror[True]:.2f}"
-                images = {vis: r.read_linear() for vis, r in renderers.items()}
-                depth = {vis: np.frombuffer(r.gbuffer.targets["depth"].read(), np.float32) for vis, r in renderers.items()}
-                worst, over = compare(images[False], images[True])
-                a, b = (statistics.median(frame[k]) for k in (False, True))
-                print(f"| {name}, {entry.name} | {gbuffer[False]:.2f} / {gbuffer[True]:.2f} | {mirror_ms} | {a:.2f} / {b:.2f} "
-                      f"| {b / a:.3f} | {worst:.2e} | {over} of {width * height} "
-                      f"| {'yes' if np.array_equal(depth[False], depth[True]) else 'no'} |", flush=True)
+                frame = alternate(ctx, {on: (lambda r=r, camera=camera: r.render(camera, width, height))
+                                        for on, r in renderers.items()})
+                yield name, entry, renderers, {on: statistics.median(ms) for on, ms in frame.items()}
             finally:
                 for r in renderers.values():
                     r.release()
+
+
+def main(argv=None) -> int:
+    import numpy as np
+
+    args, ctx, width, height = setup("measure_visibility", __doc__, ["cornell-box", "living-room", "material-classes",
+                                                                     "planar-classes", "many-1000"], "visibility", argv)
+    print("| scene, camera | G-buffer ms: raster / visibility | mirror passes ms: raster / visibility "
+          "| frame ms: raster / visibility | frame ratio | largest relative difference | pixels over 1e-3 | same depth |")
+    print("|---|---|---|---|---:|---:|---:|---|")
+    for name, entry, renderers, frame in paired_views(ctx, args, width, height, "visibility"):
+        passes = {vis: r.timer.median_ms for vis, r in renderers.items()}
+        gbuffer = {vis: m.get("gbuffer", float("nan")) for vis, m in passes.items()}
+        mirror = {vis: m.get("mirror_passes") for vis, m in passes.items()}
+        mirror_ms = "-" if mirror[False] is None else f"{mirror[False]:.2f} / {mirror[True]:.2f}"
+        images = {vis: r.read_linear() for vis, r in renderers.items()}
+        depth = {vis: np.frombuffer(r.gbuffer.targets["depth"].read(), np.float32) for vis, r in renderers.items()}
+        worst, over = compare(images[False], images[True])
+        a, b = frame[False], frame[True]
+        print(f"| {name}, {entry.name} | {gbuffer[False]:.2f} / {gbuffer[True]:.2f} | {mirror_ms} | {a:.2f} / {b:.2f} "
+              f"| {b / a:.3f} | {worst:.2e} | {over} of {width * height} "
+              f"| {'yes' if np.array_equal(depth[False], depth[True]) else 'no'} |", flush=True)
     return 0
 
 
