@@ -20,13 +20,12 @@ import sys
 from pathlib import Path
 
 
-def compare(a, b) -> tuple[float, int]:
-    """(largest relative difference of any channel, pixels where it is over 1e-3) of two images."""
+def relative_difference(a, b):
+    """(H, W) per pixel the largest relative difference |a - b| / max(|a|, |b|, 1e-6) of any channel of
+    two (H, W, C) images."""
     import numpy as np
 
-    rel = np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-6)
-    worst = rel.max(axis=-1)
-    return float(worst.max()), int((worst > 1e-3).sum())
+    return (np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-6)).max(axis=-1)
 
 
 def setup(prog: str, doc: str, scenes: list[str], out: str, argv=None):
@@ -88,10 +87,10 @@ def main(argv=None) -> int:
         mirror_ms = "-" if mirror[False] is None else f"{mirror[False]:.2f} / {mirror[True]:.2f}"
         images = {vis: r.read_linear() for vis, r in renderers.items()}
         depth = {vis: np.frombuffer(r.gbuffer.targets["depth"].read(), np.float32) for vis, r in renderers.items()}
-        worst, over = compare(images[False], images[True])
+        rel = relative_difference(images[False], images[True])
         a, b = frame[False], frame[True]
         print(f"| {name}, {entry.name} | {gbuffer[False]:.2f} / {gbuffer[True]:.2f} | {mirror_ms} | {a:.2f} / {b:.2f} "
-              f"| {b / a:.3f} | {worst:.2e} | {over} of {width * height} "
+              f"| {b / a:.3f} | {rel.max():.2e} | {int((rel > 1e-3).sum())} of {width * height} "
               f"| {'yes' if np.array_equal(depth[False], depth[True]) else 'no'} |", flush=True)
     return 0
 

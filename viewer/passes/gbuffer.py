@@ -78,13 +78,18 @@ class GBufferPass:
         self.ctx = ctx
         self.scene = scene
         self.draws = draws
-        self.visibility = bool(visibility) and not draws.lod and len(draws.batches) <= MAX_BATCHES
-        self.ids = VisibilityResolve(ctx, scene, draws, defines, "RESOLVE_GBUFFER") if self.visibility else None
+        usable = bool(visibility) and not draws.lod and len(draws.batches) <= MAX_BATCHES
+        self.ids = VisibilityResolve(ctx, scene, draws, defines, "RESOLVE_GBUFFER") if usable else None
         self.program = self.ids.program if self.ids else raster_program(ctx, "gbuffer.vert", "gbuffer.frag", defines)
         self.size: tuple[int, int] | None = None
         self.fbo = None        # what the raster pass draws into (its depth: the occlusion queries')
         self.read_fbo = None   # the targets with the depth (`pick`)
         self.targets: dict[str, moderngl.Texture] = {}
+
+    @property
+    def visibility(self) -> bool:
+        """Whether this pass goes through a visibility buffer (module docstring)."""
+        return self.ids is not None
 
     def resize(self, size: tuple[int, int]) -> None:
         if size == self.size:

@@ -481,7 +481,7 @@ class MirrorPasses:
     def _pass_record(self, drawn: dict) -> dict:
         """What a pass drew (reads its draw states back from the GPU)."""
         r = self.draws.record(drawn["region"])
-        return {"reflectors": drawn["reflectors"], "scissor": drawn.get("scissor"),
+        return {"reflectors": drawn["reflectors"], "scissor": drawn["scissor"],
                 "objects_drawn": r["objects_drawn"], "triangles": r["triangles"],
                 "objects_behind_plane": len(r["objects_behind_plane"]), "objects_outside_view": len(r["objects_culled"])}
 
