@@ -4,8 +4,8 @@ load falls on both), medians; docs/VIEWER.md, "Draws the driver never sees".
 
     python3 -m glint.bench.measure_draw_count [--scenes living-room many-1000 ...] [--size 640x360] [--out DIR]
 
-Scenes: built-in names, or many-N (scenes/stress.py `many_objects`, N boxes). Draft bakes are made
-in DIR when missing.
+Scenes: built-in names, many-N (scenes/stress.py `many_objects`, N boxes) or .glb/.gltf files. Draft bakes are
+made in DIR when missing.
 """
 from __future__ import annotations
 
@@ -20,20 +20,26 @@ FRAMES = 8        # timed frames per block
 WARMUP = 3        # untimed frames after each switch
 
 
-def bake_for(name: str, out: Path) -> Path:
-    """A draft bake of a built-in scene or of many-N, made once in `out`."""
+def bake_for(name: str, out: Path, quality: str | None = "draft") -> Path:
+    """A bake of `name` made once in `out` (out/STEM.bake; a bake there that is out of date is redone):
+    a built-in scene, many-N (scenes/stress.py `many_objects`, N boxes) or a .glb/.gltf file, at the
+    quality preset `quality` (None: the scene's own settings)."""
     from glint.bake.gltf_loader import load_scene
     from glint.bake.settings import resolve_settings
     from glint.scenes import builtin_path
     from glint.scenes.stress import many_objects
     from glint.services import bake_scene
 
-    bake_dir = out / f"{name}.bake"
-    if not bake_dir.exists():
-        path = many_objects(out / "scenes", int(name[5:]), metal_every=None).path if name.startswith("many-") \
-            else builtin_path(name)
-        scene = load_scene(path)
-        bake_scene(scene, resolve_settings(scene.bake_settings, quality="draft"), bake_dir, progress=False)
+    if name.startswith("many-"):
+        path = many_objects(out / "scenes", int(name[5:]), metal_every=None).path
+    elif name.endswith((".glb", ".gltf")):
+        path = Path(name)
+    else:
+        path = builtin_path(name)
+    bake_dir = out / f"{Path(name).stem}.bake"
+    scene = load_scene(path)
+    bake_scene(scene, resolve_settings(scene.bake_settings, **({"quality": quality} if quality else {})), bake_dir,
+               progress=False)  # no work when up to date
     return bake_dir
 
 

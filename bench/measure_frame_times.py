@@ -12,8 +12,9 @@ glFinish-bracketed wall clock on llvmpipe), their sum ("gpu total") and the wall
 frame as the program sees it (the frames back to back, one glFinish at the end, divided by their
 number: CPU work and driver overhead included). Then the same for still-camera frames
 ("converge": 4 quasi-random samples per lobe and pixel, added to the running mean). The bakes
-are the scenes' default bakes (`glint bake SCENE`); --bake-root DIR uses DIR/SCENE.bake instead
-(made when missing); --quality PRESET bakes them at that preset. --weights: the walkthrough
+are the scenes' default bakes (`glint bake SCENE`); --bake-root DIR uses DIR/STEM.bake instead (made when
+missing; there scenes may also be many-N, N boxes, or .glb/.gltf files: measure_draw_count.py `bake_for`);
+--quality PRESET bakes them at that preset. --weights: the walkthrough
 estimators to time, each a renderer of its own (Renderer(weights=...): "albedo", the default,
 "eq4.25", "eq4.24"), one after the other per view.
 --gbuffer likewise: the G-buffer and mirror passes rasterised ("raster") or through a visibility buffer
@@ -28,6 +29,7 @@ import time
 from pathlib import Path
 
 from glint.bake.settings import resolve_settings
+from glint.bench.measure_draw_count import bake_for
 from glint.core.atomic import atomic_write_text
 from glint.core.bake_dir import Bake, default_bake_dir
 from glint.services import bake_scene, open_scene
@@ -40,9 +42,11 @@ SCENES = ("living-room", "material-classes", "planar-classes", "cornell-box")
 
 
 def load_bake(scene: str, bake_root: Path | None, quality: str | None = None):
+    if bake_root:  # built-in, many-N or a glTF file, baked in bake_root
+        return Bake(bake_for(scene, bake_root, quality))
     loaded, builtin = open_scene(scene)
-    out = bake_root / f"{scene}.bake" if bake_root else default_bake_dir(loaded.source, builtin)
     settings = resolve_settings(loaded.bake_settings, **({"quality": quality} if quality else {}))
+    out = default_bake_dir(loaded.source, builtin)
     bake_scene(loaded, settings, out, progress=False)  # no-op when up to date
     return Bake(out)
 
