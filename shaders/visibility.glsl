@@ -33,3 +33,12 @@ uint vis_pack_pixel(ivec2 p) {
 ivec2 vis_unpack_pixel(uint word) {
     return ivec2(int(word & 0xFFFFu), int(word >> 16));
 }
+
+#ifdef RESOLVE_MIRROR
+// A mirror pass's targets (mirror.frag's outputs) as images at layer `layer`, the pass's slot: the resolve
+// writes the drawn pixels, the classification's count the empty ones (visibility_classify.comp).
+layout(binding = MIRROR_RADIANCE_IMAGE, rgba16f) writeonly uniform image2DArray mirror_radiance_image;
+layout(binding = MIRROR_POSITION_IMAGE, rgba32f) writeonly uniform image2DArray mirror_position_image;
+layout(binding = MIRROR_NORMAL_IMAGE, rgba16f) writeonly uniform image2DArray mirror_normal_image;
+uniform int layer;
+#endif

@@ -7,7 +7,12 @@
 //   CLASSIFY_PLAN     one invocation: offsets = exclusive prefix sum of counts; per batch the
 //                     dispatch (ceil(count / RESOLVE_GROUP), 1, 1)
 //   CLASSIFY_SCATTER  per pixel drawn: pixels[offsets[batch] + cursors[batch]++] = the pixel
-// Reads: the visibility buffer and depth, the batch of each object. Writes: the tally and the pixel list.
+// With RESOLVE_MIRROR (a mirror pass's), the count also writes the empty pixels' texels of the pass's
+// layer: `empty_radiance` (the sky's constant colour, or 0), position and normal 0 -- what the targets'
+// clear left there in the raster pass. A clear would go through the raster back end (and a GPU's fast
+// clear would have to be expanded before the resolve's image stores), a cost of the whole buffer per pass.
+// Reads: the visibility buffer and depth, the batch of each object. Writes: the tally and the pixel list
+// (and the mirror layer's empty texels).
 
 #include "visibility.glsl"
 
@@ -43,6 +48,9 @@ layout(binding = VISIBILITY_DEPTH_UNIT) uniform sampler2D visibility_depth;
 // batches, and millions of atomic additions to the same few words would queue up on a GPU.
 shared uint group_count[VISIBILITY_BATCHES];
 shared uint group_base[VISIBILITY_BATCHES];
+#if defined(CLASSIFY_COUNT) && defined(RESOLVE_MIRROR)
+uniform vec4 empty_radiance;
+#endif
 
 void main() {
     const uint GROUP = uint(LOCAL_SIZE * LOCAL_SIZE);
@@ -52,8 +60,15 @@ void main() {
     barrier();
 
     ivec2 pixel = ivec2(gl_GlobalInvocationID.xy);
-    bool drawn = all(lessThan(pixel, textureSize(visibility_ids, 0)))
-                 && texelFetch(visibility_depth, pixel, 0).r < 1.0;
+    bool inside = all(lessThan(pixel, textureSize(visibility_ids, 0)));
+    bool drawn = inside && texelFetch(visibility_depth, pixel, 0).r < 1.0;
+#if defined(CLASSIFY_COUNT) && defined(RESOLVE_MIRROR)
+    if (inside && !drawn) {
+        imageStore(mirror_radiance_image, ivec3(pixel, layer), empty_radiance);
+        imageStore(mirror_position_image, ivec3(pixel, layer), vec4(0.0));
+        imageStore(mirror_normal_image, ivec3(pixel, layer), vec4(0.0));
+    }
+#endif
     int batch = drawn ? batch_of_object[vis_object(texelFetch(visibility_ids, pixel, 0).xy)] : 0;
     uint slot = drawn ? atomicAdd(group_count[batch], 1u) : 0u;
     barrier();

@@ -25,12 +25,7 @@ layout(std430, binding = VISIBILITY_TALLY_BINDING) readonly buffer VisibilityTal
 };
 layout(std430, binding = VISIBILITY_PIXELS_BINDING) readonly buffer VisibilityPixels { uint pixels[]; };
 layout(binding = VISIBILITY_UNIT) uniform usampler2D visibility_ids;
-#ifdef RESOLVE_MIRROR
-layout(binding = MIRROR_RADIANCE_IMAGE, rgba16f) writeonly uniform image2DArray mirror_radiance_image;
-layout(binding = MIRROR_POSITION_IMAGE, rgba32f) writeonly uniform image2DArray mirror_position_image;
-layout(binding = MIRROR_NORMAL_IMAGE, rgba16f) writeonly uniform image2DArray mirror_normal_image;
-uniform int layer;  // the pass's slot
-#else
+#ifndef RESOLVE_MIRROR  // a mirror pass's images: visibility.glsl
 layout(binding = GB_SHADE_IMAGE, rgba32ui) writeonly uniform uimage2D gb_shade;
 layout(binding = GB_FRAME_IMAGE, rgba32ui) writeonly uniform uimage2D gb_frame;
 #endif

@@ -106,10 +106,12 @@ def yard(tmp_path_factory):
 
 
 CAMERA = ViewCamera(eye=(0.0, 0.55, 0.5), forward=(0.0, -0.06, -1.0), yfov=math.radians(55))
+ASIDE = ViewCamera(eye=(0.35, 0.4, 0.8), forward=(-0.2, -0.1, -1.0), yfov=math.radians(45))  # the frame before
 
 
 def gbuffer_of(ctx, bake, visibility: bool) -> dict:
     with Renderer(ctx, bake, visibility=visibility) as r:
+        r.render(ASIDE, *SIZE)  # leaves other texels in the mirror layer: each frame must write all of them
         r.render(CAMERA, *SIZE)
         assert r.gbuffer.visibility == visibility
         t = r.gbuffer.targets
@@ -140,7 +142,8 @@ def test_visibility_buffer_resolves_the_raster_gbuffer(ctx, yard):
     39 %, 27 % of the pixels over 1e-3; the facing bit ignored (every pixel front-facing): the dark
     flag of the single-sided panel's back lost; dFdy's step taken along x: off by up to 98 %; a
     mirror pass's depth clear left to the depth mask a released renderer left off (moderngl's parked
-    framebuffer without a depth buffer): the whole first mirror layer taken as drawn. The light-map
+    framebuffer without a depth buffer): the whole first mirror layer taken as drawn; the mirror layer's
+    empty position texels left unwritten (the last frame's stay, ASIDE's): their comparison. The light-map
     page from the first vertex instead of the provoking (last) one changes nothing here (an
     object's vertices share their page), so it is not claimed."""
     raster, vis = gbuffer_of(ctx, yard, False), gbuffer_of(ctx, yard, True)
@@ -178,6 +181,8 @@ def test_visibility_buffer_resolves_the_raster_gbuffer(ctx, yard):
     assert rel.max() <= 1e-2 and (rel > 1e-3).mean() <= 0.01
     assert np.abs(ma["position"] - mb["position"])[seen].max() <= 1e-4
     assert np.abs(ma["normal"] - mb["normal"])[seen].max() <= 2e-3
+    for target in ("radiance", "position", "normal"):  # the empty texels: the sky's colour, nothing
+        assert np.array_equal(ma[target][~seen], mb[target][~seen]), f"the mirror's empty {target} texels differ"
 
     ia, ib = raster["image"], vis["image"]
     rel = (np.abs(ia - ib) / np.maximum(np.maximum(np.abs(ia), np.abs(ib)), 1e-6)).max(axis=-1)

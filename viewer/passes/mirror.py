@@ -304,9 +304,10 @@ class MirrorPasses:
         sky = (0.0, 0.0, 0.0) if sky_map else tuple(map(float, self.scene.sky_uniforms()["sky_scale"]))
         if self.scene.sky_mode == SKY_MODES["SKY_NONE"]:
             sky = (0.0, 0.0, 0.0)
-        gl.ClearBufferfv(GL_COLOR, LOCATIONS["radiance"], (ctypes.c_float * 4)(*sky, 1.0))
-        for target in ("position", "normal"):
-            gl.ClearBufferfv(GL_COLOR, LOCATIONS[target], zero)
+        if not self.ids:  # through a visibility buffer, the classification writes the empty texels
+            gl.ClearBufferfv(GL_COLOR, LOCATIONS["radiance"], (ctypes.c_float * 4)(*sky, 1.0))
+            for target in ("position", "normal"):
+                gl.ClearBufferfv(GL_COLOR, LOCATIONS[target], zero)
         gl.ClearBufferfv(GL_DEPTH, 0, (ctypes.c_float * 1)(1.0))
         ctx.enable_only(moderngl.DEPTH_TEST)
         ctx.depth_func = "<"
@@ -318,11 +319,11 @@ class MirrorPasses:
                      clip_plane=tuple(map(float, mirror.clip_plane())))
         members = {self.object_of[r.name] for r in p.members}
         region = GBufferPass.REGION + 1 + k
-        if self.ids:  # the targets were cleared above; the raster pass writes ids and depth
+        if self.ids:  # the raster pass writes ids and depth
             self._ids_fbo.viewport = (0, 0, *self.size)
             self._ids_fbo.use()
         rect = scissor_rect(p, aspect, self.size, camera.yfov) if self.scissor else None
-        if rect is not None:  # after the clears: outside it the buffer holds the sky (below)
+        if rect is not None:  # after the clears: outside it the buffer holds the empty texels (the sky, below)
             gl.Enable(GL_SCISSOR_TEST)
             gl.Scissor(*rect)
         try:
@@ -338,7 +339,7 @@ class MirrorPasses:
             for target, unit in (("radiance", MIRROR_RADIANCE_IMAGE), ("position", MIRROR_POSITION_IMAGE),
                                  ("normal", MIRROR_NORMAL_IMAGE)):
                 self.targets[target].bind_to_image(unit, read=False, write=True, level=0)
-            self.ids.run(self.depth, view_proj, mirror.eye, layer=k)
+            self.ids.run(self.depth, view_proj, mirror.eye, layer=k, empty=(*sky, 1.0))
             self._bind_layer(glo)
         if sky_map:
             self._draw_sky(mirror, camera, aspect, p.guard)

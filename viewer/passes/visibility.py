@@ -61,8 +61,10 @@ class VisibilityResolve:
         self.program = raster_program(ctx, "gbuffer.vert", "visibility.frag", defines)
         self.resolve = compute_program(ctx, "visibility_resolve.comp",
                                        {**defines, **vertex_defines(), **lists, "SURFACE_FROM_IDS": 1, target: 1})
-        self.classify = {step: compute_program(ctx, "visibility_classify.comp", {**defines, **lists, f"CLASSIFY_{step}": 1})
+        self.classify = {step: compute_program(ctx, "visibility_classify.comp",
+                                               {**defines, **lists, target: 1, f"CLASSIFY_{step}": 1})
                          for step in ("COUNT", "PLAN", "SCATTER")}
+        self.target = target
         self._gl = GL(ctx)
         with self._gl.checked(f"allocate the visibility buffer's tally of {batches} batches"):
             self.tally = ctx.buffer(reserve=6 * batches * 4)  # visibility_classify.comp VisibilityTally
@@ -88,17 +90,19 @@ class VisibilityResolve:
         """The raster pass's framebuffer: `ids` and the owner's depth texture."""
         return self.ctx.framebuffer([self.ids], depth)
 
-    def run(self, depth: moderngl.Texture, view_proj: np.ndarray, eye, layer: int = 0) -> None:
+    def run(self, depth: moderngl.Texture, view_proj: np.ndarray, eye, layer: int = 0,
+            empty=(0.0, 0.0, 0.0, 1.0)) -> None:
         """Resolve what the raster pass left in `ids` and `depth` (drawn with `view_proj` from `eye`)
-        into the owner's images, bound before; `layer`: the mirror buffers' layer."""
+        into the owner's images, bound before. A mirror pass's: `layer`, its slot, and `empty`, the
+        radiance of its empty pixels (their position and normal are 0); its targets need no clear."""
         if self._checked:
-            self._run(depth, view_proj, eye, layer)
+            self._run(depth, view_proj, eye, layer, empty)
             return
         with self._gl.checked("resolve a visibility buffer"):  # once: glGetError stalls the pipeline
-            self._run(depth, view_proj, eye, layer)
+            self._run(depth, view_proj, eye, layer, empty)
         self._checked = True
 
-    def _run(self, depth, view_proj, eye, layer: int) -> None:
+    def _run(self, depth, view_proj, eye, layer: int, empty) -> None:
         ctx, scene, batches = self.ctx, self.scene, self.draws.batches
         self.ids.use(VISIBILITY_UNIT)
         depth.use(VISIBILITY_DEPTH_UNIT)
@@ -111,6 +115,8 @@ class VisibilityResolve:
         self.tally.clear()
         self.tally.bind_to_storage_buffer(VISIBILITY_TALLY_BINDING)
         self.pixels.bind_to_storage_buffer(VISIBILITY_PIXELS_BINDING)
+        if self.target == "RESOLVE_MIRROR":  # the count writes the empty texels of the layer
+            set_uniforms(self.classify["COUNT"], layer=int(layer), empty_radiance=tuple(map(float, empty)))
         dispatch(self.classify["COUNT"], *self.size)
         ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
         self.classify["PLAN"].run(1)
