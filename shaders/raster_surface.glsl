@@ -5,8 +5,12 @@
 //   screen-space derivatives and facing of the fragment;
 // - a pixel of the visibility buffer (visibility_resolve.comp, with SURFACE_FROM_IDS defined): its
 //   triangle's vertices interpolated there, the derivatives those of the same triangle one pixel over
-//   (visibility.glsl). Texture look-ups then take their level from those derivatives (textureGrad)
-//   where a fragment takes the hardware's own (texture()).
+//   (visibility.glsl).
+// Either way the material textures take their level from the texture coordinates' differences across
+// the pixel's 2 x 2 quad, from its first pixel (even x and y) one pixel right and one up (textureGrad),
+// worked out from the surface itself (`quad_uv_derivatives`), never from the hardware's dFdx, whose
+// pixels GL leaves to the driver (llvmpipe takes these, an NVIDIA driver others): so the two ways, and
+// any two GPUs, pick the same levels.
 
 #include "common.glsl"
 #include "materials.glsl"
@@ -47,6 +51,19 @@ in vec2 v_lm_uv;
 flat in int v_lm_page;
 flat in int v_object;
 
+// The texture coordinates' change across the fragment's 2 x 2 quad (the header's definition): uv / w and
+// 1 / w (gl_FragCoord.w) are affine in the window, so their dFdx and dFdy are exact whichever pixels the
+// driver differences, and give uv at the quad's first pixel and at its neighbours right and up.
+void quad_uv_derivatives(vec2 uv, out vec2 uv_dx, out vec2 uv_dy) {
+    vec3 a = vec3(uv, 1.0) * gl_FragCoord.w;
+    vec3 ax = dFdx(a), ay = dFdy(a);
+    vec2 to_first = floor(gl_FragCoord.xy * 0.5) * 2.0 + 0.5 - gl_FragCoord.xy;  // 0 or -1 per axis
+    vec3 q = a + ax * to_first.x + ay * to_first.y;
+    vec2 uv_q = q.xy / q.z;
+    uv_dx = (q.xy + ax.xy) / (q.z + ax.z) - uv_q;
+    uv_dy = (q.xy + ay.xy) / (q.z + ay.z) - uv_q;
+}
+
 // The fragment's input; the derivatives are taken here, in uniform control flow.
 SurfaceInput fragment_surface_input() {
     SurfaceInput i;
@@ -54,8 +71,7 @@ SurfaceInput fragment_surface_input() {
     i.normal = v_normal;
     i.tangent = v_tangent;
     i.uv = v_uv;
-    i.uv_dx = dFdx(v_uv);
-    i.uv_dy = dFdy(v_uv);
+    quad_uv_derivatives(v_uv, i.uv_dx, i.uv_dy);
     i.color = v_color;
     i.lm_uv = v_lm_uv;
     i.lm_page = v_lm_page;
@@ -110,13 +126,8 @@ float wrap_kd(float u, float size, bool clamp_edge, bool mirror) {
 // shares its uv set and sampler, bake/gltf_materials.py).
 vec4 sample_material_texture(sampler2D tex, Material m, SurfaceInput i) {
     const int wrapped = MAT_KD_CLAMP_S | MAT_KD_CLAMP_T | MAT_KD_MIRROR_S | MAT_KD_MIRROR_T | MAT_KD_NEAREST;
-    if ((m.info.x & wrapped) == 0) {
-#ifdef SURFACE_FROM_IDS
+    if ((m.info.x & wrapped) == 0)
         return textureGrad(tex, i.uv, i.uv_dx, i.uv_dy);
-#else
-        return texture(tex, i.uv);
-#endif
-    }
     vec2 size = vec2(textureSize(tex, 0));
     vec2 uv = vec2(wrap_kd(i.uv.x, size.x, has_flag(m, MAT_KD_CLAMP_S), has_flag(m, MAT_KD_MIRROR_S)),
                    wrap_kd(i.uv.y, size.y, has_flag(m, MAT_KD_CLAMP_T), has_flag(m, MAT_KD_MIRROR_T)));

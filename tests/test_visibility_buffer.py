@@ -139,7 +139,8 @@ def test_visibility_buffer_resolves_the_raster_gbuffer(ctx, yard):
 
     Deliberate bugs this catches (tried): the texture derivatives as each pixel's own forward
     difference instead of its 2 x 2 quad's (a MIP level unlike llvmpipe's): diffuse off by up to
-    39 %, 27 % of the pixels over 1e-3; the facing bit ignored (every pixel front-facing): the dark
+    39 %, 27 % of the pixels over 1e-3 (in the resolve; in the fragment's quad_uv_derivatives, 3.89e-1
+    and 27 %); the facing bit ignored (every pixel front-facing): the dark
     flag of the single-sided panel's back lost; dFdy's step taken along x: off by up to 98 %; a
     mirror pass's depth clear left to the depth mask a released renderer left off (moderngl's parked
     framebuffer without a depth buffer): the whole first mirror layer taken as drawn; the mirror layer's
