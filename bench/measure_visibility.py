@@ -9,7 +9,8 @@ drawing walkthrough frames alternately in blocks (a machine's changing load fall
 the G-buffer's and the mirror passes' times (viewer/timing.py: glFinish-bracketed on a software
 renderer, timer queries on a GPU) and of the whole frame's wall time (render() and glFinish). Then one frame each way compared pixel by pixel (linear
 radiance): the largest relative difference |a - b| / max(|a|, |b|, 1e-6) of any channel, the pixels
-over 1e-3, and whether the depth is the same. Scenes: built-in names, or many-N (N boxes:
+over 1e-3, and whether the depth is the same; after the table, per view, what differs in the two
+G-buffers at those pixels and the worst pixel both ways (`explain`). Scenes: built-in names, or many-N (N boxes:
 bench/measure_draw_count.py); draft bakes are made in DIR when missing.
 """
 from __future__ import annotations
@@ -26,6 +27,57 @@ def relative_difference(a, b):
     import numpy as np
 
     return (np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-6)).max(axis=-1)
+
+
+def gbuffer_words(renderer):
+    """The renderer's G-buffer as numpy, image rows (row 0 at the top), for `explain`: (diffuse (H, W, 3)
+    float32, ids word, normal word, flags word) -- shaders/gbuffer_layout.glsl's words."""
+    import numpy as np
+
+    t = renderer.gbuffer.targets
+    w, h = t["shade"].size
+    shade = np.frombuffer(t["shade"].read(alignment=1), np.uint32).reshape(h, w, 4)[::-1]
+    frame = np.frombuffer(t["frame"].read(alignment=1), np.uint32).reshape(h, w, 4)[::-1]
+    return shade[..., :3].copy().view(np.float32), shade[..., 3], frame[..., 0], frame[..., 2] >> 16
+
+
+def rounded(values, digits: int = 5) -> list:
+    return [round(float(v), digits) for v in values]
+
+
+def explain(renderers: dict, images: dict, rel, bake) -> str:
+    """Where the pixels over 1e-3 of `rel` come from, read off the two G-buffers (False: raster, True:
+    visibility): ids or flags differ; the diffuse radiance (light map x textures) differs by over 1e-3,
+    on a material with a base-colour texture or without; only the normal word differs (a lobe reads
+    elsewhere); nothing in the G-buffer differs (the mirror buffers or what reads them). Then the worst
+    pixel, both ways."""
+    import numpy as np
+
+    from glint.viewer.passes.gbuffer import decode_ids, oct_decode
+
+    g = {vis: gbuffer_words(r) for vis, r in renderers.items()}
+    if g[False][0].shape[:2] != rel.shape:
+        return "(supersampled: no breakdown)"
+    over = rel > 1e-3
+    diffuse = relative_difference(g[False][0], g[True][0]) > 1e-3
+    ids = (g[False][1] != g[True][1]) | (g[False][3] != g[True][3])
+    normal = g[False][2] != g[True][2]
+    material, obj = decode_ids(g[False][1])
+    textured = np.array([m.kd_texture is not None for m in bake.model.materials] + [False])
+    is_textured = textured[np.clip(material, 0, len(textured) - 1)]
+    parts = {"ids or flags": over & ids, "diffuse, textured": over & ~ids & diffuse & is_textured,
+             "diffuse, untextured": over & ~ids & diffuse & ~is_textured,
+             "normal word only": over & ~ids & ~diffuse & normal,
+             "G-buffer the same": over & ~ids & ~diffuse & ~normal}
+    words = ", ".join(f"{k} {int(v.sum())}" for k, v in parts.items())
+    y, x = np.unravel_index(np.argmax(rel), rel.shape)
+    names = [o.name for o in bake.model.objects]
+    o = int(obj[y, x])
+    worst = (f"worst pixel ({x}, {y} from the top left), object {names[o] if 0 <= o < len(names) else o}: "
+             + "; ".join(f"{'visibility' if vis else 'raster'} image {rounded(images[vis][y, x])} "
+                         f"diffuse {rounded(g[vis][0][y, x])} normal {rounded(oct_decode(g[vis][2][y:y + 1, x])[0], 4)} "
+                         f"ids {int(g[vis][1][y, x]):#x} flags {int(g[vis][3][y, x]):#x}" for vis in (False, True)))
+    return f"over 1e-3: {words}; {worst}"
 
 
 def setup(prog: str, doc: str, scenes: list[str], out: str, argv=None):
@@ -80,6 +132,7 @@ def main(argv=None) -> int:
     print("| scene, camera | G-buffer ms: raster / visibility | mirror passes ms: raster / visibility "
           "| frame ms: raster / visibility | frame ratio | largest relative difference | pixels over 1e-3 | same depth |")
     print("|---|---|---|---|---:|---:|---:|---|")
+    notes = []
     for name, entry, renderers, frame in paired_views(ctx, args, width, height, "visibility"):
         passes = {vis: r.timer.median_ms for vis, r in renderers.items()}
         gbuffer = {vis: m.get("gbuffer", float("nan")) for vis, m in passes.items()}
@@ -92,6 +145,8 @@ def main(argv=None) -> int:
         print(f"| {name}, {entry.name} | {gbuffer[False]:.2f} / {gbuffer[True]:.2f} | {mirror_ms} | {a:.2f} / {b:.2f} "
               f"| {b / a:.3f} | {rel.max():.2e} | {int((rel > 1e-3).sum())} of {width * height} "
               f"| {'yes' if np.array_equal(depth[False], depth[True]) else 'no'} |", flush=True)
+        notes.append(f"- {name}, {entry.name}: {explain(renderers, images, rel, renderers[False].bake)}")
+    print("\n".join(["", *notes]))
     return 0
 
 
