@@ -52,6 +52,7 @@ GL_ANY_SAMPLES_PASSED_CONSERVATIVE = 0x8D6A
 # glDrawElementsIndirect's command: count, instanceCount, firstIndex, baseVertex, baseInstance (5 x uint32)
 DRAW_ELEMENTS_INDIRECT_COMMAND_BYTES = 20
 GL_QUERY_RESULT, GL_QUERY_RESULT_AVAILABLE = 0x8866, 0x8867
+GL_TIME_ELAPSED = 0x88BF
 GL_TRIANGLES, GL_UNSIGNED_INT = 0x0004, 0x1405
 GL_DRAW_INDIRECT_BUFFER, GL_PARAMETER_BUFFER = 0x8F3F, 0x80EE
 
@@ -194,6 +195,7 @@ class GL:
         self.BeginQuery = fn("glBeginQuery", None, u, u)
         self.EndQuery = fn("glEndQuery", None, u)
         self.GetQueryObjectuiv = fn("glGetQueryObjectuiv", None, u, u, pu)
+        self.GetQueryObjectui64v = fn("glGetQueryObjectui64v", None, u, u, ctypes.POINTER(ctypes.c_uint64))
         # draws whose count a buffer holds (GL 4.6, or ARB_indirect_parameters before it); None without
         self.UseProgram = fn("glUseProgram", None, u)
         self.BindVertexArray = fn("glBindVertexArray", None, u)

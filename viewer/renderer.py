@@ -463,7 +463,7 @@ class Renderer:
 
     def release(self) -> None:
         for part in (self.gbuffer, self.mirror, self.draws, self.shading, self.resolve, self.tonemap,
-                     self.progressive, self.split_sum, self.scene):
+                     self.progressive, self.split_sum, self.scene, self.timer):
             if part is not None:
                 part.release()
         self._linear = self._display = None

@@ -1,14 +1,18 @@
 """Time per pass: GPU timer queries (GL_TIME_ELAPSED), or glFinish-bracketed wall clock.
 
     timer = PassTimer(ctx)
-    timer.start_frame()                  # collects the previous frame's results
+    timer.start_frame()                  # collects the results of earlier frames that are ready
     with timer("gbuffer"):
         ...draw...
     timer.last_ms, timer.median_ms       # {"gbuffer": ms, ..., "total": ms}
 
-Queries are read only when asked for, or when the next frame starts, so the CPU
-does not wait for the GPU at the end of every frame. One query object per pass
-name; passes must not nest (GL allows one active time query at a time).
+A frame's queries are read once the GPU has finished them, at a later frame's start, so the CPU never
+waits for the GPU to finish the frame before: it prepares frame N while the GPU draws frame N - 1 (and
+waits only when LAG frames are still unread). Reading them at the next frame's start made every frame's
+Python and driver work add to its GPU time (issue 27's H200 measurement: wall time 2.3 ms over GPU time
+in the living room, 7.9 ms on the staircase). `median_ms` and `collect` read everything (they wait).
+One GL query object per pass and frame in flight; passes must not nest (GL allows one active time query
+at a time).
 
 Mesa's llvmpipe runs "GPU" work on the CPU threads and rasterises lazily, when a
 later command needs the result, so its timer queries put the G-buffer's raster
@@ -21,6 +25,7 @@ should not pay for the glFinish calls).
 """
 from __future__ import annotations
 
+import ctypes
 import time
 from collections import deque
 from contextlib import contextmanager
@@ -28,9 +33,10 @@ from statistics import median
 
 import moderngl
 
-from glint.viewer.gl import software_renderer
+from glint.viewer.gl import GL, GL_QUERY_RESULT, GL_QUERY_RESULT_AVAILABLE, GL_TIME_ELAPSED, software_renderer
 
 QUERY_INVALID = 2 ** 31  # ns; a 32-bit result this large is a wrapped negative (seen on llvmpipe)
+LAG = 2  # frames whose queries may still be unread when a frame starts (more: wait for the oldest)
 
 
 def default_method(ctx: moderngl.Context) -> str:
@@ -43,8 +49,10 @@ class PassTimer:
         self.method = method or default_method(ctx)
         if self.method not in ("query", "finish", "off"):
             raise ValueError(f"timing method must be 'query', 'finish' or 'off', not {self.method!r}")
-        self._queries: dict[str, moderngl.Query] = {}
-        self._pending: dict[str, float | None] = {}  # measured this frame, not yet collected
+        self._gl = GL(ctx) if self.method == "query" else None
+        self._free: list[int] = []       # query objects not in use
+        self._frame: dict[str, float | int] = {}  # this frame's passes: ms (finish), or the query object
+        self._in_flight: deque = deque()  # earlier frames' dicts, oldest first, not read yet
         self._samples: dict[str, deque] = {}
         self.history = history
         self.last_ms: dict[str, float] = {}
@@ -60,37 +68,64 @@ class PassTimer:
         if self.method == "off":
             yield
             return
-        if name in self._pending:  # measured twice in one frame: start a new frame
-            self.collect()
+        if name in self._frame:  # measured twice in one frame: start a new frame
+            self.start_frame()
         if self.method == "finish":
             self.ctx.finish()
             start = time.perf_counter()
             yield
             self.ctx.finish()
-            self._pending[name] = (time.perf_counter() - start) * 1e3
+            self._frame[name] = (time.perf_counter() - start) * 1e3
             return
-        query = self._queries.get(name)
-        if query is None:
-            query = self._queries[name] = self.ctx.query(time=True)
-        with query:
+        gl = self._gl
+        if self._free:
+            query = self._free.pop()
+        else:
+            name_ = ctypes.c_uint(0)
+            gl.GenQueries(1, ctypes.byref(name_))
+            query = name_.value
+        gl.BeginQuery(GL_TIME_ELAPSED, query)
+        try:
             yield
-        self._pending[name] = None  # read in collect()
+        finally:
+            gl.EndQuery(GL_TIME_ELAPSED)
+            self._frame[name] = query
 
     def start_frame(self) -> None:
-        self.collect()
+        """The frame before goes in flight; the frames in flight whose results are ready are read (the
+        oldest is waited for while more than LAG are)."""
+        if self._frame:
+            self._in_flight.append(self._frame)
+            self._frame = {}
+        while self._in_flight and (len(self._in_flight) > LAG or self._ready(self._in_flight[0])):
+            self._read(self._in_flight.popleft())
 
     def collect(self) -> None:
-        """Read the pending results (waits for the GPU to finish them)."""
-        if not self._pending:
-            return
+        """Read every frame's results, this frame's too (waits for the GPU to finish them)."""
+        self.start_frame()
+        while self._in_flight:
+            self._read(self._in_flight.popleft())
+
+    def _ready(self, frame: dict) -> bool:
+        """Whether the GPU has finished all of a frame's queries (never waits)."""
+        for value in frame.values():
+            if isinstance(value, int):
+                available = ctypes.c_uint(0)
+                self._gl.GetQueryObjectuiv(value, GL_QUERY_RESULT_AVAILABLE, ctypes.byref(available))
+                if not available.value:
+                    return False
+        return True
+
+    def _read(self, pending: dict) -> None:
         frame = {}
-        for name, ms in self._pending.items():
-            if ms is None:
-                ns = self._queries[name].elapsed
-                ms = ns / 1e6 if 0 <= ns < QUERY_INVALID else None
-            if ms is not None:
-                frame[name] = ms
-        self._pending = {}
+        for name, value in pending.items():
+            if isinstance(value, int):  # a query object: its result, then back to the pool
+                ns = ctypes.c_uint64(0)
+                self._gl.GetQueryObjectui64v(value, GL_QUERY_RESULT, ctypes.byref(ns))
+                self._free.append(value)
+                value = ns.value / 1e6 if ns.value < QUERY_INVALID else None
+            if value is not None:
+                frame[name] = value
         if not frame:
             return
         frame["total"] = sum(frame.values())
@@ -110,3 +145,10 @@ class PassTimer:
         self._samples.clear()
         self.last_ms = {}
         self.frames = 0
+
+    def release(self) -> None:
+        """Delete the query objects (reading nothing more)."""
+        queries = self._free + [v for f in (*self._in_flight, self._frame) for v in f.values() if isinstance(v, int)]
+        for query in queries:
+            self._gl.DeleteQueries(1, ctypes.byref(ctypes.c_uint(query)))
+        self._free, self._in_flight, self._frame = [], deque(), {}
