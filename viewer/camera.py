@@ -162,10 +162,15 @@ def in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> bool:
     beyond one of its planes (`frustum_planes`), tested with the box corner farthest along the
     plane's normal. Conservative: a box off a frustum edge or corner may count as inside. A box
     behind the eye is beyond the near plane."""
+    return bool(boxes_in_frustum(np.asarray(bounds, np.float64)[None], view_proj)[0])
+
+
+def boxes_in_frustum(bounds: np.ndarray, view_proj: np.ndarray) -> np.ndarray:
+    """`in_frustum` of (N, 2, 3) boxes [lo, hi] at once: (N,) bool."""
     planes = frustum_planes(view_proj)
-    lo, hi = np.asarray(bounds, np.float64)
-    farthest = np.where(planes[:, :3] >= 0, hi, lo)
-    return not bool(np.any(np.einsum("ij,ij->i", planes[:, :3], farthest) + planes[:, 3] < 0))
+    boxes = np.asarray(bounds, np.float64).reshape(-1, 2, 3)
+    farthest = np.where(planes[None, :, :3] >= 0, boxes[:, None, 1], boxes[:, None, 0])  # (N, 6, 3)
+    return ~np.any(np.einsum("pj,npj->np", planes[:, :3], farthest) + planes[:, 3] < 0, axis=1)
 
 
 # -- camera paths ---------------------------------------------------------------------------------

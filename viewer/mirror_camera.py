@@ -258,26 +258,34 @@ def group_coplanar(planes: Sequence[tuple[Hashable, Any, Any]], weights: Sequenc
     keeps a chain of slightly tilted planes from drifting into one group.
     Orientation is ignored (a plane and its flip are the same mirror).
     """
+    if not planes:
+        return []
     w = np.ones(len(planes)) if weights is None else np.asarray(weights, np.float64)
     order = sorted(range(len(planes)), key=lambda i: (-w[i], i))
-    seeds: list[tuple[np.ndarray, np.ndarray]] = []
+    points = np.array([np.asarray(p, np.float64).reshape(3) for _, p, _ in planes])
+    normals = np.array([_unit(n) for _, _, n in planes])
+    cos_min = math.cos(math.radians(angle_deg))
+    seeds: list[int] = []  # each group's seed plane
     members: list[list[int]] = []
-    for i in order:
-        _, p, n = planes[i]
-        for g, (sp, sn) in enumerate(seeds):
-            if planes_match(sp, sn, p, n, angle_deg=angle_deg, offset=offset):
-                members[g].append(i)
-                break
-        else:
-            seeds.append((np.asarray(p, np.float64).reshape(3), _unit(n)))
-            members.append([i])
+    for i in order:  # `planes_match` against every seed at once; the first that matches takes it
+        if seeds:
+            sp, sn = points[seeds], normals[seeds]
+            match = ((np.abs(sn @ normals[i]) >= cos_min) & (np.abs(((points[i] - sp) * sn).sum(axis=1)) <= offset)
+                     & (np.abs((sp - points[i]) @ normals[i]) <= offset))
+            hit = np.flatnonzero(match)
+            if hit.size:
+                members[int(hit[0])].append(i)
+                continue
+        seeds.append(i)
+        members.append([i])
     groups = []
-    for (sp, sn), idx in zip(seeds, members):
+    for seed, idx in zip(seeds, members):
+        sp, sn = points[seed], normals[seed]
         ww = np.maximum(w[idx], 1e-12)
-        normals = np.array([_unit(planes[i][2]) for i in idx])
-        normals *= np.sign(normals @ sn)[:, None] + (normals @ sn == 0)[:, None]
-        n = _unit((ww[:, None] * normals).sum(axis=0))
-        offset_mean = float((ww * np.array([np.asarray(planes[i][1], np.float64) @ n for i in idx])).sum() / ww.sum())
+        ns = normals[idx].copy()
+        ns *= np.sign(ns @ sn)[:, None] + (ns @ sn == 0)[:, None]
+        n = _unit((ww[:, None] * ns).sum(axis=0))
+        offset_mean = float((ww * (points[idx] @ n)).sum() / ww.sum())
         # The representative point: the seed's point moved onto the mean plane.
         point = sp + (offset_mean - float(sp @ n)) * n
         groups.append(PlaneGroup(point=point, normal=n, keys=[planes[i][0] for i in idx]))

@@ -63,7 +63,7 @@ import numpy as np
 
 from glint.core.bsdf import theta_thresh
 from glint.core.geometry import plane_of
-from glint.viewer.camera import ViewCamera, in_frustum
+from glint.viewer.camera import ViewCamera, boxes_in_frustum
 from glint.viewer.mirror_camera import GROUP_ANGLE_DEG, GROUP_OFFSET, MIN_EYE_HEIGHT, MirrorCamera, group_coplanar
 
 DEFAULT_BUDGET = 4  # mirror passes per frame
@@ -266,7 +266,8 @@ def projected_area(bounds: np.ndarray, view_proj: np.ndarray, w_min: float = 1e-
     after clipping the box's edges at w = w_min (in front of the eye); in [0, 1]."""
     lo, hi = np.asarray(bounds, np.float64)
     corners = np.where(_CORNERS, hi, lo)
-    clip = np.c_[corners, np.ones(8)] @ np.asarray(view_proj, np.float64).T
+    m = np.asarray(view_proj, np.float64)
+    clip = corners @ m[:, :3].T + m[:, 3]
     pts = [clip[i] for i in range(8) if clip[i, 3] > w_min]
     for a, b in _EDGES:
         wa, wb = clip[a, 3], clip[b, 3]
@@ -292,8 +293,9 @@ def plan_mirror_passes(reflectors: Sequence[Reflector], camera: ViewCamera, aspe
     skipped: list[Skipped] = []
     queries: list[Reflector] = []
     alive: list[Reflector] = []
-    for r in reflectors:
-        if not in_frustum(r.bounds, vp):
+    visible = boxes_in_frustum([r.bounds for r in reflectors], vp) if reflectors else []
+    for r, seen in zip(reflectors, visible):
+        if not seen:
             skipped.append(Skipped(r, SkipReason.OUTSIDE_FRUSTUM))
             continue
         if not float((eye - r.point) @ r.normal) > MIN_EYE_HEIGHT:
