@@ -8,9 +8,10 @@
 //                     dispatch (ceil(count / RESOLVE_GROUP), 1, 1)
 //   CLASSIFY_SCATTER  per pixel drawn: pixels[offsets[batch] + cursors[batch]++] = the pixel
 // With RESOLVE_MIRROR (a mirror pass's), the count also writes the empty pixels' texels of the pass's
-// layer: `empty_radiance` (the sky's constant colour, or 0), position and normal 0 -- what the targets'
-// clear left there in the raster pass. A clear would go through the raster back end (and a GPU's fast
-// clear would have to be expanded before the resolve's image stores), a cost of the whole buffer per pass.
+// layer: the sky seen along the mirrored ray (none, a constant or the map: what mirror_sky.frag or the
+// targets' clear colour gives the raster pass), position and normal 0. The raster pass's clears and
+// its sky triangle would go through the raster back end, a cost of the whole buffer per pass (and a
+// GPU's fast clear would have to be expanded before the resolve's image stores).
 // Reads: the visibility buffer and depth, the batch of each object. Writes: the tally and the pixel list
 // (and the mirror layer's empty texels).
 
@@ -49,7 +50,10 @@ layout(binding = VISIBILITY_DEPTH_UNIT) uniform sampler2D visibility_depth;
 shared uint group_count[VISIBILITY_BATCHES];
 shared uint group_base[VISIBILITY_BATCHES];
 #if defined(CLASSIFY_COUNT) && defined(RESOLVE_MIRROR)
-uniform vec4 empty_radiance;
+#include "camera.glsl"
+#include "sky.glsl"
+uniform vec3 mirror_normal_world;  // the pass's plane (mirror_sky.frag's uniforms: the main camera's
+                                   // ray basis widened by the guard band)
 #endif
 
 void main() {
@@ -63,8 +67,9 @@ void main() {
     bool inside = all(lessThan(pixel, textureSize(visibility_ids, 0)));
     bool drawn = inside && texelFetch(visibility_depth, pixel, 0).r < 1.0;
 #if defined(CLASSIFY_COUNT) && defined(RESOLVE_MIRROR)
-    if (inside && !drawn) {
-        imageStore(mirror_radiance_image, ivec3(pixel, layer), empty_radiance);
+    if (inside && !drawn) {  // mirror_sky.frag's texel
+        vec3 sky = sky_radiance(reflect(view_ray(pixel, textureSize(visibility_ids, 0)), mirror_normal_world));
+        imageStore(mirror_radiance_image, ivec3(pixel, layer), vec4(clean_half_radiance(sky), 1.0));
         imageStore(mirror_position_image, ivec3(pixel, layer), vec4(0.0));
         imageStore(mirror_normal_image, ivec3(pixel, layer), vec4(0.0));
     }

@@ -128,9 +128,13 @@ def test_mirror_pass_draws_what_numpy_predicts_and_nothing_behind_the_plane(ctx,
     r.release()
 
 
-def test_mirror_buffer_shows_the_sky_map_along_the_mirrored_rays(ctx, tmp_path):
+@pytest.mark.parametrize("visibility", [False, True], ids=["raster", "visibility"])
+def test_mirror_buffer_shows_the_sky_map_along_the_mirrored_rays(ctx, tmp_path, visibility):
     """Where the mirror pass draws nothing, its radiance is the sky seen along the main view's ray
-    through that pixel reflected about the plane (bake/lights.py's sky convention)."""
+    through that pixel reflected about the plane (bake/lights.py's sky convention, numpy), either way:
+    rasterised (mirror_sky.frag) or through the visibility buffer (the classification writes the empty
+    texels). Catches (tried, visibility buffer): the sky map not bound for the classification (every
+    texel the map's unit's other texture); the guard band's widening left out of its rays."""
     from glint.bake.lights import SkyLight
     from glint.core.scene import Sky
 
@@ -144,8 +148,9 @@ def test_mirror_buffer_shows_the_sky_map_along_the_mirrored_rays(ctx, tmp_path):
     manifest["objects"][0].update(role="planar", plane={"point": [0, 0, 0], "normal": n.tolist()})
     write_json(tmp_path / "b" / "manifest.json", manifest)
     camera = ViewCamera.look_at((0.3, 1.5, 2.0), (0, 0, -1), (0, 1, 0), math.radians(70), znear=0.01, zfar=50)
-    r = Renderer(ctx, Bake(tmp_path / "b"))
+    r = Renderer(ctx, Bake(tmp_path / "b"), visibility=visibility)
     r.render(camera, 48, 32)
+    assert r.gbuffer.visibility == visibility
     radiance, normal = r.mirror.read(0, "radiance"), r.mirror.read(0, "normal")
     guard = r.stats["mirror"]["passes"][0]["guard_scale"]  # the frustum widened by the lobe's reach
     r.release()

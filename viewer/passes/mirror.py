@@ -12,7 +12,8 @@ Per frame, before the G-buffer:
    emission: shaders/mirror.frag), and the sky behind it -- the clear colour for a constant
    sky, else shaders/mirror_sky.frag, one triangle at the far plane, which costs its whole
    area even where the scene covers everything (docs/BENCHMARKS.md, "The mirror pass's
-   sky") -- into layer k ("slot" k) of
+   sky"); through a visibility buffer the classification writes the sky and the empty texels instead
+   (viewer/passes/visibility.py) -- into layer k ("slot" k) of
    three texture arrays:
 
        radiance   RGBA16F  light towards the mirrored eye, or the sky's; a full MIP chain
@@ -335,13 +336,14 @@ class MirrorPasses:
             gl.Disable(GL_CLIP_DISTANCE0)
             gl.Disable(GL_SCISSOR_TEST)
             ctx.front_face = "ccw"
-        if self.ids:  # mirror.frag's targets from the ids, at layer k (viewer/passes/visibility.py)
+        if self.ids:  # mirror.frag's targets from the ids, at layer k, and the sky (viewer/passes/visibility.py)
             for target, unit in (("radiance", MIRROR_RADIANCE_IMAGE), ("position", MIRROR_POSITION_IMAGE),
                                  ("normal", MIRROR_NORMAL_IMAGE)):
                 self.targets[target].bind_to_image(unit, read=False, write=True, level=0)
-            self.ids.run(self.depth, view_proj, mirror.eye, layer=k, empty=(*sky, 1.0))
+            self.scene.sky_map.use(SKY_UNIT)
+            self.ids.run(self.depth, view_proj, mirror.eye, layer=k, sky=self._sky_uniforms(mirror, camera, aspect, p.guard))
             self._bind_layer(glo)
-        if sky_map:
+        elif sky_map:
             self._draw_sky(mirror, camera, aspect, p.guard)
         return {"reflectors": p.names, "region": region, "scissor": rect}
 
@@ -354,16 +356,19 @@ class MirrorPasses:
         self._gl.DepthMask(1)  # what moderngl's use() would set: the clears obey it
         self._gl.ColorMask(1, 1, 1, 1)
 
-    def _draw_sky(self, mirror, camera: ViewCamera, aspect: float, guard: float = 1.0) -> None:
-        """The sky on the texels the scene left at the clear depth (the pass's framebuffer is bound);
-        the rays span the guard band's `guard` times wider frustum."""
-        ctx, gl = self.ctx, self._gl
+    def _sky_uniforms(self, mirror, camera: ViewCamera, aspect: float, guard: float) -> dict:
+        """What the sky of a pass's empty texels is drawn from (mirror_sky.frag; the visibility buffer's
+        classification): the main camera's rays over the guard band's `guard` times wider frustum, the
+        pass's plane, the scene's sky."""
         forward, right, up = camera.ray_basis(aspect)
-        right, up = right * guard, up * guard
         vec = lambda v: tuple(map(float, v))  # noqa: E731
-        set_uniforms(self.sky, eye=vec(camera.eye), cam_forward=vec(forward), cam_right=vec(right),
-                     cam_up=vec(up), mirror_normal_world=vec(mirror.normal), buffer_size=tuple(self.size),
-                     **self.scene.sky_uniforms())
+        return {"eye": vec(camera.eye), "cam_forward": vec(forward), "cam_right": vec(right * guard),
+                "cam_up": vec(up * guard), "mirror_normal_world": vec(mirror.normal), **self.scene.sky_uniforms()}
+
+    def _draw_sky(self, mirror, camera: ViewCamera, aspect: float, guard: float = 1.0) -> None:
+        """The sky on the texels the scene left at the clear depth (the pass's framebuffer is bound)."""
+        ctx, gl = self.ctx, self._gl
+        set_uniforms(self.sky, buffer_size=tuple(self.size), **self._sky_uniforms(mirror, camera, aspect, guard))
         self.scene.sky_map.use(SKY_UNIT)
         ctx.depth_func = "<="
         gl.DepthMask(0)

@@ -90,19 +90,19 @@ class VisibilityResolve:
         """The raster pass's framebuffer: `ids` and the owner's depth texture."""
         return self.ctx.framebuffer([self.ids], depth)
 
-    def run(self, depth: moderngl.Texture, view_proj: np.ndarray, eye, layer: int = 0,
-            empty=(0.0, 0.0, 0.0, 1.0)) -> None:
+    def run(self, depth: moderngl.Texture, view_proj: np.ndarray, eye, layer: int = 0, sky: dict | None = None) -> None:
         """Resolve what the raster pass left in `ids` and `depth` (drawn with `view_proj` from `eye`)
-        into the owner's images, bound before. A mirror pass's: `layer`, its slot, and `empty`, the
-        radiance of its empty pixels (their position and normal are 0); its targets need no clear."""
+        into the owner's images, bound before. A mirror pass's: `layer`, its slot, and `sky`, the
+        uniforms of the sky its empty pixels get (mirror_sky.frag's; the sky map bound by the owner):
+        its targets need no clear and no sky pass."""
         if self._checked:
-            self._run(depth, view_proj, eye, layer, empty)
+            self._run(depth, view_proj, eye, layer, sky or {})
             return
         with self._gl.checked("resolve a visibility buffer"):  # once: glGetError stalls the pipeline
-            self._run(depth, view_proj, eye, layer, empty)
+            self._run(depth, view_proj, eye, layer, sky or {})
         self._checked = True
 
-    def _run(self, depth, view_proj, eye, layer: int, empty) -> None:
+    def _run(self, depth, view_proj, eye, layer: int, sky: dict) -> None:
         ctx, scene, batches = self.ctx, self.scene, self.draws.batches
         self.ids.use(VISIBILITY_UNIT)
         depth.use(VISIBILITY_DEPTH_UNIT)
@@ -116,7 +116,7 @@ class VisibilityResolve:
         self.tally.bind_to_storage_buffer(VISIBILITY_TALLY_BINDING)
         self.pixels.bind_to_storage_buffer(VISIBILITY_PIXELS_BINDING)
         if self.target == "RESOLVE_MIRROR":  # the count writes the empty texels of the layer
-            set_uniforms(self.classify["COUNT"], layer=int(layer), empty_radiance=tuple(map(float, empty)))
+            set_uniforms(self.classify["COUNT"], layer=int(layer), **sky)
         dispatch(self.classify["COUNT"], *self.size)
         ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
         self.classify["PLAN"].run(1)
