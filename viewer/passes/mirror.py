@@ -299,16 +299,14 @@ class MirrorPasses:
         ctx, gl = self.ctx, self._gl
         glo = self._fbos[k]
         self._bind_layer(glo)
-        zero = (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0)
         sky_map = self.scene.sky_mode == SKY_MODES["SKY_MAP"]
-        # A constant sky (or none) is the clear colour; a sky map is drawn after the scene.
-        sky = (0.0, 0.0, 0.0) if sky_map else tuple(map(float, self.scene.sky_uniforms()["sky_scale"]))
-        if self.scene.sky_mode == SKY_MODES["SKY_NONE"]:
-            sky = (0.0, 0.0, 0.0)
         if not self.ids:  # through a visibility buffer, the classification writes the empty texels
+            # A constant sky (or none) is the clear colour; a sky map is drawn after the scene.
+            constant = self.scene.sky_mode == SKY_MODES["SKY_CONSTANT"]
+            sky = tuple(map(float, self.scene.sky_uniforms()["sky_scale"])) if constant else (0.0, 0.0, 0.0)
             gl.ClearBufferfv(GL_COLOR, LOCATIONS["radiance"], (ctypes.c_float * 4)(*sky, 1.0))
             for target in ("position", "normal"):
-                gl.ClearBufferfv(GL_COLOR, LOCATIONS[target], zero)
+                gl.ClearBufferfv(GL_COLOR, LOCATIONS[target], (ctypes.c_float * 4)(0.0, 0.0, 0.0, 0.0))
         gl.ClearBufferfv(GL_DEPTH, 0, (ctypes.c_float * 1)(1.0))
         ctx.enable_only(moderngl.DEPTH_TEST)
         ctx.depth_func = "<"
