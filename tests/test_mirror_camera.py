@@ -231,3 +231,37 @@ def test_grouping_seeds_largest_first_and_does_not_chain():
     assert [sorted(g.keys) for g in groups] == [[0, 1, 2]]  # seeded by the middle one
     groups = group_coplanar(planes, weights=[5.0, 1.0, 1.0])
     assert sorted(sorted(g.keys) for g in groups) == [[0, 1], [2]]
+
+
+def test_grouping_follows_its_rule_on_many_planes():
+    """group_coplanar (matching each plane against every seed at once, numpy) against its rule written
+    plane by plane with `planes_match`: largest weight first, each plane joins the first seed it
+    matches, else seeds a group. 300 planes in four families near the tolerances (normals tilted by
+    0.2 degrees rms, offsets up to 6 mm; 179 groups, the largest of 19): the same groups, in the same
+    order, with the same members.
+    Catches (tried): the offset tested along the plane's own normal only (one of planes_match's two
+    conditions dropped)."""
+    rng = np.random.default_rng(7)
+    planes, weights = [], []
+    for k in range(300):
+        family = k % 4
+        base = np.array([(0, 1, 0), (1, 0, 0), (0, 0.6, 0.8), (0.6, 0.8, 0)][family], float)
+        tilt = rng.normal(0, math.radians(0.2), 3)
+        n = base + np.cross(base, tilt)
+        p = base * rng.uniform(-0.006, 0.006) + rng.uniform(-3, 3, 3) * (1 - np.abs(base)) + family * base
+        planes.append((k, p, n * rng.choice([-1.0, 1.0])))
+        weights.append(float(rng.integers(1, 5)))
+
+    order = sorted(range(len(planes)), key=lambda i: (-weights[i], i))
+    seeds, members = [], []
+    for i in order:
+        for g, s in enumerate(seeds):
+            if planes_match(planes[s][1], planes[s][2], planes[i][1], planes[i][2]):
+                members[g].append(i)
+                break
+        else:
+            seeds.append(i)
+            members.append([i])
+    groups = group_coplanar(planes, weights)
+    assert [g.keys for g in groups] == [[planes[i][0] for i in m] for m in members]
+    assert 20 < len(groups) < 250 and max(len(g.keys) for g in groups) > 5  # the tolerances are exercised
