@@ -1,6 +1,7 @@
 #!/bin/bash
 # Issue 27's GPU measurements in one run of the device machine (docs/VIEWER.md, "On a GPU"); results in
-# docs/bench/h200/. About 400 s there (190 s of it the two bakes), plus the machine's start.
+# docs/bench/h200/. About 450 s there (190 s of it the two bakes), plus the machine's start; eight files
+# come back (the device's limit): log.txt, ft1/ft2 .md and .json, vis.md, scissor.md, drawcount.md.
 #
 # Preparation, on this machine, in the repository's root:
 #   echo /.devdata/ >> .git/info/exclude; mkdir -p .devdata/b
@@ -43,7 +44,7 @@ from glint.core.bake_dir import Bake
 st = Bake(bake_for(sys.argv[1], Path(sys.argv[2]))).model.statistics  # the bake's stages on this machine
 print({k: {f: v[f] for f in ('seconds', 'trace_seconds', 'rays_per_second', 'tiles', 'rendered') if f in v}
        for k, v in st.data.items() if isinstance(v, dict)})" $n $B 2>&1 | tail -3
-  echo "$n: rc ${PIPESTATUS[0]}, $((SECONDS - t)) s" | tee -a $O/bake.txt
+  echo "$n: rc ${PIPESTATUS[0]}, $((SECONDS - t)) s"
 done
 
 step "5 frame times, staircase and 10 / 10,000 boxes, both ways"
@@ -54,4 +55,8 @@ cp /tmp/ft2/frame_times.md $O/ft2.md; cp /tmp/ft2/frame_times.json $O/ft2.json
 step "6 visibility against raster and the rectangle, staircase"
 timeout 50 python3 -m glint.bench.measure_visibility --size $HD --out $B --scenes $S | tee -a $O/vis.md
 timeout 40 python3 -m glint.bench.measure_mirror_scissor --size $HD --out $B --scenes $S | tee -a $O/scissor.md
+
+step "7 the counted multi-draw against every command to the driver"
+timeout 60 python3 -m glint.bench.measure_draw_count --size $HD --out $B --scenes living-room many-10 many-10000 \
+  | tee $O/drawcount.md
 step "done"
