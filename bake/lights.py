@@ -45,7 +45,10 @@ LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance
 
 
 def luminance(rgb) -> np.ndarray:
-    return np.asarray(rgb, np.float64) @ LUMA
+    # einsum, not `@`: a matrix product goes to BLAS, whose threads (as many as the machine's cores, in
+    # every one of the bake's worker processes) fight over the cores for each path's luminance
+    # (docs/BAKE.md, "Seen on 16 cores").
+    return np.einsum("...c,c->...", np.asarray(rgb, np.float64), LUMA)
 
 
 # -- equirectangular mapping (the one place it lives) --------------------------------------------
@@ -264,7 +267,7 @@ class DeltaLights:
             l = v / np.maximum(dist, 1e-30)[:, None]
             inv_d2 = 1.0 / np.maximum(d2, 1e-30)
             if self.scales[i] > 0:  # spot cone (glTF): smooth between outer and inner cone, squared
-                cd = -(l @ self.axes[i])
+                cd = -np.einsum("ij,j->i", l, self.axes[i])  # not BLAS (`luminance`)
                 inv_d2 = inv_d2 * np.clip(cd * self.scales[i] + self.offsets[i], 0.0, 1.0) ** 2
             E = self.intensities[i] * inv_d2[:, None]
             out.append((l, dist, E))
