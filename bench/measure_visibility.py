@@ -29,18 +29,6 @@ def relative_difference(a, b):
     return (np.abs(a - b) / np.maximum(np.maximum(np.abs(a), np.abs(b)), 1e-6)).max(axis=-1)
 
 
-def gbuffer_words(renderer):
-    """The renderer's G-buffer as numpy, image rows (row 0 at the top), for `explain`: (diffuse (H, W, 3)
-    float32, ids word, normal word, flags word) -- shaders/gbuffer_layout.glsl's words."""
-    import numpy as np
-
-    t = renderer.gbuffer.targets
-    w, h = t["shade"].size
-    shade = np.frombuffer(t["shade"].read(alignment=1), np.uint32).reshape(h, w, 4)[::-1]
-    frame = np.frombuffer(t["frame"].read(alignment=1), np.uint32).reshape(h, w, 4)[::-1]
-    return shade[..., :3].copy().view(np.float32), shade[..., 3], frame[..., 0], frame[..., 2] >> 16
-
-
 def rounded(values, digits: int = 5) -> list:
     return [round(float(v), digits) for v in values]
 
@@ -53,18 +41,18 @@ def explain(renderers: dict, images: dict, rel, bake) -> str:
     pixel, both ways."""
     import numpy as np
 
-    from glint.viewer.passes.gbuffer import decode_ids, oct_decode
+    from glint.viewer.passes.gbuffer import read_gbuffer
 
-    g = {vis: gbuffer_words(r) for vis, r in renderers.items()}
-    if g[False][0].shape[:2] != rel.shape:
+    g = {vis: {k: v[::-1] for k, v in read_gbuffer(r.gbuffer.targets).items()} for vis, r in renderers.items()}
+    a, b = g[False], g[True]  # image rows, row 0 at the top
+    if a["diffuse"].shape[:2] != rel.shape:
         return "(supersampled: no breakdown)"
     over = rel > 1e-3
-    diffuse = relative_difference(g[False][0], g[True][0]) > 1e-3
-    ids = (g[False][1] != g[True][1]) | (g[False][3] != g[True][3])
-    normal = g[False][2] != g[True][2]
-    material, obj = decode_ids(g[False][1])
+    diffuse = relative_difference(a["diffuse"], b["diffuse"]) > 1e-3
+    ids = (a["material"] != b["material"]) | (a["object"] != b["object"]) | (a["flags"] != b["flags"])
+    normal = np.any(a["normal"] != b["normal"], axis=-1)  # another octahedral word
     textured = np.array([m.kd_texture is not None for m in bake.model.materials] + [False])
-    is_textured = textured[np.clip(material, 0, len(textured) - 1)]
+    is_textured = textured[np.clip(a["material"], 0, len(textured) - 1)]
     parts = {"ids or flags": over & ids, "diffuse, textured": over & ~ids & diffuse & is_textured,
              "diffuse, untextured": over & ~ids & diffuse & ~is_textured,
              "normal word only": over & ~ids & ~diffuse & normal,
@@ -72,11 +60,12 @@ def explain(renderers: dict, images: dict, rel, bake) -> str:
     words = ", ".join(f"{k} {int(v.sum())}" for k, v in parts.items())
     y, x = np.unravel_index(np.argmax(rel), rel.shape)
     names = [o.name for o in bake.model.objects]
-    o = int(obj[y, x])
+    o = int(a["object"][y, x])
     worst = (f"worst pixel ({x}, {y} from the top left), object {names[o] if 0 <= o < len(names) else o}: "
              + "; ".join(f"{'visibility' if vis else 'raster'} image {rounded(images[vis][y, x])} "
-                         f"diffuse {rounded(g[vis][0][y, x])} normal {rounded(oct_decode(g[vis][2][y:y + 1, x])[0], 4)} "
-                         f"ids {int(g[vis][1][y, x]):#x} flags {int(g[vis][3][y, x]):#x}" for vis in (False, True)))
+                         f"diffuse {rounded(g[vis]['diffuse'][y, x])} normal {rounded(g[vis]['normal'][y, x], 4)} "
+                         f"object {int(g[vis]['object'][y, x])} material {int(g[vis]['material'][y, x])} "
+                         f"flags {int(g[vis]['flags'][y, x]):#x}" for vis in (False, True)))
     return f"over 1e-3: {words}; {worst}"
 
 

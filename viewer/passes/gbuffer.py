@@ -39,15 +39,17 @@ COLOUR_TARGETS = {GB_SHADE_LOCATION: "shade", GB_FRAME_LOCATION: "frame"}
 def read_gbuffer(targets: dict) -> dict[str, np.ndarray]:
     """The G-buffer read back (waits for the GPU), GL rows (row 0 at the bottom), decoded as
     shaders/gbuffer_read.glsl decodes it: {"material", "object": (H, W) int64, "drawn": depth < 1,
-    "dark": back face of a single-sided material, "normal": (H, W, 3) the unit shading normal}."""
+    "dark": back face of a single-sided material, "flags": (H, W) uint32, every GB_*_BIT shifted down by
+    16, "normal": (H, W, 3) the unit shading normal, "diffuse": (H, W, 3) float32 the diffuse radiance}."""
     shade, frame = targets["shade"], targets["frame"]
     w, h = shade.size
-    ids = np.frombuffer(shade.read(alignment=1), np.uint32).reshape(h, w, 4)[..., 3]
+    shade_words = np.frombuffer(shade.read(alignment=1), np.uint32).reshape(h, w, 4)
     frame_words = np.frombuffer(frame.read(alignment=1), np.uint32).reshape(h, w, 4)
     depth = np.frombuffer(targets["depth"].read(alignment=1), np.float32).reshape(h, w)
-    material, obj = decode_ids(ids)
+    material, obj = decode_ids(shade_words[..., 3])
     return {"material": material, "object": obj, "drawn": depth < 1.0, "dark": (frame_words[..., 2] & GB_DARK_BIT) != 0,
-            "normal": oct_decode(frame_words[..., 0])}
+            "flags": frame_words[..., 2] >> 16, "normal": oct_decode(frame_words[..., 0]),
+            "diffuse": shade_words[..., :3].copy().view(np.float32)}
 
 
 def decode_ids(ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
