@@ -14,9 +14,10 @@ Two ways to the same targets (`visibility`):
   targets as images. A GPU's raster back end writes 8 bytes per fragment instead of 32 (issue 27: on
   an H200 the two RGBA32UI targets alone cost 2.6 ms at 1920x1080, depth and RG32UI 0.8 ms). The
   same surface (shaders/raster_surface.glsl) either way, its textures' MIP levels from the same
-  differences across the pixel's 2 x 2 quad (not the driver's dFdx). Scenes drawn at a level of detail (the bake's cube-map renders) keep the
-  raster way: the resolve finds a pixel's triangle in its object's own range of the index buffer; so
-  do scenes of more than MAX_BATCHES texture batches (viewer/passes/visibility.py).
+  differences across the pixel's 2 x 2 quad (not the driver's dFdx). Scenes drawn at a level of detail
+  (the bake's cube-map renders) keep the raster way: the resolve finds a pixel's triangle in its
+  object's own range of the index buffer; so do scenes of more than MAX_BATCHES texture batches
+  (viewer/passes/visibility.py).
 """
 from __future__ import annotations
 

@@ -95,11 +95,12 @@ class VisibilityResolve:
         into the owner's images, bound before. A mirror pass's: `layer`, its slot, and `sky`, the
         uniforms of the sky its empty pixels get (mirror_sky.frag's; the sky map bound by the owner):
         its targets need no clear and no sky pass."""
+        sky = sky or {}
         if self._checked:
-            self._run(depth, view_proj, eye, layer, sky or {})
+            self._run(depth, view_proj, eye, layer, sky)
             return
         with self._gl.checked("resolve a visibility buffer"):  # once: glGetError stalls the pipeline
-            self._run(depth, view_proj, eye, layer, sky or {})
+            self._run(depth, view_proj, eye, layer, sky)
         self._checked = True
 
     def _run(self, depth, view_proj, eye, layer: int, sky: dict) -> None:
