@@ -38,7 +38,7 @@ def bake_for(name: str, out: Path, quality: str | None = "draft") -> Path:
         path = builtin_path(name)
     bake_dir = out / f"{Path(name).stem}.bake"
     scene = load_scene(path)
-    bake_scene(scene, resolve_settings(scene.bake_settings, **({"quality": quality} if quality else {})), bake_dir,
+    bake_scene(scene, resolve_settings(scene.bake_settings, quality=quality), bake_dir,
                progress=False)  # no work when up to date
     return bake_dir
 

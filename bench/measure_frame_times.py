@@ -45,7 +45,7 @@ def load_bake(scene: str, bake_root: Path | None, quality: str | None = None):
     if bake_root:  # built-in, many-N or a glTF file, baked in bake_root
         return Bake(bake_for(scene, bake_root, quality))
     loaded, builtin = open_scene(scene)
-    settings = resolve_settings(loaded.bake_settings, **({"quality": quality} if quality else {}))
+    settings = resolve_settings(loaded.bake_settings, quality=quality)
     out = default_bake_dir(loaded.source, builtin)
     bake_scene(loaded, settings, out, progress=False)  # no-op when up to date
     return Bake(out)
