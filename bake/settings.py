@@ -1,9 +1,9 @@
 """Bake settings: quality presets, overridden by the sidecar's [bake] table, then the command line."""
 from __future__ import annotations
 
-import os
 from dataclasses import asdict, dataclass, fields, replace
 
+from glint.parallel.cpus import usable_cpus
 from glint.parallel.executor import check_scheduler_address
 from glint.bake.sidecar_schema import BAKE
 
@@ -40,7 +40,7 @@ class BakeSettings:
     denoise: bool = _default("denoise")
     backface_threshold: float = _default("backface_threshold")
     seed: int = _default("seed")
-    jobs: int = _default("jobs")  # 0 = one per core
+    jobs: int = _default("jobs")  # 0 = one per usable CPU (parallel/cpus.py)
     # A Dask scheduler's address (`tcp://HOST:PORT`) or `local:N` (parallel/executor.py DaskExecutor);
     # None: local processes
     scheduler: str | None = _default("scheduler")
@@ -51,7 +51,7 @@ class BakeSettings:
 
     @property
     def workers(self) -> int:
-        return self.jobs if self.jobs > 0 else (os.cpu_count() or 1)
+        return self.jobs if self.jobs > 0 else usable_cpus()
 
     def transport_dict(self) -> dict:
         """The settings the light maps depend on (jobs and the scheduler do not change a result; the

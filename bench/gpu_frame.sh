@@ -19,7 +19,9 @@ set -u; export PYTHONSAFEPATH=1  # the repo root holds a glint/ folder: import t
 B=${B:-.devdata/b}; S=${S:-.devdata/wooden-staircase.glb}; O=${OUT:-/tmp/out}; mkdir -p $O
 HD=${HD:-1920x1080}; UHD=${UHD:-3840x2160}
 step() { echo "== $(date +%T) [$SECONDS s] $*"; }
-echo "commit $(cat .devdata/commit 2>/dev/null)"; nproc
+echo "commit $(cat .devdata/commit 2>/dev/null)"; nproc; lscpu 2>/dev/null | grep -E "^(Model name|Thread|Core|Socket|CPU\(s\))"
+python3 -c "import os; from glint.parallel.cpus import usable_cpus, cgroup_quota
+print('cpu_count', os.cpu_count(), 'affinity', len(os.sched_getaffinity(0)), 'quota', cgroup_quota(), 'workers', usable_cpus())"
 nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm,temperature.gpu --format=csv 2>/dev/null
 
 step "1 frame times, built-in scenes, both ways"

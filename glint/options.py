@@ -62,7 +62,7 @@ def add_bake_options(p, out_flags: tuple[str, ...] = ("-o", "--out"), *, keeps_e
     p.add_argument("--texels-per-metre", type=_setting("texels_per_metre"), metavar="T", dest="texels_per_metre",
                    help="light-map resolution (overrides the preset)")
     p.add_argument("-j", "--jobs", type=_setting("jobs"), metavar="N",
-                   help="worker processes (default: the sidecar's [bake] jobs, else 0 = one per core)")
+                   help="worker processes (default: the sidecar's [bake] jobs, else 0 = one per CPU this process may use: its affinity, capped by a container's CPU quota)")
     p.add_argument("--scheduler", type=_scheduler, metavar="ADDRESS",
                    help="bake on a Dask cluster: the light-map tiles and cube maps become tasks on its workers. "
                         "ADDRESS is tcp://HOST:PORT of a running `dask scheduler` (workers started with `dask worker "

@@ -40,6 +40,7 @@ from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Iterable, Iterator, Protocol
 
 from glint.parallel import local_cluster
+from glint.parallel.cpus import one_blas_thread
 from glint.core.errors import GlintError, one_line, warn
 from glint.core.signals import deferred_signals, quiet_child
 
@@ -68,6 +69,7 @@ def _init_worker(parent: int, setup, setup_args, job) -> None:
     quiet_child(parent)  # Ctrl-C, SIGTERM, SIGHUP are the bake's: it stops the pool (no traceback of a worker's)
     _heap_for_large_arrays()
     _worker_state = setup(*setup_args)
+    one_blas_thread()  # after the setup, which may load another BLAS (parallel/cpus.py)
     _worker_job = job
 
 
@@ -205,6 +207,7 @@ def _dask_task(setup: Callable, setup_args: tuple, key: str, job: Callable, task
                 _release(_states.pop(old))
             _heap_for_large_arrays()
             _states[key] = setup(*setup_args)
+            one_blas_thread()
         state = _states[key]
     return job(state, task)
 
