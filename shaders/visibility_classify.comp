@@ -12,10 +12,11 @@
 // targets' clear colour gives the raster pass), position and normal 0. The raster pass's clears and
 // its sky triangle would go through the raster back end, a cost of the whole buffer per pass (and a
 // GPU's fast clear would have to be expanded before the resolve's image stores).
-// Reads: the visibility buffer and depth, the batch of each object. Writes: the tally and the pixel list
+// Reads: the visibility buffer and depth, the object of its triangles (scene_mesh.glsl), the batch of each object. Writes: the tally and the pixel list
 // (and the mirror layer's empty texels).
 
 #include "visibility.glsl"
+#include "scene_mesh.glsl"
 
 layout(std430, binding = VISIBILITY_TALLY_BINDING) buffer VisibilityTally {
     uint counts[VISIBILITY_BATCHES];
@@ -74,7 +75,7 @@ void main() {
         imageStore(mirror_normal_image, ivec3(pixel, layer), vec4(0.0));
     }
 #endif
-    int batch = drawn ? batch_of_object[vis_object(texelFetch(visibility_ids, pixel, 0).xy)] : 0;
+    int batch = drawn ? batch_of_object[triangle_object(vis_triangle(texelFetch(visibility_ids, pixel, 0).x))] : 0;
     uint slot = drawn ? atomicAdd(group_count[batch], 1u) : 0u;
     barrier();
 

@@ -11,12 +11,13 @@
 // One dispatch per texture batch (viewer/draw_list.py), the batch's textures bound, over the batch's
 // own pixels, which visibility_classify.comp listed (the dispatch's size is on the GPU).
 //
-// Reads: the visibility buffer, the pixel lists, the vertex and index buffers, the object and material
+// Reads: the visibility buffer, the pixel lists, the vertex and index buffers (scene_mesh.glsl), the object and material
 // tables, the light maps and the batch's textures. Writes: the owner's images.
 
 #include "raster_surface.glsl"
 #include "gbuffer_layout.glsl"
 #include "visibility.glsl"
+#include "scene_mesh.glsl"
 
 layout(local_size_x = RESOLVE_GROUP) in;
 layout(std430, binding = VISIBILITY_TALLY_BINDING) readonly buffer VisibilityTally {
@@ -30,32 +31,8 @@ layout(binding = GB_SHADE_IMAGE, rgba32ui) writeonly uniform uimage2D gb_shade;
 layout(binding = GB_FRAME_IMAGE, rgba32ui) writeonly uniform uimage2D gb_frame;
 #endif
 
-// The scene's vertex buffer as 32-bit words (VERTEX_WORDS per vertex, fields at the VERTEX_* word
-// offsets: viewer/gpu_meshes.py VERTEX_DTYPE) and its index buffer of global vertex indices.
-layout(std430, binding = VERTEX_BINDING) readonly buffer VertexWords { float vertex_words[]; };
-layout(std430, binding = INDEX_BINDING) readonly buffer VertexIndices { uint vertex_indices[]; };
-
 uniform mat4 view_proj;  // the raster pass's
 uniform int batch;       // the texture batch this dispatch resolves
-
-vec2 vertex2(uint v, int field) {
-    uint w = v * uint(VERTEX_WORDS) + uint(field);
-    return vec2(vertex_words[w], vertex_words[w + 1u]);
-}
-
-vec3 vertex3(uint v, int field) {
-    uint w = v * uint(VERTEX_WORDS) + uint(field);
-    return vec3(vertex_words[w], vertex_words[w + 1u], vertex_words[w + 2u]);
-}
-
-vec4 vertex4(uint v, int field) {
-    uint w = v * uint(VERTEX_WORDS) + uint(field);
-    return vec4(vertex_words[w], vertex_words[w + 1u], vertex_words[w + 2u], vertex_words[w + 3u]);
-}
-
-int vertex_int(uint v, int field) {
-    return floatBitsToInt(vertex_words[v * uint(VERTEX_WORDS) + uint(field)]);
-}
 
 // Perspective-correct barycentrics of the point of the triangle (clip-space vertices c0, c1, c2) seen
 // at normalised device coordinates p: b with sum 1 and (b . X) / (b . W) = p.x, (b . Y) / (b . W) = p.y,
@@ -87,11 +64,10 @@ void main() {
     if (gl_GlobalInvocationID.x >= counts[batch])
         return;
     ivec2 pixel = vis_unpack_pixel(pixels[offsets[batch] + gl_GlobalInvocationID.x]);
-    uvec2 ids = texelFetch(visibility_ids, pixel, 0).xy;
-    int object = vis_object(ids);
-
-    uint first = uint(scene_objects[object].info.z) + 3u * uint(vis_triangle(ids));
+    uint id = texelFetch(visibility_ids, pixel, 0).x;
+    uint first = 3u * vis_triangle(id);
     uint k0 = vertex_indices[first], k1 = vertex_indices[first + 1u], k2 = vertex_indices[first + 2u];
+    int object = vertex_int(k0, VERTEX_OBJECT);
     vec3 p0 = vertex3(k0, VERTEX_POSITION), p1 = vertex3(k1, VERTEX_POSITION), p2 = vertex3(k2, VERTEX_POSITION);
     vec4 c0 = view_proj * vec4(p0, 1.0), c1 = view_proj * vec4(p1, 1.0), c2 = view_proj * vec4(p2, 1.0);
     vec2 step = 2.0 / vec2(size);  // one pixel in normalised device coordinates
@@ -115,7 +91,7 @@ void main() {
     i.lm_uv = mix3(b, vertex2(k0, VERTEX_LM_UV), vertex2(k1, VERTEX_LM_UV), vertex2(k2, VERTEX_LM_UV));
     i.lm_page = vertex_int(k2, VERTEX_LM_PAGE);  // a flat varying's: the provoking (last) vertex's
     i.object = object;
-    i.front_facing = vis_front_facing(ids);
+    i.front_facing = vis_front_facing(id);
     i.face_normal = cross(p1 - p0, p2 - p0);
 
     RasterSurface s = raster_surface(i);

@@ -9,10 +9,10 @@ single-sided materials, as in Mitsuba).
 Two ways to the same targets (`visibility`):
 - raster: shaders/gbuffer.frag writes them, fragment by fragment (every fragment that passes the
   depth test at the time does the whole surface's work: light map, textures, normal map);
-- a visibility buffer (viewer/passes/visibility.py): the raster pass writes depth and 8 bytes of ids
-  per pixel, a compute pass works out each pixel's surface once, from its triangle, and writes the
-  targets as images. A GPU's raster back end writes 8 bytes per fragment instead of 32 (issue 27: on
-  an H200 the two RGBA32UI targets alone cost 2.6 ms at 1920x1080, depth and RG32UI 0.8 ms). The
+- a visibility buffer (viewer/passes/visibility.py): the raster pass writes depth and a 4-byte
+  triangle id per pixel, a compute pass works out each pixel's surface once, from its triangle, and
+  writes the targets as images. A GPU's raster back end writes 4 bytes per fragment instead of 32
+  (issue 27: on an H200 the two RGBA32UI targets alone cost 2.6 ms at 1920x1080, depth and R32UI 0.5 ms). The
   same surface (shaders/raster_surface.glsl) either way, its textures' MIP levels from the same
   differences across the pixel's 2 x 2 quad (not the driver's dFdx). Scenes drawn at a level of detail
   (the bake's cube-map renders) keep the raster way: the resolve finds a pixel's triangle in its

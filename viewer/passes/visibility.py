@@ -3,7 +3,7 @@ meshes: the G-buffer (viewer/passes/gbuffer.py) and the planar reflectors' mirro
 (viewer/passes/mirror.py), each through its own `VisibilityResolve`.
 
 The owner's raster pass draws with `program` (gbuffer.vert and shaders/visibility.frag: depth and one
-RG32UI texel of ids per pixel, object, triangle and facing: visibility.glsl) into a framebuffer of
+R32UI texel per pixel, the triangle's index in the scene's index buffer and its facing: visibility.glsl) into a framebuffer of
 `ids` and its own depth texture. `run` then
 
 1. lists the drawn pixels texture batch by texture batch (shaders/visibility_classify.comp: a count,
@@ -62,7 +62,7 @@ class VisibilityResolve:
         self.resolve = compute_program(ctx, "visibility_resolve.comp",
                                        {**defines, **vertex_defines(), **lists, "SURFACE_FROM_IDS": 1, target: 1})
         self.classify = {step: compute_program(ctx, "visibility_classify.comp",
-                                               {**defines, **lists, target: 1, f"CLASSIFY_{step}": 1})
+                                               {**defines, **vertex_defines(), **lists, target: 1, f"CLASSIFY_{step}": 1})
                          for step in ("COUNT", "PLAN", "SCATTER")}
         self.target = target
         self._gl = GL(ctx)
@@ -79,7 +79,7 @@ class VisibilityResolve:
             return
         self._release_targets()
         with self._gl.checked(f"allocate a visibility buffer of {size[0]} x {size[1]} pixels"):
-            self.ids = self.ctx.texture(size, 2, dtype="u4")
+            self.ids = self.ctx.texture(size, 1, dtype="u4")
             self.pixels = self.ctx.buffer(reserve=4 * size[0] * size[1])  # a word per pixel
         self.ids.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.ids.repeat_x = self.ids.repeat_y = False
