@@ -3,11 +3,13 @@
 One interface, the protocol `Executor` (the one way the bake and the cube-map stage run work in
 parallel), `executor.run(setup, setup_args, job, tasks)`: each task, a small typed object, is handled by
 `job(state, task)` in a worker whose `state = setup(*setup_args)` was built once per worker
-process (an Embree scene cannot be pickled, so every worker builds its own). Results come back in
+process, or once before a fork of local workers (an Embree scene cannot be pickled: a worker that
+does not inherit one builds its own). Results come back in
 completion order as (task index, result); the caller puts them in place, so the outcome does not
 depend on the number of workers or on which worker ran what.
 
-- `LocalExecutor(jobs)`: forked processes of this machine (they inherit setup_args unpickled);
+- `LocalExecutor(jobs)`: forked processes of this machine (they inherit the state, built once before
+  the fork);
   `LocalExecutor(jobs, start_method="spawn")` where a worker's state does not survive fork (the
   cube-map stage's GL contexts).
 - `DaskExecutor(address)`: the workers of a Dask cluster (`distributed`), for `glint bake
@@ -64,11 +66,13 @@ _worker_state: Any = None
 _worker_job: Callable | None = None
 
 
-def _init_worker(parent: int, setup, setup_args, job) -> None:
+def _init_worker(parent: int, setup, setup_args, job, inherited: bool = False, state=None) -> None:
+    """A pool's worker: its state built here (spawned), or `state`, the one its parent built before the
+    fork (`inherited`)."""
     global _worker_state, _worker_job
     quiet_child(parent)  # Ctrl-C, SIGTERM, SIGHUP are the bake's: it stops the pool (no traceback of a worker's)
     _heap_for_large_arrays()
-    _worker_state = setup(*setup_args)
+    _worker_state = state if inherited else setup(*setup_args)
     one_blas_thread()  # after the setup, which may load another BLAS (parallel/cpus.py)
     _worker_job = job
 
@@ -105,8 +109,9 @@ class Executor(Protocol):
 
 class LocalExecutor:
     """Processes of this machine, `jobs` at most, started by each `run` (one job or one task: this
-    process). `start_method` "fork" (the default): the workers inherit setup_args unpickled; "spawn" for
-    a state that does not survive fork (a GL context: the cube-map stage), setup_args then pickled.
+    process). `start_method` "fork" (the default): the state is built here and the workers inherit it,
+    sharing its memory; "spawn" for a state that does not survive fork (a GL context: the cube-map
+    stage), each worker building its own from setup_args, pickled.
     A worker that dies ends the run with one line (GlintError); an error or a signal here stops the
     workers rather than wait for them."""
 
@@ -137,8 +142,16 @@ class LocalExecutor:
             for index, task in tasks:
                 yield index, job(state, task)
             return
+        # Forked workers inherit a state built here, once: they share its pages (the path tracer's
+        # tables and Embree's BVH, some 100 MB for the staircase) where a state built in every worker
+        # would be as many copies, competing for the CPU's shared cache. A spawned worker builds its own.
+        inherited = self.start_method == "fork"
+        if inherited:
+            _heap_for_large_arrays()
+        state = setup(*setup_args) if inherited else None
         pool = ProcessPoolExecutor(min(self.jobs, len(tasks)), mp_context=mp.get_context(self.start_method),
-                                   initializer=_init_worker, initargs=(os.getpid(), setup, setup_args, job))
+                                   initializer=_init_worker,
+                                   initargs=(os.getpid(), setup, setup_args, job, inherited, state))
         try:
             with deferred_signals():  # a signal between a fork and its worker's quiet_child is the bake's
                 futures = [pool.submit(_run_task, task) for task in tasks]  # the processes start here
