@@ -69,9 +69,9 @@ def explain(renderers: dict, images: dict, rel, bake) -> str:
     return f"over 1e-3: {words}; {worst}"
 
 
-def setup(prog: str, doc: str, scenes: list[str], out: str, argv=None):
-    """The two A/B tools' command line (--scenes, --size, --out) and context: (args, ctx, width, height);
-    prints the device and what the medians are of."""
+def setup(prog: str, doc: str, scenes: list[str], out: str, argv=None, options=None):
+    """The A/B tools' command line (--scenes, --size, --out, and what `options(parser)` adds) and
+    context: (args, ctx, width, height); prints the device and what the medians are of."""
     import moderngl
 
     from glint.bench.measure_draw_count import BLOCKS, FRAMES
@@ -81,6 +81,8 @@ def setup(prog: str, doc: str, scenes: list[str], out: str, argv=None):
     p.add_argument("--scenes", nargs="+", default=scenes)
     p.add_argument("--size", default="640x360")
     p.add_argument("--out", type=Path, default=Path(out))
+    if options is not None:
+        options(p)
     args = p.parse_args(argv)
     width, height = (int(v) for v in args.size.split("x"))
     args.out.mkdir(parents=True, exist_ok=True)
@@ -89,11 +91,11 @@ def setup(prog: str, doc: str, scenes: list[str], out: str, argv=None):
     return args, ctx, width, height
 
 
-def paired_views(ctx, args, width: int, height: int, option: str):
+def paired_views(ctx, args, width: int, height: int, option: str, values=(False, True)):
     """For every camera of every scene of `args` (draft bakes in args.out): two renderers,
-    Renderer(option=False) and Renderer(option=True), drawing walkthrough frames alternately
-    (measure_draw_count.py `alternate`); yields (scene, camera entry, {False: r, True: r}, {False: ms,
-    True: ms} medians of the frame's wall time) and releases the renderers after."""
+    Renderer(option=values[0]) and Renderer(option=values[1]), drawing walkthrough frames alternately
+    (measure_draw_count.py `alternate`); yields (scene, camera entry, {value: renderer}, {value: ms}
+    medians of the frame's wall time) and releases the renderers after."""
     from glint.bench.measure_draw_count import alternate, bake_for
     from glint.core.bake_dir import Bake
     from glint.viewer.camera import ViewCamera
@@ -103,7 +105,7 @@ def paired_views(ctx, args, width: int, height: int, option: str):
         bake = Bake(bake_for(name, args.out))
         for entry in bake.model.cameras:
             camera = ViewCamera.from_manifest(entry)
-            renderers = {on: Renderer(ctx, bake, **{option: on}) for on in (False, True)}
+            renderers = {on: Renderer(ctx, bake, **{option: on}) for on in values}
             try:
                 frame = alternate(ctx, {on: (lambda r=r, camera=camera: r.render(camera, width, height))
                                         for on, r in renderers.items()})

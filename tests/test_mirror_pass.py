@@ -971,3 +971,47 @@ def test_mirror_pass_in_its_rectangle_renders_the_same_image(ctx, tmp_path, visi
     assert tile.sum() > 20  # the tile shows the columns
     for a, b in zip(images[False], images[True]):
         assert np.array_equal(a, b), np.abs(a - b).max()
+
+
+@pytest.mark.parametrize("visibility", [False, True], ids=["raster", "visibility-buffer"])
+def test_mirror_buffers_at_half_resolution_show_the_same_reflection(ctx, tmp_path, visibility):
+    """Renderer(mirror_resolution=0.5) (an option, full resolution by default: docs/VIEWER.md, "Mirror
+    buffers at a lower resolution"): the buffers are half the render's size, and a glossy tile (m = 0.05)
+    reflecting three emissive columns shows each column where the full buffers put it -- each colour's
+    centroid on the tile within 1 pixel, its total within 10 % -- with the sky (a constant) around them.
+
+    Deliberate bug this catches (tried): the pass's viewport left at the render's size while the buffer
+    is half of it (`_bind_layer` and the ids' framebuffer given the render size): the buffer holds a
+    quarter of the mirrored view, twice as large, and the columns' reflections leave the tile (their
+    totals 100 % off)."""
+    meshes = [quad((0, 0, 0), (4, 0, 0), (0, 0, -4)), quad((0, 0.001, -0.5), (0.3, 0, 0), (0, 0, -0.3))]
+    colours = [RED, GREEN, BLUE]
+    for k, (x, z) in enumerate(((0.0, -0.95), (-0.3, -0.8), (0.3, -0.8))):
+        meshes.append(quad((x, 0.3, z), (0.06, 0, 0), (0, 0.3, 0)))
+    mats = [material("floor", kd=BLACK), material("tile", kd=BLACK, lobes=[glossy(0.05)])]
+    mats += [material(f"column {k}", kd=BLACK, emission=c) for k, c in enumerate(colours)]
+    bake = planar_bake(tmp_path / "b", meshes, mats, [0, 1, 2, 3, 4], {1: ((0, 0.001, -0.5), (0, 1, 0))},
+                        sky={"radiance": [0.2, 0.2, 0.2]})
+    camera = ViewCamera.look_at((0.0, 0.9, 1.2), (0.0, 0.0, -0.6), (0, 1, 0), math.radians(40), znear=0.01, zfar=50)
+    images, sizes = {}, {}
+    with Renderer(ctx, bake, mirror_budget=0, visibility=visibility) as r:  # the columns without reflections
+        r.render(camera, *SIZE_RECT)
+        direct = r.read_linear()[..., :3].astype(np.float64)
+    for resolution in (1.0, 0.5):
+        with Renderer(ctx, bake, mirror_resolution=resolution, visibility=visibility) as r:
+            r.render(camera, *SIZE_RECT)
+            images[resolution] = r.read_linear()[..., :3].astype(np.float64) - direct  # the tile's reflection
+            sizes[resolution] = r.mirror.size
+    assert sizes == {1.0: SIZE_RECT, 0.5: (SIZE_RECT[0] // 2, SIZE_RECT[1] // 2)}
+    ys, xs = np.mgrid[0:SIZE_RECT[1], 0:SIZE_RECT[0]]
+    for channel in range(3):  # each column's colour in the reflection
+        weights = {f: np.clip(img[..., channel] - img[..., [c for c in range(3) if c != channel]].max(axis=-1), 0, None)
+                   for f, img in images.items()}
+        full, half = weights[1.0], weights[0.5]
+        assert full.sum() > 100.0  # the tile shows the column (5 W/sr/m^2 over some tens of pixels)
+        assert abs(half.sum() / full.sum() - 1.0) < 0.10, (channel, half.sum(), full.sum())
+        for grid in (xs, ys):
+            centre = {f: float((w * grid).sum() / w.sum()) for f, w in weights.items()}
+            assert abs(centre[1.0] - centre[0.5]) < 1.0, (channel, centre)
+    with pytest.raises(GlintError, match="resolution"):
+        Renderer(ctx, bake, mirror_resolution=0.3)

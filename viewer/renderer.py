@@ -47,7 +47,7 @@ from glint.viewer.draw_list import DrawList
 from glint.viewer.gl import check_context, describe, max_texture_size, software_renderer
 from glint.viewer.gpu_scene import GpuScene, shader_defines
 from glint.viewer.passes.gbuffer import GBufferPass
-from glint.viewer.passes.mirror import MirrorPasses, mirror_defines
+from glint.viewer.passes.mirror import MIRROR_RESOLUTIONS, MirrorPasses, mirror_defines
 from glint.viewer.passes.resolve import ResolvePass
 from glint.viewer.passes.shading import ShadingPass, scene_units
 from glint.viewer.passes.tonemap import TonemapPass
@@ -87,7 +87,7 @@ class Renderer:
                  blend_frames: int = 0, mirror_budget: int = DEFAULT_BUDGET, planar_pattern: str = "auto",
                  footprint: str = "moment", timing: bool = True, small_objects: float = 0.0,
                  display: bool = True, lod: float = 0.0, visibility: bool | None = None,
-                 mirror_scissor: bool = False):
+                 mirror_scissor: bool = False, mirror_resolution: float = 1.0):
         """lobe_samples: samples of every lobe's walkthrough pattern (None: chosen per lobe from its
         width); weights: "albedo" (the default), "eq4.25" or "eq4.24" (the walkthrough's estimator); walkthrough: a key of
         WALKTHROUGH_METHODS (anything but the defaults is a comparison method, above); samples_per_frame, max_frames, blend_frames: the still camera's
@@ -107,7 +107,9 @@ class Renderer:
         G-buffer through a visibility buffer (viewer/passes/gbuffer.py; None: unless the renderer is
         a software one, where it is no faster: docs/VIEWER.md; never with `lod`); mirror_scissor: each
         mirror pass rasterises only the rectangle its look-ups are estimated to reach (an experiment,
-        off by default: viewer/passes/mirror.py)."""
+        off by default: viewer/passes/mirror.py); mirror_resolution: the mirror buffers' size as a
+        fraction of the render's, 1 (the default), 0.5 or 0.25 (faster passes, reflections less sharp:
+        docs/VIEWER.md, "Mirror buffers at a lower resolution")."""
         check_context(ctx)
         if walkthrough not in WALKTHROUGH_METHODS:
             raise GlintError(f"unknown walkthrough method {walkthrough!r}; use one of {', '.join(WALKTHROUGH_METHODS)}")
@@ -123,6 +125,9 @@ class Renderer:
             self.scene.set_lobe_samples(lobe_samples)
         if not (isinstance(mirror_budget, (int, np.integer)) and mirror_budget >= 0):
             raise GlintError(f"the mirror-pass budget must be a whole number of at least 0 (got {mirror_budget!r})")
+        if mirror_resolution not in MIRROR_RESOLUTIONS:
+            raise GlintError(f"the mirror buffers' resolution must be one of "
+                             f"{', '.join(map(str, MIRROR_RESOLUTIONS))} (got {mirror_resolution!r})")
         mirror_unit = scene_units(self.scene)["MIRROR_RADIANCE_UNIT"]
         defines = {**shader_defines(), **mirror_defines(mirror_unit)}
         self.draws = DrawList(ctx, self.scene, defines)
@@ -130,7 +135,8 @@ class Renderer:
             visibility = not software_renderer(ctx)
         self.gbuffer = GBufferPass(ctx, self.scene, self.draws, defines, visibility=visibility)
         self.mirror = MirrorPasses(ctx, self.scene, bake, self.draws, defines, budget=int(mirror_budget),
-                                   visibility=self.gbuffer.visibility, scissor=mirror_scissor)
+                                   visibility=self.gbuffer.visibility, scissor=mirror_scissor,
+                                   resolution=mirror_resolution)
         self.mirror.set_units(mirror_unit)
         self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
         self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror,

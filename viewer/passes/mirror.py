@@ -96,6 +96,10 @@ from glint.viewer.reflectors import (
 )
 from glint.viewer.shader_source import LOCAL_SIZE, compute_program, raster_program, set_uniforms
 
+# The mirror buffers' size as a fraction of the render's (`Renderer(mirror_resolution=...)`): 1, the
+# default, lines a buffer up with the view pixel for pixel (docs/VIEWER.md, "Mirror buffers at a
+# lower resolution": what a lower one changes, what it saves).
+MIRROR_RESOLUTIONS = (1.0, 0.5, 0.25)
 SLOT_DTYPE = np.dtype([("view_proj", "<f4", (4, 4)), ("plane", "<f4", 4), ("info", "<f4", 4)])
 TARGETS = ("radiance", "position", "normal")  # the order of mirror_units' texture units
 # Each target's colour attachment = fragment-output location of mirror.frag and mirror_sky.frag.
@@ -148,7 +152,7 @@ class MirrorPasses:
     name = "mirror"
 
     def __init__(self, ctx: moderngl.Context, scene, bake, draws, defines: dict, budget: int = DEFAULT_BUDGET,
-                 visibility: bool = False, scissor: bool = False):
+                 visibility: bool = False, scissor: bool = False, resolution: float = 1.0):
         """draws: the scene's viewer/draw_list.py DrawList (pass k draws into its region
         GBufferPass.REGION + 1 + k); visibility: each pass through a visibility buffer
         (viewer/passes/visibility.py: ids and depth rasterised, then the targets resolved per pixel in
@@ -157,6 +161,9 @@ class MirrorPasses:
         experiment, off by default: docs/VIEWER.md, "Mirror passes in a rectangle")."""
         if not (isinstance(budget, (int, np.integer)) and budget >= 0):
             raise ValueError(f"the mirror-pass budget must be a whole number of at least 0 (got {budget!r})")
+        if resolution not in MIRROR_RESOLUTIONS:
+            raise ValueError(f"the mirror buffers' resolution must be one of {MIRROR_RESOLUTIONS} (got {resolution!r})")
+        self.resolution = float(resolution)
         self.ctx = ctx
         self.scene = scene
         self.draws = draws
@@ -222,7 +229,13 @@ class MirrorPasses:
                         for i, r in self.objects]
         self.reflectors = [r for _, r in self.objects]
 
+    def buffer_size(self, size: tuple[int, int]) -> tuple[int, int]:
+        """The mirror buffers' size for a render of `size` (the G-buffer's): times the resolution."""
+        return tuple(max(1, int(round(x * self.resolution))) for x in size)
+
     def resize(self, size: tuple[int, int]) -> None:
+        """The buffers for a render of `size` (the G-buffer's; the buffers are `buffer_size(size)`)."""
+        size = self.buffer_size(size)
         if size == self.size or not self.active:
             return
         self._release_targets()
