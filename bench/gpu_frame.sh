@@ -1,7 +1,8 @@
 #!/bin/bash
 # Issue 27's GPU measurements in one run of the device machine (docs/VIEWER.md, "On a GPU"); results in
-# docs/bench/h200/. About 450 s there (190 s of it the two bakes), plus the machine's start; eight files
-# come back (the device's limit): log.txt, ft1/ft2 .md and .json, vis.md, scissor.md, drawcount.md.
+# docs/bench/h200/. About 510 s there (190 s of it the two bakes), plus the machine's start; eight files
+# come back (the device's limit): log.txt, ft1/ft2 .md and .json, vis.md, scissor.md (with
+# the mirror buffers at half resolution), drawcount.md.
 #
 # Preparation, on this machine, in the repository's root:
 #   echo /.devdata/ >> .git/info/exclude; mkdir -p .devdata/b
@@ -36,6 +37,8 @@ timeout 120 python3 -m glint.bench.measure_visibility --size $HD --out $B \
 step "3 mirror passes in a rectangle, built-in scenes"
 timeout 60 python3 -m glint.bench.measure_mirror_scissor --size $HD --out $B --scenes living-room planar-classes \
   | tee $O/scissor.md
+timeout 60 python3 -m glint.bench.measure_mirror_resolution --size $HD --out $B --scenes living-room planar-classes \
+  | tee -a $O/scissor.md  # eight files at most: the lower resolution goes with the rectangle
 
 step "4 bakes: the staircase (draft, cube maps on this GPU), many-10000"
 for n in $S many-10000; do
