@@ -36,7 +36,7 @@ from glint.core.manifest import (Atlas as AtlasEntry, Camera, CameraPath, CubeMa
                                  Manifest, Material, ObjectEntry, Plane, PointLight, Sampler, SceneInfo, Sky,
                                  SpotLight, Statistics, Volume, lobe_from_json)
 from glint.core.scene import Scene
-from glint.core.skipped import bake_record, stale_reason
+from glint.core.skipped import bake_record, missing_reason, stale_reason
 
 
 @dataclass
@@ -288,17 +288,20 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
     )
     # Up to date: the same scene content, settings and stage versions, whatever the paths and the
     # machine (derived floats may differ there in the last bit: they decide nothing here).
-    if old is not None and old_dir == bake_dir and same_inputs(old, manifest):
+    # A file of the old bake gone (deleted by hand) is made again, with what depends on it.
+    missing = missing_files(old, old_dir) if old is not None else set()
+    if old is not None and old_dir == bake_dir and same_inputs(old, manifest) and not missing:
         return BakeReport(bake_dir, "up-to-date", old)
 
-    reuse_geometry = old is not None and old.stages.get("geometry") == geometry
-    reuse_lightmaps = reuse_geometry and old.stages.get("lightmaps") == transport
+    reuse_geometry = old is not None and old.stages.get("geometry") == geometry and "meshes.npz" not in missing
+    reuse_lightmaps = (reuse_geometry and old.stages.get("lightmaps") == transport
+                       and not missing.intersection(old.lightmaps + old.lightmaps_back))
     if reuse_lightmaps:
         manifest = replace(manifest, atlas=old.atlas, lightmaps=old.lightmaps, lightmaps_back=old.lightmaps_back,
                            statistics=Statistics(dict(old.statistics.data)))
 
     if old is not None and announce is not None:
-        announce(stale_reason(old, manifest))
+        announce(missing_reason(missing) if missing and same_inputs(old, manifest) else stale_reason(old, manifest))
     executor = executor_for(settings)
     probes_to_render = _to_render(cubemaps, old, old_dir)
     if not reuse_lightmaps or probes_to_render:
@@ -332,7 +335,8 @@ def bake_scene(scene: Scene, settings: BakeSettings, bake_dir: Path, *, force: b
         # What the viewer will show wrong because the loader ignored it (glint.services.fidelity_line).
         stats["ignored_features"] = dict(scene.ignored_features)
         # What this bake redid and reused, for later commands that find it up to date (core/skipped.py).
-        stats["last_bake"] = bake_record(status, old, manifest, stats["cubemaps"], forced=force)
+        stats["last_bake"] = bake_record(status, old, manifest, stats["cubemaps"], forced=force,
+                                         missing=tuple(missing))
         write_json(out.path / "manifest.json", manifest.to_json())
         out.commit()
     return BakeReport(bake_dir, status, manifest, redone)
@@ -350,6 +354,13 @@ def same_inputs(old: Manifest, new: Manifest) -> bool:
     return (old.scene.hash == new.scene.hash
             and old.settings == json.loads(json.dumps(new.settings))
             and (old.inputs or {}).get("versions") == new.inputs["versions"])
+
+
+def missing_files(old: Manifest, old_dir: Path) -> set[str]:
+    """The files the bake of manifest `old` holds (meshes, light maps, cube maps) that `old_dir` lacks."""
+    names = ["meshes.npz", *old.lightmaps, *old.lightmaps_back]
+    names += [entry.cubemap.file for entry in old.objects if entry.cubemap is not None]
+    return {name for name in names if not (Path(old_dir) / name).is_file()}
 
 
 def _to_render(plans: list[CubeMapPlan], old: Manifest | None, old_dir: Path) -> list[CubeMapPlan]:

@@ -195,6 +195,11 @@ def _phrase(items: list[str], limit: int = 3) -> str:
     return ", ".join(items[:limit]) + (f" and {len(items) - limit} more" if len(items) > limit else "")
 
 
+def missing_reason(missing) -> str:
+    """Why a bake whose inputs did not change is redone: the files of it that were gone."""
+    return "files missing: " + _phrase(sorted(missing))
+
+
 def stale_reason(old: Manifest, new: Manifest) -> str:
     """One phrase of why a bake with manifest `old` is redone for `new`, e.g.
     "changed: kd of Floor, bake settings (samples 32 -> 128)", "changed: sidecar room.glint.toml
@@ -214,12 +219,16 @@ def stale_reason(old: Manifest, new: Manifest) -> str:
     return "; ".join(parts) or "changed: nothing found (bake with --force to redo it)"
 
 
-def bake_record(status: str, old: Manifest | None, new: Manifest, cube_maps: dict, *, forced: bool = False) -> dict:
+def bake_record(status: str, old: Manifest | None, new: Manifest, cube_maps: dict, *, forced: bool = False,
+                missing: tuple[str, ...] = ()) -> dict:
     """What the bake that writes `new` did and why (after `old`, the previous manifest or None);
-    `status` as bake/pipeline.py's BakeReport, `cube_maps` its cube-map statistics."""
+    `status` as bake/pipeline.py's BakeReport, `cube_maps` its cube-map statistics, `missing` the old
+    bake's files that were gone."""
     changes = changed_inputs(old, new) if old is not None else {"files": [], "geometry": [], "light maps": [], "manifest": []}
     if old is None:
         why = "--force" if forced else "no earlier bake of this format"
+    elif missing and not any(changes.values()):
+        why = missing_reason(missing)
     elif status == "full":
         why = "geometry changed"
     elif status == "lightmaps":

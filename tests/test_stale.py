@@ -210,3 +210,35 @@ def test_a_camera_a_last_bit_apart_is_not_named(tmp_path, capsys):
     new["settings"]["samples"] = 16
     assert new["cameras"] != old["cameras"]
     assert stale_reason(Manifest.from_json(old), Manifest.from_json(new)) == "changed: bake settings (samples 8 -> 16)"
+
+
+def test_a_deleted_file_is_made_again_and_only_what_depends_on_it(tmp_path, capsys):
+    """A bake with its inputs unchanged but a file gone (deleted by hand) is not "up to date": the
+    stale line names the file, and the bake makes it again -- a cube map alone (the light maps and the
+    other files untouched), a light map with the light maps. Catches the up-to-date check looking at
+    the manifest only (was: "up to date, nothing to do", then `glint capture` stopping at "cube map: no
+    such file")."""
+    scene = write_room(tmp_path / "room.glb", sidecar='[objects."Box"]\nrole = "curved"\n')
+    out = tmp_path / "room.bake"
+    bake(scene, out, capsys)
+    model = json.loads((out / "manifest.json").read_text())
+    (cube,) = [o["cubemap"]["file"] for o in model["objects"] if o.get("cubemap")]
+    light_map = model["lightmaps"][0]
+    before = files(out)
+    (out / cube).unlink()
+    output = bake(scene, out, capsys)
+    assert f"files missing: {cube}" in stale_line(output)
+    record = json.loads((out / "manifest.json").read_text())["statistics"]["last_bake"]
+    assert record["cube_maps_rendered"] == 1 and record["light_maps"] == "reused", record
+    after = files(out)
+    assert after[cube][1] == before[cube][1]  # the same bytes again
+    assert {k: v for k, v in after.items() if k.startswith("lightmaps/")} == \
+        {k: v for k, v in before.items() if k.startswith("lightmaps/")}  # not touched
+    assert "up to date, nothing to do" in bake(scene, out, capsys)
+
+    (out / light_map).unlink()
+    output = bake(scene, out, capsys)
+    assert f"files missing: {light_map}" in stale_line(output)
+    assert (out / light_map).is_file()
+    record = json.loads((out / "manifest.json").read_text())["statistics"]["last_bake"]
+    assert record["light_maps"] == "re-baked" and record["why"] == f"files missing: {light_map}", record
