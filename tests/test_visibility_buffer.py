@@ -225,3 +225,55 @@ def test_frames_and_releases_leave_no_gl_error(ctx, yard):
             assert gl.errors() == [], (visibility, supersample)
     ctx.framebuffer([ctx.texture((4, 4), 4)]).release()
     assert gl.errors() == []
+
+
+def grid(n: int, centre_z: float, half: float) -> dict:
+    """A mesh dict (bake_dir layout) of an n x n grid of quads (2 n^2 triangles) in the plane z =
+    centre_z, +-half in x and y, facing +z; light-map uv across the whole grid."""
+    t = np.linspace(-half, half, n + 1)
+    x, y = np.meshgrid(t, t)
+    positions = np.stack([x, y, np.full_like(x, centre_z)], -1).reshape(-1, 3).astype(np.float32)
+    k = np.arange(n)
+    a = (k[None, :] + (n + 1) * k[:, None]).reshape(-1)
+    quads = np.stack([a, a + 1, a + n + 2, a + n + 1], -1)
+    indices = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]).astype(np.uint32)
+    lm_uv = ((positions[:, :2] + half) / (2 * half)).astype(np.float32)
+    return {"positions": positions, "normals": np.tile((0, 0, 1), (len(positions), 1)).astype(np.float32),
+            "uvs": lm_uv.copy(), "lm_uv": lm_uv, "lm_page": np.zeros(len(positions), np.int32),
+            "indices": indices, "vmapping": np.arange(len(positions))}
+
+
+def test_triangle_ids_past_two_to_the_seventeen(ctx, tmp_path):
+    """The visibility buffer's one word per pixel holds the triangle's index in the whole scene's index
+    buffer (visibility.glsl): here a grid of 80,000 triangles fills the view after a grid of 135,200
+    behind the camera (culled), so every pixel's id exceeds 2^17, and the last object (a quad in front)
+    comes after all of them. Both ways give the same depth, the same object and material ids on every pixel and the
+    same light-mapped image (a gradient light map: a pixel resolved from another triangle reads
+    another value) within 1e-3 on 99 % of the pixels.
+
+    Deliberate bug this catches (tried): the triangle index kept in 17 bits (`vis_pack` masking with
+    0x1FFFF): every grid pixel resolves a triangle of the culled grid behind the camera (its ids name object 0)."""
+    from test_renderer import make_bake, material, quad
+
+    page = np.ones((64, 64, 4), np.float32)
+    ramp = np.linspace(0.2, 1.0, 64, dtype=np.float32)
+    page[..., 0], page[..., 1] = ramp[None, :], ramp[:, None]
+    meshes = [grid(260, 30.0, 1.0), grid(200, 0.0, 3.0), quad((0.8, 0.3, 0.5), (0.3, 0, 0), (0, 0.2, 0))]
+    bake = make_bake(tmp_path / "b", meshes, [material("a"), material("grid"), material("front", kd=(0.2, 0.9, 0.2))],
+                     [0, 1, 2], [page])
+    camera = ViewCamera.look_at((0, 0, 2.5), (0, 0, 0), (0, 1, 0), math.radians(60), znear=0.01, zfar=100)
+    out = {}
+    for visibility in (False, True):
+        with Renderer(ctx, bake, visibility=visibility) as r:
+            r.render(camera, *SIZE)
+            assert r.draws.record(0)["objects_drawn"] == 2  # the grid behind the camera is culled
+            t = r.gbuffer.targets
+            w, h = t["shade"].size
+            out[visibility] = (np.frombuffer(t["shade"].read(alignment=1), np.uint32).reshape(h, w, 4)[..., 3].copy(),
+                               np.frombuffer(t["depth"].read(alignment=1), np.float32).reshape(h, w).copy(),
+                               r.read_linear())
+    (ids_a, depth_a, image_a), (ids_b, depth_b, image_b) = out[False], out[True]
+    assert (depth_a < 1.0).all() and np.array_equal(depth_a, depth_b)
+    assert np.array_equal(ids_a, ids_b) and len(np.unique(ids_a)) == 2  # the grid and the front quad
+    rel = (np.abs(image_a - image_b) / np.maximum(np.maximum(np.abs(image_a), np.abs(image_b)), 1e-6)).max(axis=-1)
+    assert (rel > 1e-3).mean() <= 0.01, f"{(rel > 1e-3).mean():.1%} of the pixels over 1e-3 (up to {rel.max():.2e})"
