@@ -118,6 +118,12 @@ class LightmapPages:
     refined: int = 0  # of `texels`, given more paths by adaptive sampling
     refined_paths: int = 0  # the paths adaptive sampling added
     enclosed: int = 0  # of `refined`, chosen only because their samples lie in cavities (bake/sample_points.py)
+    # wall-clock seconds of the stage's steps, in order: "tracer" (Embree's scene, here), "samples" (moved
+    # out of covering geometry), "enclosed" (cavities found), "tiles" (the path tracing, on the workers),
+    # "refine" (adaptive sampling: the texels chosen here, traced on the workers; trace_seconds is the
+    # two together), "pages" (images, dilation, denoising, seams). Where a many-core machine's time
+    # goes: all but the tracing runs in this one process.
+    phase_seconds: dict | None = None
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
         """(front, back) pages as the bake directory stores them (core/bake_dir.py): (H, W, 4) float32,
@@ -214,14 +220,25 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     points = np.concatenate([points, points[back]])
     normals = np.concatenate([normals, -normals[back]])
     n = len(points)
+    phases, clock = {}, time.perf_counter()
+
+    def phase(name: str) -> None:  # the step that just ended
+        nonlocal clock
+        now = time.perf_counter()
+        phases[name] = round(now - clock, 3)
+        clock = now
+
     # every side's sample moved out of geometry that covers it (bake/sample_points.py)
     tracer = RayTracer(scene)
     coverage = Coverage(scene, tracer)
+    phase("tracer")
     sizes = np.concatenate([sizes, sizes[back]])
     adjusted = adjust_samples(tracer, points, normals, sizes, np.concatenate([objects, objects[back]]), coverage)
     points = adjusted.points.astype(points.dtype)
+    phase("samples")
     # samples in cavities, where fireflies come from: more paths (module docstring, "Adaptive sampling")
     closed = enclosed(tracer, points, normals, sizes, coverage) if settings.adaptive_samples > 1 else np.zeros(n, bool)
+    phase("enclosed")
     total = np.zeros((n, 3))
     square = np.zeros(n)
     paths = np.full(n, settings.samples, np.int64)
@@ -240,6 +257,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
             rays += r
             if progress is not None:
                 progress(len(e))
+        phase("tiles")
         valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
         refined = cavity = np.zeros(0, np.int64)
         if settings.adaptive_samples > 1 and n:
@@ -260,6 +278,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
                 total[rows], square[rows], paths[rows] = e, q, c
                 rays += r
     trace_seconds = time.perf_counter() - t0
+    phase("refine")
     E = mean_irradiance(total, paths)
 
     irradiance, baked = _pages(pages, covered, E[:front], valid[:front], settings)
@@ -269,6 +288,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         back_irradiance, back_baked = _pages(pages, back_cover, E[front:], valid[front:], settings)
         back_irradiance = _stitched(tracer, back_irradiance, back_baked, pages, -1.0, settings)
 
+    phase("pages")
     # per object: invalid samples (either side); unlit surface texels (no side with light)
     count = len(scene.objects)
     sample_object = np.concatenate([objects, objects[back]])
@@ -288,7 +308,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
                          unlit_by_object=unlit_by_object, median_radiance=median_radiance,
                          trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()),
                          refined=len(refined), refined_paths=int((paths - settings.samples).sum()),
-                         enclosed=len(cavity))
+                         enclosed=len(cavity), phase_seconds=phases)
 
 
 def back_cover_of(pages: list[TexelPage], covered: list[np.ndarray], two: np.ndarray) -> list[np.ndarray]:

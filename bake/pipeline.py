@@ -458,7 +458,8 @@ def _bake_geometry_and_lightmaps(scene: Scene, settings: BakeSettings, path: Pat
                           "unlit_objects": worst(result.unlit_by_object),
                           "samples": settings.samples, "rays": int(result.rays),
                           "rays_per_second": float(result.rays / max(t2 - t1, 1e-9)),
-                          "trace_seconds": round(result.trace_seconds, 3), "tiles": result.tiles},
+                          "trace_seconds": round(result.trace_seconds, 3), "tiles": result.tiles,
+                          "phase_seconds": result.phase_seconds or {}},
         }),
     }
 
