@@ -47,7 +47,7 @@ for n in $S many-10000; do
 import sys; from pathlib import Path; from glint.bench.measure_draw_count import bake_for
 from glint.core.bake_dir import Bake
 st = Bake(bake_for(sys.argv[1], Path(sys.argv[2]))).model.statistics  # the bake's stages on this machine
-print({k: {f: v[f] for f in ('seconds', 'trace_seconds', 'phase_seconds', 'rays_per_second', 'tiles', 'rendered') if f in v}
+print({k: {f: v[f] for f in ('seconds', 'trace_seconds', 'phase_seconds', 'rays_per_second', 'tiles', 'rendered', 'processes') if f in v}
        for k, v in st.data.items() if isinstance(v, dict)})" $n $B 2>&1 | tail -3
   echo "$n: rc ${PIPESTATUS[0]}, $((SECONDS - t)) s"
 done

@@ -14,13 +14,15 @@ then made from it. The distance of a texel is viewer/camera.py `depth_distances`
 depth, as the renderer's `read_distance`: the mean over the pixels of the texel
 (bake/cubemap.py `supersample` per side) that hit something.
 
-Processes: a software renderer (Mesa's llvmpipe) processes vertices on the thread that issues the
-draw and rasterises on others, so one GL context keeps about one core busy with a probe's many
-small triangles. There the probes are shared out, PROBES_PER_TASK at a time, among `workers`
-processes (the bake's --jobs), each with its own EGL context and renderer (`ProbeWorker`, built once
-per process), started with spawn (a GL context does not survive fork: parallel/executor.py
-LocalExecutor's start_method); each probe is rendered alone, so the files are the same bytes
-whichever process renders it. A GPU gets one context: its driver queues the work anyway.
+Processes: one GL context keeps about one core busy -- a software renderer (Mesa's llvmpipe)
+processes vertices on the thread that issues the draw, and on a GPU the stage is the CPU's work
+(each face's frame set up in Python, its depth turned into distances, the files compressed: issue
+27's run gave 240 probes 21.7 s on an H200 with one context, where two cores of llvmpipe take 20-24 s
+for the staircase's 290). So the probes are
+shared out, PROBES_PER_TASK at a time, among `workers` processes (the bake's --jobs), each with its
+own EGL context and renderer (`ProbeWorker`, built once per process), started with spawn (a GL
+context does not survive fork: parallel/executor.py LocalExecutor's start_method); each probe is
+rendered alone, so the files are the same bytes whichever process renders it.
 
 Local processes and a Dask cluster's workers are one code path (`_render_on_workers`): the executor's
 `run` of `ProbeTask`s, each handled by `_probe_task` on the worker's state.
@@ -67,11 +69,11 @@ from glint.core.manifest import Manifest, Material
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
 from glint.viewer.cubemaps import finite_radiance, mip_chain, read_cubemap
-from glint.viewer.gl import GL, describe, software_renderer
+from glint.viewer.gl import GL, describe
 from glint.viewer.renderer import Renderer
 
 BATCH_MIB = 64  # GPU pack buffer per batch: all six faces of at least one probe, however large
-PROBES_PER_TASK = 8  # probes a worker process renders per task (software renderers, several processes)
+PROBES_PER_TASK = 8  # probes a worker process renders per task (several processes)
 
 
 def diffuse_view(manifest: Manifest) -> Manifest:
@@ -103,8 +105,8 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
                     progress: Callable[[], None] | None = None, workers: int = 1, cluster=None) -> dict:
     """Render `plans` from the bake in `bake_dir` (manifest, meshes and light maps written) into
     its cubemaps/ folder, batch by batch; returns statistics (seconds, batches, processes, device).
-    On a software renderer with `workers` > 1 the probes are shared out among that many processes,
-    each with its own GL context (see the module docstring); on a GPU one context renders them all.
+    With `workers` > 1 the probes are shared out among that many processes, each with its own GL
+    context (see the module docstring), PROBES_PER_TASK at least each.
     `cluster`: a Dask cluster's executor (parallel/executor.py DaskExecutor), whose workers render them
     instead (`workers` is then unused). Processes and a cluster's workers are the same code path: an
     executor's (`_render_on_workers`)."""
@@ -114,9 +116,9 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
                 "batches": len(batches(plans))}
     ctx = headless_context()
     try:
-        device, software = describe(ctx), software_renderer(ctx)
+        device = describe(ctx)
         groups = batches(plans)
-        processes = min(int(workers), len(plans) // PROBES_PER_TASK) if software else 1
+        processes = min(int(workers), len(plans) // PROBES_PER_TASK)
         if processes <= 1:
             _render_groups(ctx, bake_dir, groups, progress)
     finally:

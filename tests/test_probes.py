@@ -264,8 +264,8 @@ def test_classes_over_the_texture_units_are_resampled_with_one_warning(tmp_path,
 
 
 def test_probes_rendered_by_several_processes_are_the_bytes_of_one(tmp_path):
-    """On a software renderer the cube-map stage shares the probes out among worker processes,
-    each with its own GL context (glint/cubemap_stage.py). 24 own probes (three tasks of
+    """The cube-map stage shares the probes out among worker processes, each with its own GL context
+    (glint/cubemap_stage.py; on a GPU too since issue 27). 24 own probes (three tasks of
     PROBES_PER_TASK), each hiding three more boxes as shared probes hide their members, rendered
     by 2 processes give files byte-identical to one process's, and the progress callback counts
     every probe once.
