@@ -16,12 +16,15 @@ Both sides of a texel are stitched separately (front pages with front pages, bac
 """
 from __future__ import annotations
 
+from itertools import chain
+
 import numpy as np
 from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from glint.bake.raytrace import RayTracer
 from glint.bake.texels import TexelPage
+from glint.parallel.cpus import usable_cpus
 
 STITCH_RADIUS = 1.0  # texel sizes
 MIN_COS = 0.9
@@ -104,10 +107,12 @@ def near_pairs(points: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.n
     """(i, j), i < j, sorted: every pair of `points` closer than both their radii, found per point
     within its own radius. One search radius for all (the largest texel's) made a scene of 10,000
     small boxes on a large floor ask for billions of pairs (std::bad_alloc)."""
-    near = cKDTree(points).query_ball_point(points, radius, return_sorted=False)
-    counts = np.fromiter((len(n) for n in near), np.int64, len(near))
+    # on every CPU: the bake's workers are idle while this process stitches
+    near = cKDTree(points).query_ball_point(points, radius, return_sorted=False, workers=usable_cpus())
+    counts = np.fromiter(map(len, near), np.int64, len(near))
     i = np.repeat(np.arange(len(points), dtype=np.int64), counts)
-    j = np.fromiter((k for n in near for k in n), np.int64, int(counts.sum()))
+    # flattened in C (chain): a generator over the staircase's 4.4 M neighbours took 1.8 s
+    j = np.fromiter(chain.from_iterable(near), np.int64, int(counts.sum()))
     keep = j > i
     i, j = i[keep], j[keep]
     d = np.linalg.norm(points[i] - points[j], axis=1)
