@@ -18,7 +18,9 @@ Seams: after denoising, the border texels of charts that meet on a continuous su
 stitched (bake/seams.py) and the texels around them filled again.
 
 Sample points: each side's sample is first moved out of meshes that cover it (bake/sample_points.py:
-a moulding through the ceiling, a sofa on the floor; double-sided or not).
+a moulding through the ceiling, a sofa on the floor; double-sided or not). This sample pass (and
+finding the samples in cavities, below) runs on the workers tile by tile before the tracing
+(`_sample_tile`), each texel on its own, so its result does not depend on the tiles either.
 
 Adaptive sampling (issue 25). A texel's first `samples` paths give their mean and, from the sum of
 their luminance squared, their standard deviation. A texel whose paths' deviation is over SELECT_CV
@@ -119,10 +121,10 @@ class LightmapPages:
     refined_paths: int = 0  # the paths adaptive sampling added
     enclosed: int = 0  # of `refined`, chosen only because their samples lie in cavities (bake/sample_points.py)
     # wall-clock seconds of the stage's steps, in order: "tracer" (Embree's scene, here), "samples" (moved
-    # out of covering geometry), "enclosed" (cavities found), "tiles" (the path tracing, on the workers),
+    # out of covering geometry, cavities found: on the workers), "tiles" (the path tracing, on the workers),
     # "refine" (adaptive sampling: the texels chosen here, traced on the workers; trace_seconds is the
     # two together), "pages" (images, dilation, denoising, seams). Where a many-core machine's time
-    # goes: all but the tracing runs in this one process.
+    # goes: "tracer" and "pages" run in this one process.
     phase_seconds: dict | None = None
 
     def rgba(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -131,6 +133,34 @@ class LightmapPages:
         return tuple([np.concatenate([image, baked[..., None].astype(np.float32)], axis=-1)
                       for image, baked in zip(images, masks)]
                      for images, masks in ((self.irradiance, self.baked), (self.back_irradiance, self.back_baked)))
+
+
+def _setup_samples(scene: Scene, points: np.ndarray, normals: np.ndarray, sizes: np.ndarray, objects: np.ndarray,
+                   cavities: bool):
+    """A worker's state for the sample pass: the scene's tracer and alpha coverage, every texel's sample
+    point, normal, world size and object; `cavities`: whether the pass also finds enclosed samples."""
+    tracer = RayTracer(scene)
+    return tracer, Coverage(scene, tracer), points, normals, sizes, objects, cavities
+
+
+@dataclass(frozen=True)
+class SampleTask:
+    """The sample pass's task: the texels first..first + count of the worker's state."""
+    first: int
+    count: int
+
+
+def _sample_tile(state, task: SampleTask):
+    """The task's samples moved out of covering geometry (bake/sample_points.py adjust_samples: points,
+    moved, invalid) and, where asked, which of the moved samples lie in cavities (`enclosed`). Per
+    texel, so the result does not depend on the tasks."""
+    tracer, coverage, points, normals, sizes, objects, cavities = state
+    rows = slice(task.first, task.first + task.count)
+    adjusted = adjust_samples(tracer, points[rows], normals[rows], sizes[rows], objects[rows], coverage)
+    moved_points = adjusted.points.astype(points.dtype)  # as the tiles trace from them
+    closed = (enclosed(tracer, moved_points, normals[rows], sizes[rows], coverage) if cavities
+              else np.zeros(task.count, bool))
+    return moved_points, adjusted.moved, adjusted.invalid, closed
 
 
 def _setup(scene: Scene, points: np.ndarray, normals: np.ndarray):
@@ -228,25 +258,28 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         phases[name] = round(now - clock, 3)
         clock = now
 
-    # every side's sample moved out of geometry that covers it (bake/sample_points.py)
-    tracer = RayTracer(scene)
-    coverage = Coverage(scene, tracer)
+    tracer = RayTracer(scene)  # this process's: the seams' probes (_stitched)
     phase("tracer")
     sizes = np.concatenate([sizes, sizes[back]])
-    adjusted = adjust_samples(tracer, points, normals, sizes, np.concatenate([objects, objects[back]]), coverage)
-    points = adjusted.points.astype(points.dtype)
-    phase("samples")
-    # samples in cavities, where fireflies come from: more paths (module docstring, "Adaptive sampling")
-    closed = enclosed(tracer, points, normals, sizes, coverage) if settings.adaptive_samples > 1 else np.zeros(n, bool)
-    phase("enclosed")
     total = np.zeros((n, 3))
     square = np.zeros(n)
     paths = np.full(n, settings.samples, np.int64)
     backface = np.zeros(n, np.float32)
     rays = 0
-    t0 = time.perf_counter()
     with executor_for(settings) if executor is None else nullcontext(executor) as tiles:
         tile = tile_size(n, tiles)
+        # every side's sample moved out of geometry that covers it (bake/sample_points.py), and, for
+        # adaptive sampling, the samples in cavities, where fireflies come from (module docstring,
+        # "Adaptive sampling"): on the workers, tile by tile
+        moved, invalid, closed = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool)
+        sample_tasks = [SampleTask(i, min(tile, n - i)) for i in range(0, n, tile)]
+        setup = (scene, points, normals, sizes, np.concatenate([objects, objects[back]]), settings.adaptive_samples > 1)
+        points = points.copy()
+        for index, (q, m, bad, c) in tiles.run(_setup_samples, setup, _sample_tile, sample_tasks):
+            rows = slice(sample_tasks[index].first, sample_tasks[index].first + sample_tasks[index].count)
+            points[rows], moved[rows], invalid[rows], closed[rows] = q, m, bad, c
+        phase("samples")
+        t0 = time.perf_counter()
         tasks = [TileTask(i, min(tile, n - i), settings.samples, settings.seed, settings.max_depth)
                  for i in range(0, n, tile)]
         for index, (e, q, b, r) in tiles.run(_setup, (scene, points, normals), _trace_tile, tasks):
@@ -258,7 +291,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
             if progress is not None:
                 progress(len(e))
         phase("tiles")
-        valid = (backface <= settings.backface_threshold) & ~adjusted.invalid
+        valid = (backface <= settings.backface_threshold) & ~invalid
         refined = cavity = np.zeros(0, np.int64)
         if settings.adaptive_samples > 1 and n:
             flagged = undersampled(pages, covered, back_cover, total, square, paths, valid)
@@ -306,7 +339,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     return LightmapPages(irradiance, baked, n, int((~valid).sum()), rays, back_irradiance, back_baked,
                          back_texels=len(back), unlit=int(unlit.sum()), invalid_by_object=invalid_by_object,
                          unlit_by_object=unlit_by_object, median_radiance=median_radiance,
-                         trace_seconds=trace_seconds, tiles=len(tasks), moved=int(adjusted.moved.sum()),
+                         trace_seconds=trace_seconds, tiles=len(tasks), moved=int(moved.sum()),
                          refined=len(refined), refined_paths=int((paths - settings.samples).sum()),
                          enclosed=len(cavity), phase_seconds=phases)
 

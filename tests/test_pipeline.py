@@ -37,7 +37,7 @@ def test_bake_dir_contents(room, tmp_path):
     assert stats["texels"] > 100 and stats["rays"] > stats["texels"] * FAST["samples"]
     # the stage's steps, timed in order: their sum within the stage, the tracing's two trace_seconds
     phases = stats["phase_seconds"]
-    assert list(phases) == ["tracer", "samples", "enclosed", "tiles", "refine", "pages"]
+    assert list(phases) == ["tracer", "samples", "tiles", "refine", "pages"]
     assert all(v >= 0 for v in phases.values()) and sum(phases.values()) <= stats["seconds"] + 1e-3
     assert abs(phases["tiles"] + phases["refine"] - stats["trace_seconds"]) <= 2e-3
     names = [o["name"] for o in manifest["objects"]]
