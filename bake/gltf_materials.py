@@ -158,11 +158,13 @@ class MaterialReader:
             return None
         if (source, srgb) not in self._images:
             if source not in self._images:
-                self._images[source] = self._decode_image(source, where)
+                self._images[source] = self._decode_image(source, where)  # uint8
             rgba = self._images[source]
-            if rgba is not None and srgb:
-                # Colour is sRGB-encoded, alpha is linear (glTF 3.9.2 baseColorTexture).
-                rgba = np.concatenate([srgb_to_linear(rgba[..., :3]), rgba[..., 3:]], axis=-1)
+            if rgba is not None:
+                # Colour sRGB-encoded or not, alpha linear (glTF 3.9.2 baseColorTexture): 8-bit values
+                # through tables of their 256 values, the formula's bits at a fraction of its time.
+                rgba = np.stack([(SRGB8_TABLE if srgb and c < 3 else LINEAR8_TABLE)[rgba[..., c]]
+                                 for c in range(4)], axis=-1)
             self._images[source, srgb] = rgba
         return self._images[source, srgb]
 
@@ -179,7 +181,7 @@ class MaterialReader:
         return wrap, sampler.get("magFilter") == _NEAREST
 
     def _decode_image(self, index: int, where: str) -> np.ndarray | None:
-        """(H, W, 4) float32 of image `index`, within bake/texture_image.py's limits (a warning when
+        """(H, W, 4) uint8 of image `index`, within bake/texture_image.py's limits (a warning when
         shrunk), or None with a warning when it cannot be read or declares too many pixels to decode."""
         image = self.doc.item("images", index, f"{where} texture")
         name = _image_name(image, index)
@@ -225,6 +227,11 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
     """The sRGB transfer function, inverted (IEC 61966-2-1)."""
     c = np.asarray(c, np.float32)
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+# float32 of the 256 values of an 8-bit channel: k / 255, and that decoded from sRGB
+LINEAR8_TABLE = np.arange(256, dtype=np.float32) / np.float32(255.0)
+SRGB8_TABLE = srgb_to_linear(LINEAR8_TABLE)
 
 
 def _uv_set(info: dict, where: str) -> tuple[int, np.ndarray | None]:

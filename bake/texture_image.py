@@ -60,8 +60,8 @@ def reduction(width: int, height: int) -> int:
 
 
 def decode_texture(data: bytes) -> tuple[np.ndarray, tuple[int, int], tuple[int, int]]:
-    """(H, W, 4) float32 RGBA in [0, 1] of an encoded image, (width, height) declared, (width,
-    height) kept. ImageRefused past MAX_DECODE_PIXELS; PIL's exceptions for what it cannot read."""
+    """(H, W, 4) uint8 RGBA of an encoded image, (width, height) declared, (width, height) kept.
+    ImageRefused past MAX_DECODE_PIXELS; PIL's exceptions for what it cannot read."""
     with Image.open(io.BytesIO(data)) as img:
         declared = img.size
         width, height = declared
@@ -75,5 +75,5 @@ def decode_texture(data: bytes) -> tuple[np.ndarray, tuple[int, int], tuple[int,
         out = img if img.mode in _REDUCIBLE else img.convert("RGBA")
         if factor > 1:
             out = out.reduce(factor)
-        rgba = np.asarray(out.convert("RGBA"), np.float32) / 255.0
+        rgba = np.asarray(out.convert("RGBA"), np.uint8)
     return rgba, declared, (rgba.shape[1], rgba.shape[0])

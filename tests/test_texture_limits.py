@@ -124,3 +124,31 @@ def test_small_texture_kept_as_it_is(tmp_path):
     kd = next(m for m in scene.materials if m.name == "Floor").kd_texture
     assert kd.shape == (32, 64, 3)
     np.testing.assert_allclose(kd, ((200 / 255 + 0.055) / 1.055) ** 2.4, rtol=1e-5)
+
+
+def test_8_bit_channels_decode_by_tables_of_their_256_values(tmp_path):
+    """bake/gltf_materials.py reads a texture's 8-bit channels through tables: every k gives k / 255
+    (linear data, alpha) and IEC 61966-2-1's sRGB decoding of it (float64 here, within 1e-6), and a
+    glTF base colour texture loads as those values (its colour decoded, its alpha not). Catches a table
+    off by one (k - 1: up to 8.9e-3 off) and alpha decoded as sRGB (0.5 -> 0.21)."""
+    from glint.bake.gltf_loader import load_scene
+    from glint.bake.gltf_materials import LINEAR8_TABLE, SRGB8_TABLE
+    from glint.scenes.gltf_writer import GltfWriter, quad
+
+    k = np.arange(256, dtype=np.float64) / 255.0
+    iec = np.where(k <= 0.04045, k / 12.92, ((k + 0.055) / 1.055) ** 2.4)
+    np.testing.assert_allclose(LINEAR8_TABLE, k, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(SRGB8_TABLE, iec, rtol=0, atol=1e-6)
+
+    image = np.random.default_rng(3).integers(0, 256, (8, 8, 4)).astype(np.uint8)
+    w = GltfWriter()
+    mat = w.add_material("Tex", base_color=(1, 1, 1), base_color_texture=image, alpha_mode="BLEND")
+    p, i = quad((0, 0, 0), (1, 0, 0), (0, 1, 0))
+    w.add_node("Quad", mesh=w.add_mesh("Quad", p, i, mat, normals=np.tile((0, 0, 1), (4, 1)),
+                                       uvs=np.array([[0, 1], [1, 1], [1, 0], [0, 0]], float)))
+    w.write(tmp_path / "t.glb")
+    (tmp_path / "t.glint.toml").write_text("[sky]\nradiance = 1.0\n")
+    m = load_scene(tmp_path / "t.glb").materials[0]
+    expected = iec[image[..., :3]]
+    np.testing.assert_allclose(m.kd_texture, expected, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(m.alpha_texture, k[image[..., 3]], rtol=0, atol=1e-6)
