@@ -143,7 +143,7 @@ class LocalExecutor:
                 yield index, job(state, task)
             return
         # Forked workers inherit a state built here, once: they share its pages (the path tracer's
-        # tables and Embree's BVH, some 100 MB for the staircase) where a state built in every worker
+        # tables and Embree's BVH, 43 MiB for the staircase) where a state built in every worker
         # would be as many copies, competing for the CPU's shared cache. A spawned worker builds its own.
         inherited = self.start_method == "fork"
         if inherited:
