@@ -10,7 +10,9 @@ walkthrough frames of the same view; printed and written (DIR/frame_times.json, 
 medians of the renderer's per-pass times (viewer/timing.py: GPU timer queries on a GPU, the
 glFinish-bracketed wall clock on llvmpipe), their sum ("gpu total") and the wall-clock time per
 frame as the program sees it (the frames back to back, one glFinish at the end, divided by their
-number: CPU work and driver overhead included). Then the same for still-camera frames
+number: CPU work and driver overhead included) and the CPU time of the drawing thread per frame
+("cpu": Python and the driver's calls on it, up to the glFinish; with the GPU's frames in flight
+the wall time is about the larger of the two). Then the same for still-camera frames
 ("converge": 4 quasi-random samples per lobe and pixel, added to the running mean). The bakes
 are the scenes' default bakes (`glint bake SCENE`); --bake-root DIR uses DIR/STEM.bake instead (made when
 missing; there scenes may also be many-N, N boxes, or .glb/.gltf files: measure_draw_count.py `bake_for`);
@@ -56,16 +58,18 @@ def time_view(renderer, camera, size, frames: int, warmup: int, mode: str) -> di
         renderer.render(camera, *size, mode=mode)
     renderer.ctx.finish()
     renderer.timer.reset()
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.thread_time()
     for _ in range(frames):
         if mode == "converge":
             renderer.progressive.invalidate()  # every frame a first still frame: the same work each time
         renderer.render(camera, *size, mode=mode)
+    cpu_ms = (time.thread_time() - cpu) * 1e3 / frames  # this thread's: Python and the driver's calls
     renderer.ctx.finish()
     wall_ms = (time.perf_counter() - start) * 1e3 / frames
     ms = renderer.stats["gpu_ms_median"]
     return {"passes_ms": {k: round(v, 3) for k, v in ms.items() if k != "total"},
             "gpu_total_ms": round(ms.get("total", 0.0), 3), "wall_ms_per_frame": round(wall_ms, 3),
+            "cpu_ms_per_frame": round(cpu_ms, 3),
             "specular": renderer.stats["specular"], "mirror_passes": renderer.stats["mirror"].get("passes_run")}
 
 
@@ -86,8 +90,8 @@ def main() -> None:
     factors = [int(s) for s in args.supersample.split(",")]
     ctx = headless_context()
     rows = []
-    header = (f"{'scene':17s} {'camera':14s} {'size':>9s} ss {'weights':7s} {'mode':11s} {'gpu total':>9s} {'wall':>8s}  "
-              "G-buffer    passes (ms)")
+    header = (f"{'scene':17s} {'camera':14s} {'size':>9s} ss {'weights':7s} {'mode':11s} {'gpu total':>9s} {'wall':>8s} "
+              f"{'cpu':>7s}  G-buffer    passes (ms)")
     print(describe(ctx))
     print(header)
     for scene in args.scenes.split(","):
@@ -107,7 +111,8 @@ def main() -> None:
                             rows.append(r)
                             passes = " ".join(f"{k}={v:.2f}" for k, v in r["passes_ms"].items())
                             print(f"{scene:17s} {cam.name[:14]:14s} {r['size']:>9s} {ss:2d} {weights:7s} {mode:11s} "
-                                  f"{r['gpu_total_ms']:9.2f} {r['wall_ms_per_frame']:8.2f}  {gbuffer:10s}  {passes}",
+                                  f"{r['gpu_total_ms']:9.2f} {r['wall_ms_per_frame']:8.2f} {r['cpu_ms_per_frame']:7.2f}  "
+                                  f"{gbuffer:10s}  {passes}",
                                   flush=True)
                     renderer.release()
     device = describe(ctx)
@@ -117,13 +122,13 @@ def main() -> None:
         {"device": device, "frames": args.frames, "warmup": args.warmup, "rows": rows}, indent=1) + "\n")
     lines = [f"Device: {device}; medians of {args.frames} frames after {args.warmup} warm-up frames.", "",
              ("| scene | camera | size | supersample | weights | G-buffer | mode | GPU ms (sum of passes) | wall ms/frame "
-              "| passes (ms) |"),
-             "|---|---|---|---|---|---|---|---|---|---|"]
+              "| CPU ms/frame (the drawing thread) | passes (ms) |"),
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         passes = ", ".join(f"{k} {v:.2f}" for k, v in r["passes_ms"].items())
         lines.append(f"| {r['scene']} | {r['camera']} | {r['size']} | {r['supersample']} | {r['weights']} "
                      f"| {r['gbuffer']} | {r['mode']} | "
-                     f"{r['gpu_total_ms']:.2f} | {r['wall_ms_per_frame']:.2f} | {passes} |")
+                     f"{r['gpu_total_ms']:.2f} | {r['wall_ms_per_frame']:.2f} | {r['cpu_ms_per_frame']:.2f} | {passes} |")
     atomic_write_text(args.out / "frame_times.md", "\n".join(lines) + "\n")
 
 
