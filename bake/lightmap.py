@@ -20,7 +20,8 @@ stitched (bake/seams.py) and the texels around them filled again.
 Sample points: each side's sample is first moved out of meshes that cover it (bake/sample_points.py:
 a moulding through the ceiling, a sofa on the floor; double-sided or not). This sample pass (and
 finding the samples in cavities, below) runs on the workers tile by tile before the tracing
-(`_sample_tile`), each texel on its own, so its result does not depend on the tiles either.
+(`_sample_tile`; on this machine's processes when the tracing goes to a Dask cluster), each texel on
+its own, so its result does not depend on the tiles either.
 
 Adaptive sampling (issue 25). A texel's first `samples` paths give their mean and, from the sum of
 their luminance squared, their standard deviation. A texel whose paths' deviation is over SELECT_CV
@@ -56,7 +57,8 @@ import numpy as np
 from glint.bake.alpha import Coverage, cut_out_texels
 from glint.bake.denoise import denoise_lightmap
 from glint.bake.dilate import dilate
-from glint.parallel.executor import TASKS_PER_WORKER, executor_for
+from glint.parallel.cpus import usable_cpus
+from glint.parallel.executor import TASKS_PER_WORKER, LocalExecutor, executor_for
 from glint.bake.irradiance import compute_irradiance, mean_irradiance, refine_irradiance, relative_error
 from glint.bake.lights import luminance
 from glint.bake.raytrace import RayTracer
@@ -270,12 +272,15 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         tile = tile_size(n, tiles)
         # every side's sample moved out of geometry that covers it (bake/sample_points.py), and, for
         # adaptive sampling, the samples in cavities, where fireflies come from (module docstring,
-        # "Adaptive sampling"): on the workers, tile by tile
+        # "Adaptive sampling"): on the workers, tile by tile -- this machine's processes when the tiles
+        # go to a Dask cluster, which would be sent the scene once more (the staircase's at preview:
+        # 226 MiB) for a few seconds' work
         moved, invalid, closed = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool)
         sample_tasks = [SampleTask(i, min(tile, n - i)) for i in range(0, n, tile)]
         setup = (scene, points, normals, sizes, np.concatenate([objects, objects[back]]), settings.adaptive_samples > 1)
         points = points.copy()
-        for index, (q, m, bad, c) in tiles.run(_setup_samples, setup, _sample_tile, sample_tasks):
+        here = LocalExecutor(usable_cpus()) if tiles.distributed else tiles
+        for index, (q, m, bad, c) in here.run(_setup_samples, setup, _sample_tile, sample_tasks):
             rows = slice(sample_tasks[index].first, sample_tasks[index].first + sample_tasks[index].count)
             points[rows], moved[rows], invalid[rows], closed[rows] = q, m, bad, c
         phase("samples")
