@@ -19,7 +19,8 @@ processes vertices on the thread that issues the draw, and on a GPU the stage is
 (each face's frame set up in Python, its depth turned into distances, the files compressed: issue
 27's run gave 240 probes 21.7 s on an H200 with one context, where two cores of llvmpipe take 20-24 s
 for the staircase's 290). So the probes are
-shared out, PROBES_PER_TASK at a time, among `workers` processes (the bake's --jobs), each with its
+shared out, PROBES_PER_TASK at a time, among `workers` processes (the bake's --jobs; GPU_PROCESSES at
+most on a GPU), each with its
 own EGL context and renderer (`ProbeWorker`, built once per process), started with spawn (a GL
 context does not survive fork: parallel/executor.py LocalExecutor's start_method); each probe is
 rendered alone, so the files are the same bytes whichever process renders it.
@@ -69,11 +70,14 @@ from glint.core.manifest import Manifest, Material
 from glint.viewer.camera import ViewCamera, depth_distances
 from glint.viewer.context import headless_context
 from glint.viewer.cubemaps import finite_radiance, mip_chain, read_cubemap
-from glint.viewer.gl import GL, describe
+from glint.viewer.gl import GL, describe, software_renderer
 from glint.viewer.renderer import Renderer
 
 BATCH_MIB = 64  # GPU pack buffer per batch: all six faces of at least one probe, however large
 PROBES_PER_TASK = 8  # probes a worker process renders per task (several processes)
+# Processes at most on a GPU: each holds the scene on the GPU (meshes, light maps, textures), and a
+# workstation of 64 cores must not put 64 copies on a small card.
+GPU_PROCESSES = 4
 
 
 def diffuse_view(manifest: Manifest) -> Manifest:
@@ -105,8 +109,8 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
                     progress: Callable[[], None] | None = None, workers: int = 1, cluster=None) -> dict:
     """Render `plans` from the bake in `bake_dir` (manifest, meshes and light maps written) into
     its cubemaps/ folder, batch by batch; returns statistics (seconds, batches, processes, device).
-    With `workers` > 1 the probes are shared out among that many processes, each with its own GL
-    context (see the module docstring), PROBES_PER_TASK at least each.
+    With `workers` > 1 the probes are shared out among that many processes (GPU_PROCESSES at most on
+    a GPU), each with its own GL context (see the module docstring), PROBES_PER_TASK at least each.
     `cluster`: a Dask cluster's executor (parallel/executor.py DaskExecutor), whose workers render them
     instead (`workers` is then unused). Processes and a cluster's workers are the same code path: an
     executor's (`_render_on_workers`)."""
@@ -118,7 +122,7 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
     try:
         device = describe(ctx)
         groups = batches(plans)
-        processes = min(int(workers), len(plans) // PROBES_PER_TASK)
+        processes = probe_processes(int(workers), len(plans), software_renderer(ctx))
         if processes <= 1:
             _render_groups(ctx, bake_dir, groups, progress)
     finally:
@@ -128,6 +132,12 @@ def render_cubemaps(bake_dir: Path, plans: list[CubeMapPlan],
             _render_on_workers(local, bake_dir, plans, progress)
     return {"seconds": round(time.perf_counter() - t0, 3), "batches": len(groups), "processes": max(processes, 1),
             "device": device}
+
+
+def probe_processes(workers: int, probes: int, software: bool) -> int:
+    """How many processes render `probes` probes: `workers` at most (the bake's --jobs), PROBES_PER_TASK
+    probes each at least, GPU_PROCESSES at most on a GPU (not `software`); 1 or 0: this process."""
+    return min(workers, probes // PROBES_PER_TASK, probes if software else GPU_PROCESSES)
 
 
 def _diffuse_renderer(ctx, bake_dir) -> Renderer:

@@ -349,3 +349,17 @@ def test_a_probe_leaves_out_what_its_centre_lies_inside(tmp_path):
     plan = next(p for p in plan_cubemaps(scene, "x") if shade in p.members)
     np.testing.assert_allclose(plan.centre, [0.0, 1.0, 0.0], atol=1e-6)
     assert {names[k] for k in plan.hidden} == {"Shade", "Rod"}
+
+
+def test_probe_processes_are_capped_on_a_gpu():
+    """The cube-map stage's processes (glint/cubemap_stage.py probe_processes): --jobs of them at most,
+    8 probes each at least, and on a GPU 4 at most (each holds the scene on the GPU). Catches the GPU
+    given one process per core (64 on a 64-core workstation: 64 copies of the scene on its card)."""
+    from glint.cubemap_stage import GPU_PROCESSES, probe_processes
+
+    assert GPU_PROCESSES == 4
+    assert probe_processes(64, 300, software=True) == 37
+    assert probe_processes(64, 300, software=False) == 4
+    assert probe_processes(2, 300, software=False) == 2
+    assert probe_processes(16, 20, software=False) == 2
+    assert probe_processes(16, 7, software=True) == 0
