@@ -932,6 +932,21 @@ def test_wide_lobe_near_the_border_stays_inside_the_guarded_buffer(ctx, tmp_path
 
 
 SIZE_RECT = (288, 192)  # a lobe's spread over several SCISSOR_MARGINs
+# Looking down at the glossy tile of `tile_and_columns`.
+TILE_CAMERA = ViewCamera.look_at((0.0, 0.9, 1.2), (0.0, 0.0, -0.6), (0, 1, 0), math.radians(40), znear=0.01, zfar=50)
+
+
+def tile_and_columns(path, half: float, places, height: float):
+    """A bake of a black floor, a glossy tile (m = 0.05, `half` its half side, centred at z = -0.5, its
+    own plane) and three emissive columns (RED, GREEN, BLUE) `height` high at `places` (x, z), facing
+    +z, towards the camera's side; a constant grey sky."""
+    meshes = [quad((0, 0, 0), (4, 0, 0), (0, 0, -4)), quad((0, 0.001, -0.5), (half, 0, 0), (0, 0, -half))]
+    meshes += [quad((x, height, z), (0.06, 0, 0), (0, height, 0)) for x, z in places]
+    mats = [material("floor", kd=BLACK), material("tile", kd=BLACK, lobes=[glossy(0.05)])]
+    mats += [material(f"column {k}", kd=BLACK, emission=c) for k, c in enumerate((RED, GREEN, BLUE))]
+    return planar_bake(path, meshes, mats, [0, 1, 2, 3, 4], {1: ((0, 0.001, -0.5), (0, 1, 0))},
+                       sky={"radiance": [0.2, 0.2, 0.2]})
+
 
 
 @pytest.mark.parametrize("visibility", [False, True], ids=["raster", "visibility-buffer"])
@@ -947,23 +962,15 @@ def test_mirror_pass_in_its_rectangle_renders_the_same_image(ctx, tmp_path, visi
     projected bounds and SCISSOR_MARGIN alone): the converged image up to 0.36 off where the tile's
     lobes reach past its rectangle. Either way of rasterising (the visibility buffer's listing reads
     the depth, cleared outside the rectangle)."""
-    meshes = [quad((0, 0, 0), (4, 0, 0), (0, 0, -4)), quad((0, 0.001, -0.5), (0.15, 0, 0), (0, 0, -0.15))]
-    colours = [RED, GREEN, BLUE]
-    for k, (x, z) in enumerate(((0.0, -0.85), (-0.32, -0.45), (0.32, -0.55))):
-        meshes.append(quad((x, 0.4, z), (0.06, 0, 0), (0, 0.4, 0)))  # facing +z, towards the camera's side
-    mats = [material("floor", kd=BLACK), material("tile", kd=BLACK, lobes=[glossy(0.05)])]
-    mats += [material(f"column {k}", kd=BLACK, emission=c) for k, c in enumerate(colours)]
-    bake = planar_bake(tmp_path / "b", meshes, mats, [0, 1, 2, 3, 4], {1: ((0, 0.001, -0.5), (0, 1, 0))},
-                        sky={"radiance": [0.2, 0.2, 0.2]})
-    camera = ViewCamera.look_at((0.0, 0.9, 1.2), (0.0, 0.0, -0.6), (0, 1, 0), math.radians(40), znear=0.01, zfar=50)
+    bake = tile_and_columns(tmp_path / "b", 0.15, ((0.0, -0.85), (-0.32, -0.45), (0.32, -0.55)), 0.4)
     images, rects = {}, {}
     for on in (False, True):
         with Renderer(ctx, bake, mirror_scissor=on, max_frames=8, visibility=visibility) as r:
-            r.render(camera, *SIZE_RECT)
+            r.render(TILE_CAMERA, *SIZE_RECT)
             walk = r.read_linear()
             rects[on] = [d["scissor"] for d in r.stats["mirror"]["passes"]]
             for _ in range(8):
-                r.render(camera, *SIZE_RECT, mode="converge")
+                r.render(TILE_CAMERA, *SIZE_RECT, mode="converge")
             images[on] = (walk, r.read_linear())
     (rect,) = rects[True]
     assert rects[False] == [None] and rect is not None and rect[2] * rect[3] < 0.5 * SIZE_RECT[0] * SIZE_RECT[1]
@@ -984,22 +991,14 @@ def test_mirror_buffers_at_half_resolution_show_the_same_reflection(ctx, tmp_pat
     is half of it (`_bind_layer` and the ids' framebuffer given the render size): the buffer holds a
     quarter of the mirrored view, twice as large, and the columns' reflections leave the tile (their
     totals 100 % off)."""
-    meshes = [quad((0, 0, 0), (4, 0, 0), (0, 0, -4)), quad((0, 0.001, -0.5), (0.3, 0, 0), (0, 0, -0.3))]
-    colours = [RED, GREEN, BLUE]
-    for k, (x, z) in enumerate(((0.0, -0.95), (-0.3, -0.8), (0.3, -0.8))):
-        meshes.append(quad((x, 0.3, z), (0.06, 0, 0), (0, 0.3, 0)))
-    mats = [material("floor", kd=BLACK), material("tile", kd=BLACK, lobes=[glossy(0.05)])]
-    mats += [material(f"column {k}", kd=BLACK, emission=c) for k, c in enumerate(colours)]
-    bake = planar_bake(tmp_path / "b", meshes, mats, [0, 1, 2, 3, 4], {1: ((0, 0.001, -0.5), (0, 1, 0))},
-                        sky={"radiance": [0.2, 0.2, 0.2]})
-    camera = ViewCamera.look_at((0.0, 0.9, 1.2), (0.0, 0.0, -0.6), (0, 1, 0), math.radians(40), znear=0.01, zfar=50)
+    bake = tile_and_columns(tmp_path / "b", 0.3, ((0.0, -0.95), (-0.3, -0.8), (0.3, -0.8)), 0.3)
     images, sizes = {}, {}
     with Renderer(ctx, bake, mirror_budget=0, visibility=visibility) as r:  # the columns without reflections
-        r.render(camera, *SIZE_RECT)
+        r.render(TILE_CAMERA, *SIZE_RECT)
         direct = r.read_linear()[..., :3].astype(np.float64)
     for resolution in (1.0, 0.5):
         with Renderer(ctx, bake, mirror_resolution=resolution, visibility=visibility) as r:
-            r.render(camera, *SIZE_RECT)
+            r.render(TILE_CAMERA, *SIZE_RECT)
             images[resolution] = r.read_linear()[..., :3].astype(np.float64) - direct  # the tile's reflection
             sizes[resolution] = r.mirror.size
     assert sizes == {1.0: SIZE_RECT, 0.5: (SIZE_RECT[0] // 2, SIZE_RECT[1] // 2)}
