@@ -263,6 +263,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     tracer = RayTracer(scene)  # this process's: the seams' probes (_stitched)
     phase("tracer")
     sizes = np.concatenate([sizes, sizes[back]])
+    sample_object = np.concatenate([objects, objects[back]])  # each side's sample's object
     total = np.zeros((n, 3))
     square = np.zeros(n)
     paths = np.full(n, settings.samples, np.int64)
@@ -277,7 +278,7 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
         # 226 MiB) for a few seconds' work
         moved, invalid, closed = np.zeros(n, bool), np.zeros(n, bool), np.zeros(n, bool)
         sample_tasks = [SampleTask(i, min(tile, n - i)) for i in range(0, n, tile)]
-        setup = (scene, points, normals, sizes, np.concatenate([objects, objects[back]]), settings.adaptive_samples > 1)
+        setup = (scene, points, normals, sizes, sample_object, settings.adaptive_samples > 1)
         points = points.copy()
         here = LocalExecutor(usable_cpus()) if tiles.distributed else tiles
         for index, (q, m, bad, c) in here.run(_setup_samples, setup, _sample_tile, sample_tasks):
@@ -329,7 +330,6 @@ def bake_lightmaps(scene: Scene, pages: list[TexelPage], settings, progress=None
     phase("pages")
     # per object: invalid samples (either side); unlit surface texels (no side with light)
     count = len(scene.objects)
-    sample_object = np.concatenate([objects, objects[back]])
     invalid_by_object = np.bincount(sample_object[~valid], minlength=count)
     lit = E[:front].max(axis=1) > 0
     lit[back] |= E[front:].max(axis=1) > 0
