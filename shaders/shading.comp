@@ -23,20 +23,41 @@ vec3 surface_radiance(Surface s) {
     return s.diffuse + constant_emission(materials[s.material]);
 }
 
+// Queue the work group's tile where one of its pixels needs specular light: the pixels say so in a
+// shared flag and one invocation appends the tile, so a tile costs one atomic operation on the queue,
+// not one per pixel on a per-tile flag (an atomic on one address from every pixel of a tile
+// serialises them on a GPU). Called by every invocation of the group, in uniform control flow.
+shared bool tile_needs_specular;
+
+void queue_specular_tile(bool needed) {
+    if (gl_LocalInvocationIndex == 0u)
+        tile_needs_specular = false;
+    memoryBarrierShared();
+    barrier();
+    if (needed)
+        tile_needs_specular = true;  // every writer writes the same value
+    memoryBarrierShared();
+    barrier();
+    if (gl_LocalInvocationIndex == 0u && tile_needs_specular)
+        specular_tiles[atomicAdd(specular_groups[0], 1u)] = gl_WorkGroupID.y * specular_tiles_x + gl_WorkGroupID.x;
+}
+
 void main() {
     ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     ivec2 size = imageSize(radiance_out);
-    if (p.x >= size.x || p.y >= size.y)
-        return;
-    vec3 ray = view_ray(p, size);
-    vec3 L;
-    if (gbuffer_empty(p)) {
-        L = sky_radiance(ray);
-    } else {
-        Surface s = gbuffer_surface(p, ray);
-        L = surface_radiance(s);
-        if (needs_specular(s, materials[s.material]))
-            queue_specular_tile(uvec2(p) / uint(LOCAL_SIZE));
+    bool inside = p.x < size.x && p.y < size.y;
+    bool specular = false;
+    if (inside) {
+        vec3 ray = view_ray(p, size);
+        vec3 L;
+        if (gbuffer_empty(p)) {
+            L = sky_radiance(ray);
+        } else {
+            Surface s = gbuffer_surface(p, ray);
+            L = surface_radiance(s);
+            specular = needs_specular(s, materials[s.material]);
+        }
+        imageStore(radiance_out, p, vec4(clean_radiance(L), 1.0));
     }
-    imageStore(radiance_out, p, vec4(clean_radiance(L), 1.0));
+    queue_specular_tile(specular);  // the work group is the tile: LOCAL_SIZE x LOCAL_SIZE pixels
 }

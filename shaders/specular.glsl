@@ -81,14 +81,6 @@ layout(std430, binding = SPECULAR_WORK_BINDING) buffer SpecularWork {
     uint specular_unused;
     uint specular_tiles[];        // the queued tiles, y * specular_tiles_x + x
 };
-layout(std430, binding = SPECULAR_FLAGS_BINDING) buffer SpecularTileFlags { uint specular_tile_queued[]; };
-
-// Queue tile t once (the first of its pixels to ask wins).
-void queue_specular_tile(uvec2 t) {
-    uint tile = t.y * specular_tiles_x + t.x;
-    if (atomicCompSwap(specular_tile_queued[tile], 0u, 1u) == 0u)
-        specular_tiles[atomicAdd(specular_groups[0], 1u)] = tile;
-}
 
 // Cube-map and mirror-buffer look-ups this invocation made (the pass's statistics).
 int specular_lookups = 0;

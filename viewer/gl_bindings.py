@@ -28,7 +28,7 @@ BOUNDING_PLANE_BINDING = 5  # cubemaps.glsl: PLANE_DTYPE rows
 EVAL_IN_BINDING = 6         # bench/glsl_eval.py, the test harness: its inputs ...
 EVAL_OUT_BINDING = 7        # ... and outputs
 SPECULAR_WORK_BINDING = 8   # specular.glsl: the queued tiles and counters (viewer/passes/shading.py)
-SPECULAR_FLAGS_BINDING = 9  # specular.glsl: a flag per tile
+# 9: free (was a flag per specular tile, before shading.comp queued its tiles per work group)
 MIRROR_SLOT_BINDING = 10    # mirror_buffer.glsl: per mirror-buffer slot (viewer/passes/mirror.py SLOT_DTYPE)
 MIRROR_OBJECT_BINDING = 11  # mirror_buffer.glsl: per object its slot this frame
 LOBE_MR_BINDING = 12        # materials.glsl: per lobe how a metallic-roughness texture changes it (LOBE_MR_*)

@@ -35,7 +35,6 @@ from glint.viewer.gl_bindings import (
     MIRROR_PLANE_POSITION_IMAGE,
     RADIANCE_IMAGE,
     SKY_UNIT,
-    SPECULAR_FLAGS_BINDING,
     SPECULAR_WORK_BINDING,
     shading_units,
 )
@@ -87,7 +86,6 @@ class ShadingPass:
         self.planes: tuple[moderngl.Texture, moderngl.Texture] | None = None
         self.radiance: moderngl.Texture | None = None
         self.work: moderngl.Buffer | None = None
-        self.flags: moderngl.Buffer | None = None
         self.tiles = (0, 0)
         self.cube_maps_bound = 0
         self.specular_ran = False
@@ -114,7 +112,6 @@ class ShadingPass:
         self.tiles = (-(-size[0] // LOCAL_SIZE), -(-size[1] // LOCAL_SIZE))
         count = self.tiles[0] * self.tiles[1]
         self.work = self.ctx.buffer(reserve=(WORK_HEADER + count) * 4)
-        self.flags = self.ctx.buffer(reserve=count * 4)
         plane_size = size if self.has_planar else (1, 1)
         self.planes = tuple(self.ctx.texture(plane_size, 4, dtype="f4") for _ in range(2))
 
@@ -131,7 +128,6 @@ class ShadingPass:
         if self.mirror is not None:
             self.mirror.bind()
         self.work.bind_to_storage_buffer(SPECULAR_WORK_BINDING)
-        self.flags.bind_to_storage_buffer(SPECULAR_FLAGS_BINDING)
 
     def run(self, gbuffer: dict, camera: ViewCamera, aspect: float) -> moderngl.Texture:
         """The view-independent part of every pixel; queues the tiles that need specular light."""
@@ -139,7 +135,6 @@ class ShadingPass:
         header[1:3] = 1  # the indirect dispatch's y and z sizes
         header[5] = self.tiles[0]
         self.work.write(header.tobytes())
-        self.flags.clear()
         self._bind_common(self.program, gbuffer, camera, aspect)
         self.scene.sky_map.use(SKY_UNIT)
         self.radiance.bind_to_image(RADIANCE_IMAGE, read=False, write=True)
@@ -184,10 +179,10 @@ class ShadingPass:
                 "mirror_lookups": mirror}
 
     def _release_targets(self) -> None:
-        for obj in (self.radiance, self.work, self.flags, *(self.planes or ())):
+        for obj in (self.radiance, self.work, *(self.planes or ())):
             if obj is not None:
                 obj.release()
-        self.radiance = self.work = self.flags = self.planes = None
+        self.radiance = self.work = self.planes = None
 
     def release(self) -> None:
         self._release_targets()
