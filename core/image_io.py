@@ -16,15 +16,18 @@ from glint.core.constants import HALF_MAX
 from glint.core.errors import GlintError
 
 
-def read_image(path: str | Path, what: str = "image") -> np.ndarray:
-    """Any image OpenImageIO reads -> float32 (H, W, C) (8-bit files scaled to [0, 1])."""
+def read_image(path: str | Path, what: str = "image", *, keep_half: bool = False) -> np.ndarray:
+    """Any image OpenImageIO reads -> float32 (H, W, C) (8-bit files scaled to [0, 1]). keep_half: a
+    file whose channels are all half float comes back as float16, the same values without a float32
+    copy (the viewer's uploads of the bake's half-float files)."""
     if not Path(path).is_file():
         raise GlintError(f"{what}: no such file {path}")
     buf = oiio.ImageBuf(str(path))
-    pixels = None if buf.has_error else buf.get_pixels(oiio.FLOAT)
+    half = keep_half and not buf.has_error and buf.spec().format == oiio.HALF and not buf.spec().channelformats
+    pixels = None if buf.has_error else buf.get_pixels(oiio.HALF if half else oiio.FLOAT)
     if pixels is None or buf.has_error:
         raise GlintError(f"{what}: cannot read {path}: {buf.geterror().strip()}")
-    pixels = np.asarray(pixels, np.float32)
+    pixels = np.asarray(pixels, np.float16 if half else np.float32)
     if pixels.ndim == 2:
         pixels = pixels[:, :, None]
     if pixels.ndim == 4:  # (depth, H, W, C) for volume images; take the first slice

@@ -313,3 +313,43 @@ def test_bad_cubemap_size_is_a_clear_error(tmp_path, value, words):
     path = write_box_room(tmp_path / "room.glb", f'[objects."A"]\ncubemap_size = {value}\n')
     with pytest.raises(GlintError, match=words):
         load_scene(path)
+
+
+@pytest.mark.parametrize("light", [8.0, 1e5])
+def test_the_viewers_cube_map_arrays_hold_the_files_texels(tmp_path, light):
+    """Level 0 of the viewer's cube-map array (read back from GL) holds the probe's file texel for
+    texel: a half-float file (light 8) in an RGBA16F class, read as half floats without a float32
+    copy; a float32 file (light 1e5 > 65504) in an RGBA32F class. The expected texels are the file's,
+    read by OpenImageIO directly. Catches a class made half float for a value above 65504 (Inf on
+    the GPU), a half-float file read through the wrong type, and faces or layers out of place when
+    the class is filled."""
+    import OpenImageIO as oiio
+
+    from glint.core.bake_dir import Bake
+    from glint.viewer.context import headless_context
+    from glint.viewer.cubemaps import CubeMaps
+    from glint.viewer.gl import GL
+
+    path = write_room(tmp_path / "room.glb", light=light, sidecar='[objects."Box"]\nrole = "curved"\n')
+    out = tmp_path / "room.bake"
+    entry = next(o for o in bake(path, out).manifest["objects"] if o["name"] == "Box")["cubemap"]
+    file = oiio.ImageInput.open(str(out / entry["file"]))
+    half = file.spec().format == oiio.HALF
+    assert half == (light < 1e4)
+    texels = np.asarray(file.read_image("float"), np.float32)
+    file.close()
+    size = entry["size"]
+    expected = np.ones((6, size, size, 4), np.float32)
+    expected[..., :texels.shape[-1]] = texels.reshape(6, size, size, -1)
+
+    ctx = headless_context()
+    try:
+        cubes = CubeMaps(ctx, Bake(out))
+        (cls,) = cubes.classes
+        assert cls.dtype == ("f2" if half else "f4") and cls.size == size
+        level0 = GL(ctx).read_cube_array(cls.glo, 0, np.empty((1, 6, size, size, 4), np.float32), "the probe")
+        np.testing.assert_array_equal(level0[0], expected)
+        assert np.isfinite(level0).all()
+        cubes.release()
+    finally:
+        ctx.release()

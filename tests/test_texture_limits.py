@@ -152,3 +152,23 @@ def test_8_bit_channels_decode_by_tables_of_their_256_values(tmp_path):
     expected = iec[image[..., :3]]
     np.testing.assert_allclose(m.kd_texture, expected, rtol=0, atol=1e-6)
     np.testing.assert_allclose(m.alpha_texture, k[image[..., 3]], rtol=0, atol=1e-6)
+
+
+def test_viewer_clamps_half_float_textures_as_it_clamps_float32_ones():
+    """viewer/gpu_textures.py `clamped` keeps a float16 image whose values already lie in [0, hi]
+    as it is (no float32 copy), and sends any other through the float32 clamp: non-finite -> 0,
+    then [0, hi]. Expected values are literals. Catches a bit test that lets through values above
+    hi, negative values, NaN or Inf (a wrong limit, a signed comparison)."""
+    from glint.core.constants import HALF_MAX
+    from glint.viewer.gpu_textures import clamped
+
+    inside = np.array([[[0.0, 0.25, 1.0], [0.5, 0.999, 2.0 ** -24]]], np.float16)
+    assert clamped(inside, 1.0) is inside
+    cases = {1.0: [1.5, -0.5, np.nan, np.inf, -np.inf, 65504.0, 0.75],
+             HALF_MAX: [1.5, -0.5, np.nan, np.inf, -np.inf, 65504.0, 0.75]}
+    expected = {1.0: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.75], HALF_MAX: [1.5, 0.0, 0.0, 0.0, 0.0, 65504.0, 0.75]}
+    for hi, values in cases.items():
+        for value, want in zip(values, expected[hi]):  # each beside an in-range value: the bit test decides
+            out = clamped(np.array([[[0.5], [value]]], np.float16), hi)
+            np.testing.assert_array_equal(out.astype(np.float64).ravel(), [0.5, want], err_msg=f"{value} in [0, {hi}]")
+        assert clamped(np.array([0.5, 1.0], np.float16), hi).dtype == np.float16

@@ -80,16 +80,17 @@ CUBE_OBJECT_DTYPE = np.dtype([("centre", "<f4", 4), ("info", "<i4", 4), ("extent
 PLANE_DTYPE = np.dtype([("point", "<f4", 4), ("normal", "<f4", 4)])
 
 
-def read_cubemap(path: str | Path) -> np.ndarray:
+def read_cubemap(path: str | Path, *, keep_half: bool = False) -> np.ndarray:
     """The one reader of the bake's cube-map files: (6, S, S, 4) float32 in GL face order, each
     face's row 0 at t = 0 (see the module docstring); alpha = 1 where the file has none.
-    Non-finite or negative radiance becomes 0."""
-    image = read_image(path, "cube map")
+    Non-finite or negative radiance becomes 0. keep_half: a half-float file's faces as float16
+    (the same values, without a float32 copy: what `CubeMaps` uploads)."""
+    image = read_image(path, "cube map", keep_half=keep_half)
     h, w, c = image.shape
     if h != 6 * w or c < 3:
         raise GlintError(f"{path}: not a cube map (expected 6 faces of S x S stacked vertically, "
                          f"RGB or RGBA; got {w}x{h} with {c} channels); run `glint bake --force`")
-    faces = np.ones((6, w, w, 4), np.float32)
+    faces = np.ones((6, w, w, 4), image.dtype)
     faces[..., :3] = image.reshape(6, w, w, c)[..., :3]
     if c >= 4:
         faces[..., 3] = image.reshape(6, w, w, c)[..., 3]
@@ -186,7 +187,7 @@ class CubeMaps:
                 continue
             if cube.file not in probes:
                 probes[cube.file] = len(faces)
-                faces.append(read_cubemap(Path(bake.path) / cube.file))
+                faces.append(read_cubemap(Path(bake.path) / cube.file, keep_half=True))
             probe_of[i] = probes[cube.file]
             table[i]["centre"][:3] = _finite(cube.centre)
             volume = _material_volume(bake.model, entry)
@@ -210,7 +211,7 @@ class CubeMaps:
                  f"({', '.join(sorted({f'{a} -> {b}' for a, b in resampled}))}) to fit this OpenGL's limits "
                  f"({limits['per_class']} probes per cube-map array, {limits['max_classes']} arrays, faces of "
                  f"{limits['max_face']}; {describe(ctx)}); fewer probes ([bake] cubemap_budget) keep them sharp")
-            faces = [downsample(f, s) if f.shape[1] != s else f for f, s in zip(faces, fitted)]
+            faces = [downsample(f.astype(np.float32), s) if f.shape[1] != s else f for f, s in zip(faces, fitted)]
         self.classes = [CubeClass(s, "f2", members) for s, members in classes]
         layer_of = {p: (k, layer) for k, cls in enumerate(self.classes) for layer, p in enumerate(cls.probes)}
         self.slots = {file: layer_of[p] for file, p in probes.items()}  # probe file -> (class, layer)
@@ -230,9 +231,13 @@ class CubeMaps:
     def _upload(self, cls: CubeClass, maps: list[np.ndarray]) -> None:
         """Upload a class; out of GPU memory, retry at half the face size (module docstring)."""
         while True:
-            data = np.stack(maps).reshape(len(maps) * 6, cls.size, cls.size, 4)  # layer-face = layer * 6 + face
-            cls.dtype = "f2" if float(data.max(initial=0.0)) <= HALF_MAX else "f4"
-            pixels = np.ascontiguousarray(data, np.float16 if cls.dtype == "f2" else np.float32)
+            # half float where every value fits (a float16 map, read from a half-float file, does)
+            fits = all(m.dtype == np.float16 or float(m.max(initial=0.0)) <= HALF_MAX for m in maps)
+            cls.dtype = "f2" if fits else "f4"
+            # layer-face = layer * 6 + face, filled in place: no stacked float32 copy of the class
+            pixels = np.empty((len(maps) * 6, cls.size, cls.size, 4), np.float16 if fits else np.float32)
+            for k, m in enumerate(maps):
+                pixels[6 * k:6 * k + 6] = m  # numpy's float32 -> float16 rounding, as astype
             try:
                 cls.glo = self._gl.upload_cube_array(
                     pixels, f"the cube maps of face size {cls.size} ({len(maps)} probes, "
@@ -245,7 +250,7 @@ class CubeMaps:
                      f"({cls.mib:.0f} MiB); using faces of {cls.size // 2} (blurrier reflections); a smaller "
                      "[bake] cubemap_budget_mib keeps the bake and the GPU in step")
                 cls.size //= 2
-                maps = [downsample(f, cls.size) for f in maps]
+                maps = [downsample(f.astype(np.float32), cls.size) for f in maps]
 
     def replace(self, file: str, chain: list[np.ndarray]) -> int:
         """New radiance for the probe whose bake file is `file` (a material edit's re-bake,

@@ -40,6 +40,15 @@ def clean(a, lo=0.0, hi=None) -> np.ndarray:
     return a if lo is None and hi is None else np.clip(a, lo, hi)
 
 
+def clamped(image: np.ndarray, hi: float) -> np.ndarray:
+    """`image` with non-finite values 0, clamped to [0, hi] (`clean`). A float16 image (a half-float
+    bake file) whose bits show every value already there -- positive halves order as their bits --
+    comes back as it is: no float32 copy, and the same half floats the copy would round back to."""
+    if image.dtype == np.float16 and not (image.view(np.uint16) > np.float16(hi).view(np.uint16)).any():
+        return image
+    return np.clip(clean(image.astype(np.float32)), 0.0, hi)
+
+
 class GpuTextures:
     def __init__(self, ctx: moderngl.Context, gl: GL, software: bool, bake):
         """Every material's textures (`<kind>_textures`: a texture or None per material) from the
@@ -59,24 +68,23 @@ class GpuTextures:
         """One material's textures, None for each kind it lacks."""
         texture = None
         if m.kd_texture:
-            image = read_image(path / m.kd_texture)
+            image = read_image(path / m.kd_texture, keep_half=True)
             # the base colour alpha only where the coverage reads it (shaders/materials.glsl)
             coverage = m.has_coverage and image.shape[-1] >= 4
-            alpha = np.clip(clean(image[..., 3:4]), 0.0, 1.0) if coverage else None
-            texture = self._texture(np.clip(clean(image[..., :3]), 0.0, 1.0),
+            alpha = clamped(image[..., 3:4], 1.0) if coverage else None
+            texture = self._texture(clamped(image[..., :3], 1.0),
                                     f"the base-colour texture of material '{m.name}'", alpha=alpha)
         self.kd_textures.append(texture)
         texture = None
         if m.emission_texture and np.any(clean(m.emission) > 0):
-            image = read_image(path / m.emission_texture)
-            texture = self._texture(np.clip(clean(image[..., :3]), 0.0, HALF_MAX),
-                                    f"the emissive texture of material '{m.name}'")
+            image = read_image(path / m.emission_texture, keep_half=True)
+            texture = self._texture(clamped(image[..., :3], HALF_MAX), f"the emissive texture of material '{m.name}'")
         self.emission_textures.append(texture)
         for kind in ("metallic_roughness", "normal", "anisotropy"):
             texture = None
             file = getattr(m, f"{kind}_texture")
             if file:
-                image = np.clip(clean(read_image(path / file)[..., :3]), 0.0, 1.0)
+                image = clamped(read_image(path / file, keep_half=True)[..., :3], 1.0)
                 what = kind.replace("_", "-")
                 texture = self._texture(image, f"the {what} texture of material '{m.name}'")
             getattr(self, f"{kind}_textures").append(texture)
@@ -103,10 +111,11 @@ class GpuTextures:
         """A mip-mapped, repeating RGBA16F texture of `rgb` and `alpha` (1 where None)."""
         h, w = rgb.shape[:2]
         check_texture_size(self.ctx, w, h, what, fix="scale it down in the modelling tool and export again")
-        rgba = np.concatenate([rgb, np.ones((h, w, 1), rgb.dtype) if alpha is None else alpha.reshape(h, w, 1)],
-                              axis=-1)
+        rgba = np.empty((h, w, 4), np.float16)  # numpy's float32 -> float16 rounding where the values are float32
+        rgba[..., :3] = rgb
+        rgba[..., 3:] = 1.0 if alpha is None else alpha.reshape(h, w, 1)
         with self._gl.checked(f"upload {what}"):
-            tex = self.ctx.texture((w, h), 4, rgba.astype(np.float16).tobytes(), dtype="f2")
+            tex = self.ctx.texture((w, h), 4, rgba, dtype="f2")
             tex.build_mipmaps()
         tex.repeat_x = tex.repeat_y = True
         tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
