@@ -320,9 +320,10 @@ def test_the_viewers_cube_map_arrays_hold_the_files_texels(tmp_path, light):
     """Level 0 of the viewer's cube-map array (read back from GL) holds the probe's file texel for
     texel: a half-float file (light 8) in an RGBA16F class, read as half floats without a float32
     copy; a float32 file (light 1e5 > 65504) in an RGBA32F class. The expected texels are the file's,
-    read by OpenImageIO directly. Catches a class made half float for a value above 65504 (Inf on
-    the GPU), a half-float file read through the wrong type, and faces or layers out of place when
-    the class is filled."""
+    read by OpenImageIO directly; each coarser level the 2 x 2 box mean of the one above. Catches a
+    class made half float for a value above 65504 (Inf on the GPU), a half-float file read through
+    the wrong type, faces or layers out of place when the class is filled, and a MIP level made from
+    the wrong level or texels (shaders/cube_mips.comp)."""
     import OpenImageIO as oiio
 
     from glint.core.bake_dir import Bake
@@ -350,6 +351,17 @@ def test_the_viewers_cube_map_arrays_hold_the_files_texels(tmp_path, light):
         level0 = GL(ctx).read_cube_array(cls.glo, 0, np.empty((1, 6, size, size, 4), np.float32), "the probe")
         np.testing.assert_array_equal(level0[0], expected)
         assert np.isfinite(level0).all()
+        # Every coarser level is the 2 x 2 box mean of the level above as the GPU holds it (float64
+        # here), within an ulp of the class's format (GL rounds to nearest or towards zero).
+        finer = level0[0].astype(np.float64)
+        for level in range(1, cls.levels):
+            s = size >> level
+            got = GL(ctx).read_cube_array(cls.glo, level, np.empty((1, 6, s, s, 4), np.float32), "a level")[0]
+            want = finer.reshape(6, s, 2, s, 2, 4).mean(axis=(2, 4))
+            relative = 1.01 * 2.0 ** -10 if half else 4 * 2.0 ** -24  # GL may round to half by truncation
+            assert np.all(np.abs(got - want) <= relative * np.abs(want) + 2.0 ** -25), f"level {level}"
+            finer = got.astype(np.float64)
+        assert level == int(np.log2(size)) and got.shape[1] == 1
         cubes.release()
     finally:
         ctx.release()

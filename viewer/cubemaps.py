@@ -31,7 +31,7 @@ size, with a warning, down to `MIN_FALLBACK_SIZE`; any other failed upload is a
 GlintError. Where the driver tells its free memory (GL_NVX_gpu_memory_info,
 GL_ATI_meminfo), `memory()` reports it beside the cube maps' own MiB.
 
-Every class has a full MIP chain (GL's glGenerateMipmap: 2 x 2 box filter per
+Every class has a full MIP chain (shaders/cube_mips.comp: 2 x 2 box filter per
 level), GL_LINEAR_MIPMAP_LINEAR, and GL_TEXTURE_CUBE_MAP_SEAMLESS is on, so the
 filtered look-ups of Eq. 4.14-4.17 blend across face edges. Texels are RGBA16F,
 or RGBA32F for a class where a value does not fit in half float (a very bright
@@ -61,8 +61,15 @@ from glint.core.errors import GlintError, warn
 from glint.core.geometry import oriented_box
 from glint.core.image_io import read_image
 from glint.core.manifest import Manifest, ObjectEntry, Volume
-from glint.viewer.gl import GL, GL_TEXTURE_CUBE_MAP_SEAMLESS, describe
-from glint.viewer.gl_bindings import BOUNDING_PLANE_BINDING, CUBE_OBJECT_BINDING, shading_units
+from glint.viewer.gl import GL, GL_RGBA16F, GL_RGBA32F, GL_TEXTURE_CUBE_MAP_SEAMLESS, describe
+from glint.viewer.gl_bindings import (
+    BOUNDING_PLANE_BINDING,
+    CUBE_OBJECT_BINDING,
+    MIP_SOURCE_IMAGE,
+    MIP_TARGET_IMAGE,
+    shading_units,
+)
+from glint.viewer.shader_source import LOCAL_SIZE, compute_program, set_uniforms
 
 FACES = ("+x", "-x", "+y", "-y", "+z", "-z")  # GL's face order (GL_TEXTURE_CUBE_MAP_POSITIVE_X + k)
 MAX_PLANES = 16  # per object; more are ignored (each is a ray-plane test per sample)
@@ -121,7 +128,7 @@ def downsample(faces: np.ndarray, size: int) -> np.ndarray:
 
 def mip_chain(faces: np.ndarray, half: bool = False) -> list[np.ndarray]:
     """(6, S, S, 4) faces (S a power of two) and their 2 x 2 box-filtered halvings down to one
-    texel: the MIP levels glGenerateMipmap makes of them (a re-bake's probes come with theirs,
+    texel: the MIP levels CubeMaps makes of them (shaders/cube_mips.comp) (a re-bake's probes come with theirs,
     computed off the viewer's thread: glint/cubemap_stage.py ProbeRefresher). float32; with
     `half`, float16 where every value fits in it (what the cube-map arrays mostly hold)."""
     chain = [np.asarray(faces, np.float32)]
@@ -224,6 +231,7 @@ class CubeMaps:
         self.count = len(faces)
         self.objects = len(probe_of)
         self._gl = GL(ctx) if faces else None
+        self._mip_programs: dict[str, moderngl.ComputeShader] = {}  # "f2" / "f4": shaders/cube_mips.comp
         for cls in self.classes:
             self._upload(cls, [faces[p] for p in cls.probes])
 
@@ -239,7 +247,7 @@ class CubeMaps:
             for k, m in enumerate(maps):
                 pixels[6 * k:6 * k + 6] = m  # numpy's float32 -> float16 rounding, as astype
             try:
-                cls.glo = self._gl.upload_cube_array(
+                cls.glo = self._upload_array(
                     pixels, f"the cube maps of face size {cls.size} ({len(maps)} probes, "
                             f"{'RGBA16F' if cls.dtype == 'f2' else 'RGBA32F'}, {cls.mib:.0f} MiB)")
                 return
@@ -278,13 +286,43 @@ class CubeMaps:
                                        f"level {n} of cube map {file} (face size {cls.size})")
         return k
 
+    def _upload_array(self, pixels: np.ndarray, what: str) -> int:
+        """A new cube-map array of `pixels`, (layers x 6, S, S, 4) float16 or float32 (layer-face =
+        layer * 6 + face, rows from t = 0), RGBA16F or RGBA32F to match, with its full MIP chain
+        (shaders/cube_mips.comp); a GlintError (GL_OUT_OF_MEMORY among them) deletes it again."""
+        gl, depth, size = self._gl, pixels.shape[0], pixels.shape[1]
+        half = pixels.dtype == np.float16
+        internal = GL_RGBA16F if half else GL_RGBA32F
+        levels = int(size).bit_length()  # size a power of two: log2(size) + 1
+        name = gl.allocate_cube_array(size, depth, levels, internal, what)
+        try:
+            gl.write_cube_layers(name, 0, 0, pixels, what)
+            key = "f2" if half else "f4"
+            if key not in self._mip_programs:
+                self._mip_programs[key] = compute_program(self.ctx, "cube_mips.comp",
+                                                          {} if half else {"CUBE_MIPS_FLOAT": 1})
+            program = self._mip_programs[key]
+            with gl.checked(f"the MIP levels of {what}"):
+                for level in range(1, levels):
+                    s = size >> level
+                    gl.bind_cube_array_image(MIP_SOURCE_IMAGE, name, level - 1, internal, write=False)
+                    gl.bind_cube_array_image(MIP_TARGET_IMAGE, name, level, internal, write=True)
+                    set_uniforms(program, size=s)
+                    program.run(-(-s // LOCAL_SIZE), -(-s // LOCAL_SIZE), depth)
+                    self.ctx.memory_barrier(moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT)
+                self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.TEXTURE_UPDATE_BARRIER_BIT)
+        except GlintError:
+            gl.delete_textures([name])
+            raise
+        return name
+
     def _widen(self, cls: CubeClass) -> None:
         """Class `cls` as RGBA32F: its level 0 read back, uploaded again (the MIP chain regenerated)."""
         pixels = np.zeros((len(cls.probes) * 6, cls.size, cls.size, 4), np.float32)
         self._gl.read_cube_array(cls.glo, 0, pixels, f"the cube maps of face size {cls.size}")
         cls.dtype = "f4"
-        glo = self._gl.upload_cube_array(pixels, f"the cube maps of face size {cls.size} ({len(cls.probes)} "
-                                                 f"probes, RGBA32F, {cls.mib:.0f} MiB)")
+        glo = self._upload_array(pixels, f"the cube maps of face size {cls.size} ({len(cls.probes)} "
+                                         f"probes, RGBA32F, {cls.mib:.0f} MiB)")
         self._gl.delete_textures([cls.glo])
         cls.glo = glo
 
@@ -330,6 +368,9 @@ class CubeMaps:
             self._gl.delete_textures([cls.glo for cls in self.classes])
             for cls in self.classes:
                 cls.glo = 0
+        for program in self._mip_programs.values():
+            program.release()
+        self._mip_programs.clear()
         self.object_buffer.release()
         self.plane_buffer.release()
 

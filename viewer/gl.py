@@ -39,7 +39,7 @@ GL_TEXTURE_BASE_LEVEL, GL_TEXTURE_MAX_LEVEL = 0x813C, 0x813D
 GL_LINEAR, GL_LINEAR_MIPMAP_LINEAR, GL_CLAMP_TO_EDGE = 0x2601, 0x2703, 0x812F
 GL_RGBA, GL_RGBA16F, GL_RGBA32F = 0x1908, 0x881A, 0x8814
 GL_HALF_FLOAT, GL_FLOAT = 0x140B, 0x1406
-GL_WRITE_ONLY = 0x88B9
+GL_READ_ONLY, GL_WRITE_ONLY = 0x88B8, 0x88B9
 GL_UNPACK_ALIGNMENT, GL_PACK_ALIGNMENT = 0x0CF5, 0x0D05
 GL_PIXEL_UNPACK_BUFFER, GL_PIXEL_UNPACK_BUFFER_BINDING = 0x88EC, 0x88EF
 GL_PIXEL_PACK_BUFFER, GL_PIXEL_PACK_BUFFER_BINDING = 0x88EB, 0x88ED
@@ -174,7 +174,6 @@ class GL:
         self.TexStorage3D = fn("glTexStorage3D", None, u, i, u, i, i, i)
         self.TexSubImage3D = fn("glTexSubImage3D", None, u, i, i, i, i, i, i, i, u, u, p)
         self.TexParameteri = fn("glTexParameteri", None, u, u, i)
-        self.GenerateMipmap = fn("glGenerateMipmap", None, u)
         self.GetTexImage = fn("glGetTexImage", None, u, i, u, u, p)
         self.BindImageTexture = fn("glBindImageTexture", None, u, u, i, b, i, u, u)
         # framebuffers on array layers
@@ -292,20 +291,6 @@ class GL:
         finally:
             self.BindBuffer(GL_PIXEL_UNPACK_BUFFER, unpack.value)
 
-    def upload_cube_array(self, pixels: np.ndarray, what: str) -> int:
-        """A new cube-map array holding `pixels`, (layers x 6, S, S, 4) float16 or float32 (layer-face
-        = layer * 6 + face, rows from t = 0), RGBA16F or RGBA32F to match, with a full MIP chain
-        (glGenerateMipmap) and CUBE_ARRAY_PARAMETERS."""
-        depth, size = pixels.shape[0], pixels.shape[1]
-        half = pixels.dtype == np.float16
-        pixels = np.ascontiguousarray(pixels)
-        with self._from_client_memory(), self._new_cube_array(f"upload {what}") as name:
-            self.TexImage3D(GL_TEXTURE_CUBE_MAP_ARRAY, 0, GL_RGBA16F if half else GL_RGBA32F, size, size, depth,
-                            0, GL_RGBA, GL_HALF_FLOAT if half else GL_FLOAT, pixels.ctypes.data)
-            self._cube_array_parameters()
-            self.GenerateMipmap(GL_TEXTURE_CUBE_MAP_ARRAY)
-        return name
-
     def write_cube_layers(self, name: int, level: int, first: int, pixels: np.ndarray, what: str) -> None:
         """Write `pixels`, (n, s, s, 4) float16 or float32 layer-faces (rows from t = 0), into level
         `level` of cube-map array `name` from layer-face `first` on (glTexSubImage3D); the array's
@@ -329,6 +314,11 @@ class GL:
             self.TexStorage3D(GL_TEXTURE_CUBE_MAP_ARRAY, levels, internal, size, size, depth)
             self._cube_array_parameters(levels)
         return name
+
+    def bind_cube_array_image(self, unit: int, name: int, level: int, internal: int, write: bool) -> None:
+        """Level `level` of cube-map array `name`, every layer-face (layered), on image unit `unit`,
+        read-only or write-only, as `internal` (GL_RGBA16F or GL_RGBA32F: the array's own format)."""
+        self.BindImageTexture(unit, name, level, 1, 0, GL_WRITE_ONLY if write else GL_READ_ONLY, internal)
 
     def _cube_array_parameters(self, levels: int | None = None) -> None:
         """CUBE_ARRAY_PARAMETERS on the bound cube-map array; with `levels`, also its level range."""
