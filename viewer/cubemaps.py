@@ -128,15 +128,21 @@ def downsample(faces: np.ndarray, size: int) -> np.ndarray:
 
 def mip_chain(faces: np.ndarray, half: bool = False) -> list[np.ndarray]:
     """(6, S, S, 4) faces (S a power of two) and their 2 x 2 box-filtered halvings down to one
-    texel: the MIP levels CubeMaps makes of them (shaders/cube_mips.comp) (a re-bake's probes come with theirs,
-    computed off the viewer's thread: glint/cubemap_stage.py ProbeRefresher). float32; with
-    `half`, float16 where every value fits in it (what the cube-map arrays mostly hold)."""
+    texel: the MIP levels CubeMaps makes of them on the GPU (shaders/cube_mips.comp; a re-bake's
+    probes come with theirs, computed off the viewer's thread: glint/cubemap_stage.py ProbeRefresher).
+    float32; with `half`, float16 where every value fits in it (what the cube-map arrays mostly hold)."""
     chain = [np.asarray(faces, np.float32)]
     while chain[-1].shape[1] > 1:
         chain.append(downsample(chain[-1], chain[-1].shape[1] // 2))
-    if half and float(chain[0].max(initial=0.0)) <= HALF_MAX:  # the box filter never exceeds level 0
+    if half and fits_half(chain[0]):  # the box filter never exceeds level 0
         chain = [level.astype(np.float16) for level in chain]
     return chain
+
+
+def fits_half(texels: np.ndarray) -> bool:
+    """Whether non-negative finite `texels` fit in half float: float16 ones do, others where no value
+    exceeds HALF_MAX (a class holding any other is RGBA32F: no Inf)."""
+    return texels.dtype == np.float16 or float(texels.max(initial=0.0)) <= HALF_MAX
 
 
 def fit_classes(sizes: list[int], per_class: int, max_classes: int, max_face: int) -> tuple[list[int], list]:
@@ -240,7 +246,7 @@ class CubeMaps:
         """Upload a class; out of GPU memory, retry at half the face size (module docstring)."""
         while True:
             # half float where every value fits (a float16 map, read from a half-float file, does)
-            fits = all(m.dtype == np.float16 or float(m.max(initial=0.0)) <= HALF_MAX for m in maps)
+            fits = all(fits_half(m) for m in maps)
             cls.dtype = "f2" if fits else "f4"
             # layer-face = layer * 6 + face, filled in place: no stacked float32 copy of the class
             pixels = np.empty((len(maps) * 6, cls.size, cls.size, 4), np.float16 if fits else np.float32)
@@ -248,7 +254,7 @@ class CubeMaps:
                 pixels[6 * k:6 * k + 6] = m  # numpy's float32 -> float16 rounding, as astype
             try:
                 cls.glo = self._upload_array(
-                    pixels, f"the cube maps of face size {cls.size} ({len(maps)} probes, "
+                    cls, pixels, f"the cube maps of face size {cls.size} ({len(maps)} probes, "
                             f"{'RGBA16F' if cls.dtype == 'f2' else 'RGBA32F'}, {cls.mib:.0f} MiB)")
                 return
             except GlintError as err:
@@ -276,8 +282,7 @@ class CubeMaps:
         if cls.size not in sizes or len(chain) - sizes.index(cls.size) < cls.levels:
             raise GlintError(f"new cube map {file}: MIP levels of {sizes} for faces of {cls.size}")
         levels = [finite_radiance(level) for level in chain[sizes.index(cls.size):][:cls.levels]]
-        if cls.dtype == "f2" and any(level.dtype != np.float16 and float(level.max(initial=0.0)) > HALF_MAX
-                                     for level in levels):
+        if cls.dtype == "f2" and not all(fits_half(level) for level in levels):
             self._widen(cls)
         for n, level in enumerate(levels):
             if cls.dtype == "f2" and level.dtype != np.float16:  # else GL converts: half to float exactly
@@ -286,14 +291,14 @@ class CubeMaps:
                                        f"level {n} of cube map {file} (face size {cls.size})")
         return k
 
-    def _upload_array(self, pixels: np.ndarray, what: str) -> int:
-        """A new cube-map array of `pixels`, (layers x 6, S, S, 4) float16 or float32 (layer-face =
-        layer * 6 + face, rows from t = 0), RGBA16F or RGBA32F to match, with its full MIP chain
-        (shaders/cube_mips.comp); a GlintError (GL_OUT_OF_MEMORY among them) deletes it again."""
-        gl, depth, size = self._gl, pixels.shape[0], pixels.shape[1]
+    def _upload_array(self, cls: CubeClass, pixels: np.ndarray, what: str) -> int:
+        """A new cube-map array for class `cls` holding `pixels`, (layers x 6, S, S, 4) float16 or
+        float32 (layer-face = layer * 6 + face, rows from t = 0; S = cls.size), RGBA16F or RGBA32F to
+        match, with its cls.levels MIP levels (shaders/cube_mips.comp); a GlintError (GL_OUT_OF_MEMORY
+        among them) deletes it again."""
+        gl, depth, size, levels = self._gl, pixels.shape[0], cls.size, cls.levels
         half = pixels.dtype == np.float16
         internal = GL_RGBA16F if half else GL_RGBA32F
-        levels = int(size).bit_length()  # size a power of two: log2(size) + 1
         name = gl.allocate_cube_array(size, depth, levels, internal, what)
         try:
             gl.write_cube_layers(name, 0, 0, pixels, what)
@@ -321,8 +326,8 @@ class CubeMaps:
         pixels = np.zeros((len(cls.probes) * 6, cls.size, cls.size, 4), np.float32)
         self._gl.read_cube_array(cls.glo, 0, pixels, f"the cube maps of face size {cls.size}")
         cls.dtype = "f4"
-        glo = self._upload_array(pixels, f"the cube maps of face size {cls.size} ({len(cls.probes)} "
-                                         f"probes, RGBA32F, {cls.mib:.0f} MiB)")
+        glo = self._upload_array(cls, pixels, f"the cube maps of face size {cls.size} ({len(cls.probes)} "
+                                              f"probes, RGBA32F, {cls.mib:.0f} MiB)")
         self._gl.delete_textures([cls.glo])
         cls.glo = glo
 

@@ -170,7 +170,6 @@ class GL:
         self.DeleteTextures = fn("glDeleteTextures", None, i, pu)
         self.BindTexture = fn("glBindTexture", None, u, u)
         self.ActiveTexture = fn("glActiveTexture", None, u)
-        self.TexImage3D = fn("glTexImage3D", None, u, i, i, i, i, i, i, u, u, p)
         self.TexStorage3D = fn("glTexStorage3D", None, u, i, u, i, i, i)
         self.TexSubImage3D = fn("glTexSubImage3D", None, u, i, i, i, i, i, i, i, u, u, p)
         self.TexParameteri = fn("glTexParameteri", None, u, u, i)
