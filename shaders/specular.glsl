@@ -4,7 +4,7 @@
 // shading.comp found to need it (`needs_specular`) and queued by tile.
 //
 // Per lobe the specular integral (Eq. 4.3) over the object's cube map is estimated in one of these
-// ways, chosen by the uniform `specular_mode` (one program serves the moving and the still camera):
+// ways, `specular_mode`, a constant of the program (viewer/passes/shading.py compiles one per mode):
 // - SPECULAR_PATTERNS (walkthrough): the lobe's deterministic regular pattern (Eq. 4.10-4.13, the
 //   same (xi1, xi2) positions at every pixel: smooth in space and time), each sample a MIP-filtered
 //   look-up (Eq. 4.16-4.17; its footprint from the lobe's second moment, or the thesis' A / n of
@@ -63,10 +63,13 @@
 layout(std430, binding = PATTERN_BINDING) readonly buffer PatternBuffer { vec2 pattern_xi[]; };
 layout(std430, binding = LOBE_PATTERN_BINDING) readonly buffer LobePatternBuffer { ivec4 lobe_patterns[]; };
 
-uniform int specular_mode;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
+// The mode and the look-ups' footprint are constants of the program, not uniforms: llvmpipe (Mesa 22.3)
+// runs both sides of every branch, a uniform condition's too, so one program for all modes paid for
+// all of them (docs/VIEWER.md, "The specular pass: one program per mode").
+const int specular_mode = SPECULAR_MODE;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
+const int pattern_footprint = PATTERN_FOOTPRINT;  // SPECULAR_PATTERNS (cube maps and mirror buffers): one of these (viewer/renderer.py FOOTPRINTS)
 uniform int qmc_first;      // SPECULAR_QMC: index of this frame's first sample in the sequence
 uniform int qmc_count;      // SPECULAR_QMC: samples per lobe and pixel in this frame
-uniform int pattern_footprint;  // SPECULAR_PATTERNS (cube maps and mirror buffers): one of these (viewer/renderer.py FOOTPRINTS)
 const int FOOTPRINT_MOMENT = 0, FOOTPRINT_THESIS = 1, FOOTPRINT_MOMENT_ALL = 2;
 
 // The specular work of a frame: shading.comp queues the tiles (LOCAL_SIZE^2 pixels) that have a

@@ -53,7 +53,6 @@ from glint.viewer.passes.shading import ShadingPass, scene_units
 from glint.viewer.passes.tonemap import TonemapPass
 from glint.viewer.progressive import DEFAULT_MAX_FRAMES, DEFAULT_SAMPLES_PER_FRAME, Progressive
 from glint.viewer.reflectors import DEFAULT_BUDGET
-from glint.viewer.shader_source import set_uniforms
 from glint.viewer.split_sum import SplitSum
 from glint.viewer.timing import PassTimer
 
@@ -140,8 +139,7 @@ class Renderer:
         self.mirror.set_units(mirror_unit)
         self.split_sum = SplitSum(ctx, self.scene) if walkthrough == "split-sum" else None
         self.shading = ShadingPass(ctx, self.scene, defines, weights=weights, mirror=self.mirror,
-                                   split_sum=self.split_sum)
-        set_uniforms(self.shading.specular, pattern_footprint=FOOTPRINTS[footprint])
+                                   split_sum=self.split_sum, footprint=FOOTPRINTS[footprint])
         self.resolve = ResolvePass(ctx, defines)
         self.tonemap = TonemapPass(ctx, defines)
         self.progressive = Progressive(ctx, defines, samples_per_frame=samples_per_frame, max_frames=max_frames,

@@ -11,7 +11,10 @@ queues the 8 x 8 tiles holding such pixels, and specular.comp runs one work grou
 per queued tile (glDispatchComputeIndirect), adding the lobes' light in one of
 the modes of specular.glsl (`SPECULAR_MODES`): the walkthrough's regular
 patterns, still-camera quasi-random samples (frame by frame, see
-viewer/progressive.py), or filtered importance sampling for comparisons. Tiles
+viewer/progressive.py), or filtered importance sampling for comparisons. Each mode
+is a program of its own, compiled when first used (`specular_program`): the mode
+is a constant in it, so a program holds one mode's code (llvmpipe runs both
+sides of a branch, a uniform one too: docs/VIEWER.md). Tiles
 without such pixels cost nothing there (a branch inside a work group would still
 cost its masked lanes on a SIMD machine, and on llvmpipe more than the diffuse
 shading: docs/VIEWER.md, "The specular pass's tile queue"); a scene without lobes on cube-mapped objects skips the dispatch.
@@ -59,10 +62,11 @@ class ShadingPass:
     name = "shading"
 
     def __init__(self, ctx: moderngl.Context, scene, defines: dict, weights: str = "albedo", mirror=None,
-                 split_sum=None):
+                 split_sum=None, footprint: int = 0):
         """defines: shader_defines() with the mirror buffers' units of scene_units(scene); mirror: the
         frame's MirrorPasses (None: no planar reflectors are shaded); split_sum: a
-        viewer/split_sum.py SplitSum, which compiles SPECULAR_SPLIT_SUM in (None: not)."""
+        viewer/split_sum.py SplitSum, which compiles SPECULAR_SPLIT_SUM in (None: not); footprint: a
+        value of viewer/renderer.py FOOTPRINTS, the pattern look-ups' MIP footprint."""
         if weights not in WEIGHTS:
             raise ValueError(f"weights must be one of {WEIGHTS}, not {weights!r}")
         self.ctx = ctx
@@ -79,8 +83,12 @@ class ShadingPass:
         last = self.units["UNIT_COUNT"] - 1 if split_sum is not None else self.units["MIRROR_NORMAL_UNIT"]
         check_compute_texture_units(ctx, last + 1, f"shading this scene (cube maps of {len(scene.cubemaps.classes)} "
                                                    f"face sizes{', split-sum' if split_sum is not None else ''})")
-        self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
-        self.specular = compute_program(ctx, "specular.comp", {**defines, **extra})
+        extra["PATTERN_FOOTPRINT"] = int(footprint)
+        self._defines = {**defines, **extra}
+        # shading.comp asks only `needs_specular` of specular.glsl: any mode compiles it.
+        self.program = compute_program(ctx, "shading.comp", {**self._defines, "SPECULAR_MODE": "SPECULAR_PATTERNS"})
+        self._specular: dict[str, moderngl.ComputeShader] = {}
+        self.specular_program("SPECULAR_PATTERNS")  # the walkthrough's, wanted by the first frame
         self.has_planar = bool(self._planar())
         self.update_specular(scene)
         self.planes: tuple[moderngl.Texture, moderngl.Texture] | None = None
@@ -89,6 +97,14 @@ class ShadingPass:
         self.tiles = (0, 0)
         self.cube_maps_bound = 0
         self.specular_ran = False
+
+    def specular_program(self, mode: str) -> moderngl.ComputeShader:
+        """specular.comp for `mode` (a key of SPECULAR_MODES), compiled on first use."""
+        if mode not in self._specular:
+            if mode not in SPECULAR_MODES or (mode == "SPECULAR_SPLIT_SUM" and self.split_sum is None):
+                raise ValueError(f"no specular program for mode {mode!r}")
+            self._specular[mode] = compute_program(self.ctx, "specular.comp", {**self._defines, "SPECULAR_MODE": mode})
+        return self._specular[mode]
 
     def update_specular(self, scene) -> None:
         """Whether any specular work is possible (again after a material edit): only where a material
@@ -152,9 +168,9 @@ class ShadingPass:
         sequence per lobe and pixel."""
         if not self.has_specular:
             return self.radiance
-        program = self.specular
+        program = self.specular_program(mode)
         self._bind_common(program, gbuffer, camera, aspect)
-        set_uniforms(program, specular_mode=SPECULAR_MODES[mode], qmc_first=int(qmc_first), qmc_count=int(qmc_count))
+        set_uniforms(program, qmc_first=int(qmc_first), qmc_count=int(qmc_count))
         self.cube_maps_bound = self.scene.cubemaps.bind(program, self.units["CUBE_FIRST_UNIT"])
         if self.split_sum is not None:
             self.split_sum.bind(program, self.units["SPLIT_SUM_FIRST_UNIT"])
@@ -187,4 +203,6 @@ class ShadingPass:
     def release(self) -> None:
         self._release_targets()
         self.program.release()
-        self.specular.release()
+        for program in self._specular.values():
+            program.release()
+        self._specular.clear()
