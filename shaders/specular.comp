@@ -1,5 +1,7 @@
 // Specular pass: adds the lobes' light (specular.glsl) to the pixels that need it, one work group
-// per tile that shading.comp queued (an indirect dispatch over specular_tiles).
+// per tile that shading.comp queued on this program's list, SPECULAR_LIST (an indirect dispatch over
+// that list of specular_tiles; specular_work.glsl): pixels of the tile on another list are that
+// list's program's.
 
 #include "common.glsl"
 #include "materials.glsl"
@@ -21,13 +23,13 @@ void main() {
     }
     memoryBarrierShared();
     barrier();
-    uint tile = specular_tiles[gl_WorkGroupID.x];
+    uint tile = specular_tiles[uint(SPECULAR_LIST) * specular_tile_capacity + gl_WorkGroupID.x];
     ivec2 p = ivec2(tile % specular_tiles_x, tile / specular_tiles_x) * LOCAL_SIZE + ivec2(gl_LocalInvocationID.xy);
     ivec2 size = imageSize(radiance_out);
     if (p.x < size.x && p.y < size.y && !gbuffer_empty(p)) {
         Surface s = gbuffer_surface(p, view_ray(p, size));
         Material m = materials[s.material];
-        if (needs_specular(s, m)) {
+        if (specular_list(s, m) == SPECULAR_LIST) {
             vec3 L = imageLoad(radiance_out, p).rgb + specular_radiance(s, m, p);
             imageStore(radiance_out, p, vec4(clean_radiance(L), 1.0));
             atomicAdd(group_pixels, 1u);

@@ -1,7 +1,7 @@
 // View-dependent light of a material's lobes at one surface point: for objects with a cube map
 // (curved and transmissive ones, section 4.4) and for planar reflectors whose plane got a mirror
 // pass this frame (section 4.5). specular.comp calls `specular_radiance` for the pixels that
-// shading.comp found to need it (`needs_specular`) and queued by tile.
+// shading.comp found to need it and queued by tile, on the list of their kind (specular_work.glsl).
 //
 // Per lobe the specular integral (Eq. 4.3) over the object's cube map is estimated in one of these
 // ways, `specular_mode`, a constant of the program (viewer/passes/shading.py compiles one per mode):
@@ -57,33 +57,25 @@
 #include "cubemaps.glsl"
 #include "volume.glsl"
 #include "mirror_buffer.glsl"
+#include "specular_work.glsl"
 
 // The regular patterns in (xi1, xi2) space (viewer/lobe_patterns.py), all lobes' in one buffer;
 // per lobe x: first position, y: count, z: pattern kind (viewer/gpu_materials.py PATTERN_KINDS).
 layout(std430, binding = PATTERN_BINDING) readonly buffer PatternBuffer { vec2 pattern_xi[]; };
 layout(std430, binding = LOBE_PATTERN_BINDING) readonly buffer LobePatternBuffer { ivec4 lobe_patterns[]; };
 
-// The mode and the look-ups' footprint are constants of the program, not uniforms: llvmpipe (Mesa 22.3)
-// runs both sides of every branch, a uniform condition's too, so one program for all modes paid for
-// all of them (docs/VIEWER.md, "The specular pass: one program per mode").
-const int specular_mode = SPECULAR_MODE;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
+// The mode, the look-ups' footprint and the kind of pixel (specular_work.glsl) are constants of the
+// program, not uniforms: llvmpipe (Mesa 22.3) runs both sides of every branch, a uniform condition's
+// too, so one program for all modes and kinds paid for all of them (docs/VIEWER.md, "The specular
+// pass: one program per mode and kind").
+const int specular_mode = SPECULAR_MODE;
+// SPECULAR_LIST: the pixels this program shades, all reading their plane's mirror buffer or all their
+// cube map; PLANAR_CUBE_MAPS: 1 where a planar reflector has a cube map (its transmission lobes read it).
+const bool planar_pixels = SPECULAR_LIST == SPECULAR_LIST_PLANAR;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
 const int pattern_footprint = PATTERN_FOOTPRINT;  // SPECULAR_PATTERNS (cube maps and mirror buffers): one of these (viewer/renderer.py FOOTPRINTS)
 uniform int qmc_first;      // SPECULAR_QMC: index of this frame's first sample in the sequence
 uniform int qmc_count;      // SPECULAR_QMC: samples per lobe and pixel in this frame
 const int FOOTPRINT_MOMENT = 0, FOOTPRINT_THESIS = 1, FOOTPRINT_MOMENT_ALL = 2;
-
-// The specular work of a frame: shading.comp queues the tiles (LOCAL_SIZE^2 pixels) that have a
-// pixel needing specular light, and their count is the x size of specular.comp's indirect
-// dispatch; specular.comp counts pixels and look-ups. viewer/passes/shading.py resets it.
-layout(std430, binding = SPECULAR_WORK_BINDING) buffer SpecularWork {
-    uint specular_groups[3];      // glDispatchComputeIndirect: (queued tiles, 1, 1)
-    uint specular_pixels;         // pixels that got specular light
-    uint specular_lookups_total;  // cube-map look-ups
-    uint specular_tiles_x;        // tiles per row of the image
-    uint specular_mirror_lookups_total;  // mirror-buffer look-ups
-    uint specular_unused;
-    uint specular_tiles[];        // the queued tiles, y * specular_tiles_x + x
-};
 
 // Cube-map and mirror-buffer look-ups this invocation made (the pass's statistics).
 int specular_lookups = 0;
@@ -402,11 +394,15 @@ Lobe lobe_at_pixel(Lobe lobe, int mr, Surface s, Material mat) {
 
 // One lobe's reflected (or transmitted) radiance towards the eye, times its ks.
 vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
-    bool planar = sp.mirror >= 0;
+    bool planar = planar_pixels;
     if (planar && lobe_is_transmit(lobe)) {  // no mirror image of the far side
+#if PLANAR_CUBE_MAPS
         if (!has_cube_map(sp.cube))
             return vec3(0.0);
         planar = false;
+#else
+        return vec3(0.0);  // no planar reflector has a cube map
+#endif
     }
 #ifdef SPLIT_SUM
     if (specular_mode == SPECULAR_SPLIT_SUM)
@@ -439,29 +435,6 @@ vec3 lobe_radiance(inout SpecularPoint sp, Lobe lobe, int lobe_index) {
     return lobe.ks.rgb * L;
 }
 
-// A planar object's surface reads its plane's mirror buffer where it lies in that plane: its normal
-// within MIRROR_PLANE_COS of the plane's (facing the same way). Elsewhere -- the sides of a slab
-// made planar by the sidecar -- the mirror image is not the light it receives: -1 there, as for
-// objects whose plane got no pass this frame.
-
-// Normal-mapped pixels ask it of their position (within MIRROR_PLANE_DISTANCE x the distance to
-// the eye of the plane), since their normal is not the surface's.
-int mirror_slot_at(Surface s) {
-    int slot = mirror_slot_of(s.object);
-    if (slot < 0)
-        return -1;
-    vec4 plane = mirror_slots[slot].plane;
-    if (s.normal_mapped)
-        return abs(dot(plane.xyz, s.position) + plane.w) <= MIRROR_PLANE_DISTANCE * distance(s.position, eye) ? slot : -1;
-    return dot(s.normal, plane.xyz) >= MIRROR_PLANE_COS ? slot : -1;
-}
-
-// Whether the point gets specular light at all: a lobe, a lit side, and incident light to read --
-// the object's cube map, or its plane's mirror buffer this frame.
-bool needs_specular(Surface s, Material m) {
-    return !s.dark && has_flag(m, MAT_SPECULAR) && (has_cube_map(cube_objects[s.object]) || mirror_slot_at(s) >= 0);
-}
-
 // The sum over the material's lobes (Eq. 3.6 without kd) at pixel `pixel` of the shaded image.
 vec3 specular_radiance(Surface s, Material m, ivec2 pixel) {
     SpecularPoint sp;
@@ -473,12 +446,12 @@ vec3 specular_radiance(Surface s, Material m, ivec2 pixel) {
     sp.position = s.position;
     sp.cube = cube_objects[s.object];
     sp.seed = uvec3(uvec2(pixel), 0u);
-    sp.mirror = mirror_slot_at(s);
+    sp.mirror = planar_pixels ? mirror_slot_at(s) : -1;
     sp.plane_sum_p = vec4(0.0);
     sp.plane_sum_n = vec3(0.0);
     sp.texel = vec2(s.mr.x, s.anisotropy);
-    bool planes = sp.mirror >= 0 && specular_mode == SPECULAR_QMC;
-    if (sp.mirror >= 0)
+    bool planes = planar_pixels && specular_mode == SPECULAR_QMC;
+    if (planar_pixels)
         sp.centre = mirror_centre(s.position, mirror_slots[sp.mirror].view_proj, sp.mirror);
     if (planes && qmc_first > 0) {  // frame 0 of a still camera starts the sums afresh
         sp.plane_sum_p = imageLoad(mirror_plane_positions, pixel);

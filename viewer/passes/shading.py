@@ -7,14 +7,15 @@ Specular light (section 4.4) is a second dispatch (shaders/specular.comp), for
 pixels whose material has lobes and whose object has a cube map, or is a planar
 reflector whose plane got a mirror pass this frame (section 4.5, viewer/passes/
 mirror.py, bound by `mirror.bind()`): shading.comp
-queues the 8 x 8 tiles holding such pixels, and specular.comp runs one work group
-per queued tile (glDispatchComputeIndirect), adding the lobes' light in one of
-the modes of specular.glsl (`SPECULAR_MODES`): the walkthrough's regular
-patterns, still-camera quasi-random samples (frame by frame, see
-viewer/progressive.py), or filtered importance sampling for comparisons. Each mode
-is a program of its own, compiled when first used (`specular_program`): the mode
-is a constant in it, so a program holds one mode's code (llvmpipe runs both
-sides of a branch, a uniform one too: docs/VIEWER.md). Tiles
+queues the 8 x 8 tiles holding such pixels on two lists, pixels reading cube maps
+and pixels reading their plane's mirror buffer (shaders/specular_work.glsl), and
+specular.comp runs one work group per queued tile of a list (glDispatchComputeIndirect),
+adding the lobes' light in one of the modes of specular.glsl (`SPECULAR_MODES`): the
+walkthrough's regular patterns, still-camera quasi-random samples (frame by frame, see
+viewer/progressive.py), or filtered importance sampling for comparisons. Each mode and
+list is a program of its own, compiled when first used (`specular_program`): both are
+constants in it, so a program holds one mode's and one kind of pixel's code (llvmpipe
+runs both sides of a branch, a uniform one too: docs/VIEWER.md). Tiles
 without such pixels cost nothing there (a branch inside a work group would still
 cost its masked lanes on a SIMD machine, and on llvmpipe more than the diffuse
 shading: docs/VIEWER.md, "The specular pass's tile queue"); a scene without lobes on cube-mapped objects skips the dispatch.
@@ -50,7 +51,12 @@ SPECULAR_MODES = {"SPECULAR_PATTERNS": 0, "SPECULAR_QMC": 1, "SPECULAR_FILTERED_
 # p cos-weighted mean of the radiance (the default; viewer/lobe_albedo.py says why), or for comparison
 # the thesis' Eq. 4.25 or Eq. 4.24.
 WEIGHTS = ("albedo", "eq4.25", "eq4.24")
-WORK_HEADER = 8  # uints before the tile list (shaders/specular.glsl SpecularWork)
+# shaders/specular_work.glsl: its lists, and the uints of SpecularWork before the tiles (per list an indirect
+# dispatch's x, y, z and one unused; pixels, look-ups, mirror look-ups, queued tiles, tiles per row, tiles per list).
+SPECULAR_LISTS = {"SPECULAR_LIST_CUBE": 0, "SPECULAR_LIST_PLANAR": 1}
+WORK_GROUPS = 4  # uints per list
+WORK_PIXELS, WORK_LOOKUPS, WORK_MIRROR_LOOKUPS, WORK_QUEUED, WORK_TILES_X, WORK_CAPACITY = range(8, 14)
+WORK_HEADER = 16
 
 
 def scene_units(scene) -> dict:
@@ -73,7 +79,8 @@ class ShadingPass:
         self.scene = scene
         self.mirror = mirror
         self.units = scene_units(scene)
-        extra = {**scene.cubemaps.defines(self.units["CUBE_FIRST_UNIT"]), **SPECULAR_MODES}
+        extra = {**scene.cubemaps.defines(self.units["CUBE_FIRST_UNIT"]), **SPECULAR_MODES, **SPECULAR_LISTS,
+                 "SPECULAR_LIST_COUNT": len(SPECULAR_LISTS)}
         if weights != "albedo":
             extra["WEIGHTS_EQ_4_24" if weights == "eq4.24" else "WEIGHTS_EQ_4_25"] = 1
         extra.update(scene.material_buffers.albedo_defines)
@@ -83,13 +90,16 @@ class ShadingPass:
         last = self.units["UNIT_COUNT"] - 1 if split_sum is not None else self.units["MIRROR_NORMAL_UNIT"]
         check_compute_texture_units(ctx, last + 1, f"shading this scene (cube maps of {len(scene.cubemaps.classes)} "
                                                    f"face sizes{', split-sum' if split_sum is not None else ''})")
+        self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
+        planar = self._planar()
+        self.has_planar = bool(planar)
         extra["PATTERN_FOOTPRINT"] = int(footprint)
+        # Where no planar reflector has a cube map, the planar program leaves the cube-map code out.
+        extra["PLANAR_CUBE_MAPS"] = int(any(scene.cubemaps.has_cubemap(i) for i in planar))
         self._defines = {**defines, **extra}
-        # shading.comp asks only `needs_specular` of specular.glsl: any mode compiles it.
-        self.program = compute_program(ctx, "shading.comp", {**self._defines, "SPECULAR_MODE": "SPECULAR_PATTERNS"})
-        self._specular: dict[str, moderngl.ComputeShader] = {}
-        self.specular_program("SPECULAR_PATTERNS")  # the walkthrough's, wanted by the first frame
-        self.has_planar = bool(self._planar())
+        self._specular: dict[tuple[str, str], moderngl.ComputeShader] = {}
+        for kind in self.lists():  # the walkthrough's, wanted by the first frame
+            self.specular_program("SPECULAR_PATTERNS", kind)
         self.update_specular(scene)
         self.planes: tuple[moderngl.Texture, moderngl.Texture] | None = None
         self.radiance: moderngl.Texture | None = None
@@ -98,13 +108,21 @@ class ShadingPass:
         self.cube_maps_bound = 0
         self.specular_ran = False
 
-    def specular_program(self, mode: str) -> moderngl.ComputeShader:
-        """specular.comp for `mode` (a key of SPECULAR_MODES), compiled on first use."""
-        if mode not in self._specular:
-            if mode not in SPECULAR_MODES or (mode == "SPECULAR_SPLIT_SUM" and self.split_sum is None):
-                raise ValueError(f"no specular program for mode {mode!r}")
-            self._specular[mode] = compute_program(self.ctx, "specular.comp", {**self._defines, "SPECULAR_MODE": mode})
-        return self._specular[mode]
+    def lists(self) -> tuple[str, ...]:
+        """The tile lists a frame may fill (keys of SPECULAR_LISTS): the planar one only with planar reflectors."""
+        return tuple(SPECULAR_LISTS) if self.has_planar else ("SPECULAR_LIST_CUBE",)
+
+    def specular_program(self, mode: str, kind: str) -> moderngl.ComputeShader:
+        """specular.comp for `mode` (a key of SPECULAR_MODES) over the tiles of list `kind` (a key of
+        SPECULAR_LISTS), compiled on first use."""
+        key = (mode, kind)
+        if key not in self._specular:
+            if (mode not in SPECULAR_MODES or kind not in SPECULAR_LISTS
+                    or (mode == "SPECULAR_SPLIT_SUM" and self.split_sum is None)):
+                raise ValueError(f"no specular program for mode {mode!r} and list {kind!r}")
+            self._specular[key] = compute_program(self.ctx, "specular.comp", {
+                **self._defines, "SPECULAR_MODE": mode, "SPECULAR_LIST": kind})
+        return self._specular[key]
 
     def update_specular(self, scene) -> None:
         """Whether any specular work is possible (again after a material edit): only where a material
@@ -127,7 +145,7 @@ class ShadingPass:
         self.radiance.filter = (moderngl.NEAREST, moderngl.NEAREST)
         self.tiles = (-(-size[0] // LOCAL_SIZE), -(-size[1] // LOCAL_SIZE))
         count = self.tiles[0] * self.tiles[1]
-        self.work = self.ctx.buffer(reserve=(WORK_HEADER + count) * 4)
+        self.work = self.ctx.buffer(reserve=(WORK_HEADER + len(SPECULAR_LISTS) * count) * 4)
         plane_size = size if self.has_planar else (1, 1)
         self.planes = tuple(self.ctx.texture(plane_size, 4, dtype="f4") for _ in range(2))
 
@@ -148,8 +166,10 @@ class ShadingPass:
     def run(self, gbuffer: dict, camera: ViewCamera, aspect: float) -> moderngl.Texture:
         """The view-independent part of every pixel; queues the tiles that need specular light."""
         header = np.zeros(WORK_HEADER, np.uint32)
-        header[1:3] = 1  # the indirect dispatch's y and z sizes
-        header[5] = self.tiles[0]
+        for k in SPECULAR_LISTS.values():
+            header[WORK_GROUPS * k + 1:WORK_GROUPS * k + 3] = 1  # the indirect dispatch's y and z sizes
+        header[WORK_TILES_X] = self.tiles[0]
+        header[WORK_CAPACITY] = self.tiles[0] * self.tiles[1]
         self.work.write(header.tobytes())
         self._bind_common(self.program, gbuffer, camera, aspect)
         self.scene.sky_map.use(SKY_UNIT)
@@ -168,16 +188,18 @@ class ShadingPass:
         sequence per lobe and pixel."""
         if not self.has_specular:
             return self.radiance
-        program = self.specular_program(mode)
-        self._bind_common(program, gbuffer, camera, aspect)
-        set_uniforms(program, qmc_first=int(qmc_first), qmc_count=int(qmc_count))
-        self.cube_maps_bound = self.scene.cubemaps.bind(program, self.units["CUBE_FIRST_UNIT"])
-        if self.split_sum is not None:
-            self.split_sum.bind(program, self.units["SPLIT_SUM_FIRST_UNIT"])
         self.radiance.bind_to_image(RADIANCE_IMAGE, read=True, write=True)
         self.planes[0].bind_to_image(MIRROR_PLANE_POSITION_IMAGE, read=True, write=True)
         self.planes[1].bind_to_image(MIRROR_PLANE_NORMAL_IMAGE, read=True, write=True)
-        program.run_indirect(self.work)
+        # The lists' pixels are disjoint: no barrier between their dispatches.
+        for kind in self.lists():
+            program = self.specular_program(mode, kind)
+            self._bind_common(program, gbuffer, camera, aspect)
+            set_uniforms(program, qmc_first=int(qmc_first), qmc_count=int(qmc_count))
+            self.cube_maps_bound = self.scene.cubemaps.bind(program, self.units["CUBE_FIRST_UNIT"])
+            if self.split_sum is not None:
+                self.split_sum.bind(program, self.units["SPLIT_SUM_FIRST_UNIT"])
+            program.run_indirect(self.work, offset=WORK_GROUPS * 4 * SPECULAR_LISTS[kind])
         self.ctx.memory_barrier(moderngl.TEXTURE_FETCH_BARRIER_BIT | moderngl.SHADER_IMAGE_ACCESS_BARRIER_BIT
                                 | moderngl.BUFFER_UPDATE_BARRIER_BIT)
         self.specular_ran = True
@@ -188,9 +210,9 @@ class ShadingPass:
         cube-map and mirror-buffer look-ups."""
         header = np.frombuffer(self.work.read(size=WORK_HEADER * 4), np.uint32) if self.work else np.zeros(WORK_HEADER)
         total = self.tiles[0] * self.tiles[1]
-        queued = int(header[0]) if self.specular_ran else 0
-        pixels, lookups, mirror = ((int(header[3]), int(header[4]), int(header[6])) if self.specular_ran
-                                   else (0, 0, 0))
+        queued = int(header[WORK_QUEUED]) if self.specular_ran else 0
+        pixels, lookups, mirror = ((int(header[WORK_PIXELS]), int(header[WORK_LOOKUPS]), int(header[WORK_MIRROR_LOOKUPS]))
+                                   if self.specular_ran else (0, 0, 0))
         return {"pixels": pixels, "tiles": queued, "tiles_skipped": total - queued, "lookups": lookups,
                 "mirror_lookups": mirror}
 
