@@ -136,6 +136,38 @@ def test_specular_tiles_are_those_the_glossy_sphere_covers(ctx, tmp_path):
     assert len(covered) <= 12  # a corner of the view, not the whole frame
 
 
+def test_tiles_holding_planar_and_curved_pixels_shade_each_pixel_once(ctx, tmp_path):
+    """The specular pass sorts tiles onto two lists, pixels reading their plane's mirror buffer and
+    pixels reading a cube map, each run by its own program (viewer/passes/shading.py); a tile holding
+    both kinds is on both lists and each program shades only its own pixels. Here a glossy sphere
+    stands on the glossy floor, which gets its mirror pass, so the sphere's outline crosses tiles of
+    floor. Expected counts come from the G-buffer's object ids, not from the lists: every floor and
+    sphere pixel shaded exactly once, and the tiles dispatched those that hold either. Catches a tile
+    queued on its first list only (the other kind's pixels in it unlit: too few pixels) and a
+    program that shades every pixel of its tiles (pixels of both kinds shaded twice: too many)."""
+    centre, radius = np.array([0.0, 0.25, -0.3]), 0.25
+    path = write_stage(tmp_path / "s.glb", sphere=(centre, radius), sidecar='[objects."Sphere"]\ncubemap_size = 8\n')
+    bake(path, tmp_path / "s.bake")
+    b = Bake(tmp_path / "s.bake")
+    size = (64, 48)
+    camera = ViewCamera.look_at((0.0, 0.9, 1.4), (0.0, 0.2, -0.3), yfov=0.9, znear=0.01, zfar=100)
+    with Renderer(ctx, b, supersample=1) as r:
+        r.render(camera, *size)
+        stats, image = r.stats, r.read_linear()
+        gb = read_gbuffer(r.gbuffer.targets)
+    s = skipping_section(stats, b.model)
+    assert s["mirror"]["passes_run"] == 1
+    names = [o.name for o in b.model.objects]
+    on_sphere = (gb["drawn"] & (gb["object"] == names.index("Sphere")))[::-1]
+    on_floor = (gb["drawn"] & (gb["object"] == names.index("Floor")))[::-1]
+    both = tile_set(on_sphere) & tile_set(on_floor)
+    assert on_sphere.sum() > 100 and on_floor.sum() > 500 and len(both) >= 4  # the case under test
+    spec = s["specular"]
+    assert spec["pixels_with_lobes"] == on_sphere.sum() + on_floor.sum()
+    assert spec["tiles_dispatched"] == len(tile_set(on_sphere) | tile_set(on_floor))
+    assert np.all(np.isfinite(image))
+
+
 # -- (3) a mirror pass nobody would see is not run, and leaves the frame as without its lobes ------
 @pytest.fixture(scope="module")
 def stage(tmp_path_factory):
