@@ -30,8 +30,10 @@ CubeLook single_look(vec3 dir, vec3 weight) {
     return CubeLook(dir, weight, dir, vec3(0.0));
 }
 
+// CUBE_VOLUMES (viewer/cubemaps.py): 0 where the scene has no glass solid, which leaves this file's
+// code out of the programs.
 bool has_volume(CubeObject c) {
-    return c.volume.a > 0.0;
+    return CUBE_VOLUMES != 0 && c.volume.a > 0.0;
 }
 
 // Unpolarised Fresnel reflectance from index 1 into index eta at cos_i (core/volume.py
