@@ -41,6 +41,15 @@ struct SurfaceInput {
                         // zero-length vertex normals
 };
 
+// Whether material m has a texture of kind `flag` (a MAT_*_TEXTURE flag). TEXTURE_KINDS holds the kinds
+// the program may meet: a raster program serves one texture batch (viewer/draw_list.py BatchPrograms),
+// whose materials have only its kinds, so the others' code is left out (llvmpipe runs both sides of
+// every branch: an untextured batch paid for every kind's look-up; docs/VIEWER.md, "Raster programs per
+// texture batch").
+bool has_texture(Material m, int flag) {
+    return (TEXTURE_KINDS & flag) != 0 && has_flag(m, flag);
+}
+
 #ifndef SURFACE_FROM_IDS
 in vec3 v_position;
 in vec3 v_normal;
@@ -148,7 +157,7 @@ bool coverage_discards(Material m, SurfaceInput i) {
     if (!mask && !has_flag(m, MAT_ALPHA_BLEND))
         return false;
     float alpha = m.kd.a;
-    if (has_flag(m, MAT_KD_TEXTURE))
+    if (has_texture(m, MAT_KD_TEXTURE))
         alpha *= sample_kd(m, i).a;
     if (mask)
         return alpha < m.emission.a;
@@ -173,7 +182,7 @@ vec3 normal_mapped(Material m, SurfaceInput i, vec3 n, vec3 t, vec3 b) {
 // -> xy: direction, z: the texture's B, the factor on the anisotropy strength (1 without).
 vec3 anisotropy_direction(Material m, SurfaceInput i) {
     vec2 rotation = m.surface.yz;
-    if (!has_flag(m, MAT_ANISOTROPY_TEXTURE))
+    if (!has_texture(m, MAT_ANISOTROPY_TEXTURE))
         return vec3(rotation, 1.0);
     vec3 a = sample_material_texture(anisotropy_texture, m, i).rgb;
     vec2 d = a.rg * 2.0 - 1.0;
@@ -206,7 +215,7 @@ RasterSurface raster_surface(SurfaceInput i) {
     float sign_b = i.tangent.w < 0.0 ? -1.0 : 1.0;
     vec3 b = sign_b * cross(n, t);
     vec3 ns = n;
-    s.normal_mapped = has_flag(m, MAT_NORMAL_TEXTURE) && t != vec3(0.0);
+    s.normal_mapped = has_texture(m, MAT_NORMAL_TEXTURE) && t != vec3(0.0);
     if (s.normal_mapped)
         ns = normal_mapped(m, i, n, t, b);
     vec3 aniso = anisotropy_direction(m, i);
@@ -228,12 +237,12 @@ RasterSurface raster_surface(SurfaceInput i) {
 
     // Light-mapped diffuse radiance, Eq. 4.1: L = kd / pi * E (times the base-colour texture).
     vec3 kd = m.kd.rgb;
-    if (has_flag(m, MAT_KD_TEXTURE))
+    if (has_texture(m, MAT_KD_TEXTURE))
         kd *= sample_kd(m, i).rgb;
     // glTF metallicRoughnessTexture: G multiplies the roughness, B is the metallic M' (the loader
     // multiplied metallicFactor in); kd is the base colour at M' = 0 (bake/material_mapping.py).
     s.mr = vec2(1.0, 0.0);
-    if (has_flag(m, MAT_MR_TEXTURE)) {
+    if (has_texture(m, MAT_MR_TEXTURE)) {
         s.mr = clamp(sample_material_texture(metallic_roughness_texture, m, i).gb, 0.0, 1.0);
         kd *= 1.0 - s.mr.y;
     }
@@ -248,7 +257,7 @@ RasterSurface raster_surface(SurfaceInput i) {
     // glTF 3.9.3: emission = emissiveFactor x emissiveTexture. Textured emission varies per pixel,
     // so it joins the diffuse radiance here (the G-buffer has no emission target) and the shading
     // passes add no constant emission for these materials; a dark back face emits nothing.
-    if (has_flag(m, MAT_EMISSION_TEXTURE) && !s.dark)
+    if (has_texture(m, MAT_EMISSION_TEXTURE) && !s.dark)
         s.diffuse = clean_radiance(s.diffuse + m.emission.rgb * max(sample_material_texture(emission_texture, m, i).rgb, 0.0));
 
     // Tangent for anisotropic lobes: the anisotropy direction re-orthogonalised against the shading

@@ -2,8 +2,9 @@
 multi-draw per texture batch, culled on the GPU.
 
     draws = DrawList(ctx, scene)
-    draws.draw(program, view_proj, region=0, hidden={3})          # the G-buffer
-    draws.draw(program, mirror_vp, region=1, clip_plane=plane)    # a mirror pass
+    programs = BatchPrograms(ctx, "gbuffer.vert", "gbuffer.frag", defines)
+    draws.draw(programs, view_proj, region=0, hidden={3})          # the G-buffer
+    draws.draw(programs, mirror_vp, region=1, clip_plane=plane)    # a mirror pass
     draws.record(0)     # what region 0's last draw drew and left out, and why (reads the GPU)
 
 The scene's meshes lie in one vertex and one index buffer (viewer/gpu_meshes.py), each object a
@@ -13,7 +14,9 @@ uniform: `draw` runs shaders/cull.comp, which writes one glDrawElementsIndirect 
 object (instance count 0 for objects culled), then issues glMultiDrawElementsIndirect
 (moderngl's `render_indirect`) once per *batch*: the objects whose materials bind the same
 textures (all untextured materials form one batch). The CPU work per draw is a fixed handful of
-GL calls, whatever the object count; it grows only with the textured materials.
+GL calls, whatever the object count; it grows only with the textured materials. Each batch is
+drawn by its own variant of the pass's program (`BatchPrograms`), which holds the texture code of
+the batch's kinds only (an untextured batch's: none).
 
 Draws the driver never sees: where the driver offers glMultiDrawElementsIndirectCount (GL 4.6 or
 ARB_indirect_parameters; `indirect_count`), shaders/compact.comp packs each batch's drawn commands,
@@ -65,7 +68,7 @@ from glint.viewer.gl_bindings import (
     OBJECT_LOD_BINDING,
 )
 from glint.viewer.lod import LOD_LEVELS
-from glint.viewer.shader_source import compute_program, set_uniforms
+from glint.viewer.shader_source import compute_program, raster_program, set_uniforms
 
 # Why an object was or was not drawn (shaders/cull.comp writes one per object and region).
 DRAW_STATES = {"DRAWN": 0, "HIDDEN": 1, "EMPTY": 2, "OUTSIDE_VIEW": 3, "BEHIND_PLANE": 4, "TOO_SMALL": 5}
@@ -93,6 +96,38 @@ def batches(textures_of_material: list[tuple], materials: np.ndarray) -> tuple[n
     return order.astype(np.int32), [(int(f), int(c), example[b]) for b, (f, c) in enumerate(zip(firsts, counts))]
 
 
+class BatchPrograms:
+    """A raster pass's program (shaders/raster_surface.glsl's surface) in one variant per set of texture
+    kinds a batch binds: TEXTURE_KINDS, the MAT_*_TEXTURE flags its materials have, leaves the other
+    kinds' code out. On llvmpipe, which runs both sides of every branch, an untextured batch paid for
+    every kind's look-up per fragment (docs/VIEWER.md, "Raster programs per texture batch"). Variants
+    are compiled on first use; uniforms given to `set` reach every variant, later ones too."""
+
+    def __init__(self, ctx: moderngl.Context, vertex: str, fragment: str, defines: dict):
+        self.ctx, self._shaders, self._defines = ctx, (vertex, fragment), dict(defines)
+        self._variants: dict[int, moderngl.Program] = {}
+        self._uniforms: dict = {}
+
+    def __getitem__(self, kinds: int) -> moderngl.Program:
+        """The variant for texture kinds `kinds` (a mask of MAT_*_TEXTURE flags)."""
+        if kinds not in self._variants:
+            program = raster_program(self.ctx, *self._shaders, {**self._defines, "TEXTURE_KINDS": int(kinds)})
+            set_uniforms(program, **self._uniforms)
+            self._variants[kinds] = program
+        return self._variants[kinds]
+
+    def set(self, **uniforms) -> None:
+        """Uniforms by name for every variant (set_uniforms)."""
+        self._uniforms.update(uniforms)
+        for program in self._variants.values():
+            set_uniforms(program, **uniforms)
+
+    def release(self) -> None:
+        for program in self._variants.values():
+            program.release()
+        self._variants.clear()
+
+
 class DrawList:
     def __init__(self, ctx: moderngl.Context, scene, defines: dict | None = None, indirect_count: bool | None = None):
         """indirect_count: pack the drawn commands and let the GPU count them (`can_count`: where the
@@ -108,6 +143,10 @@ class DrawList:
         order, self.batches = batches([scene.material_textures(m) for m in range(scene.material_count)],
                                       np.array([o.material for o in scene.objects], np.int64))
         self.order = order
+        # Per batch, the texture kinds of its materials (the same for all of them: a batch is the materials
+        # that bind the same textures, and a material has a kind's flag where it has its texture).
+        self.batch_kinds = [scene.material_texture_kinds(scene.objects[order[first]].material)
+                            for first, _, _ in self.batches]
         with self._gl.checked(f"upload the draw order of {self.count} objects"):
             self.order_buffer = ctx.buffer(np.ascontiguousarray(order if len(order) else np.zeros(1, np.int32)).tobytes())
         self.can_count = bool(self.count and self._gl.MultiDrawElementsIndirectCount)
@@ -199,31 +238,32 @@ class DrawList:
             self.compact_program.run(len(self.batches))
             self.ctx.memory_barrier(moderngl.COMMAND_BARRIER_BIT | moderngl.SHADER_STORAGE_BARRIER_BIT)
 
-    def draw(self, program, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None,
+    def draw(self, programs: BatchPrograms, view_proj: np.ndarray, region: int = 0, hidden=(), clip_plane=None,
              min_radius_ndc: float = 0.0, detail: tuple | None = None) -> None:
-        """Draw every object in view with `program` (its framebuffer and state set by the caller):
-        `cull`, then one multi-draw per texture batch."""
+        """Draw every object in view, each texture batch with its variant of `programs` (the framebuffer
+        and state set by the caller): `cull`, then one multi-draw per texture batch."""
         if self.count == 0:
             return
         self.cull(view_proj, region, hidden, clip_plane, min_radius_ndc, detail)
         scene, first_command = self.scene, region * self.count
-        program["view_proj"].write(gl_bytes(view_proj))
+        programs.set(view_proj=gl_bytes(view_proj))
         scene.bind_materials()
         scene.lightmaps.use(LIGHTMAP_UNIT)
-        vao = scene.vertex_array(program)
-        if not self._counting():
-            for first, count, textures in self.batches:
-                bind_textures(textures)
-                vao.render_indirect(self.command_buffer, moderngl.TRIANGLES, count=count, first=first_command + first)
-            return
+        counting = self._counting()
         first_count = region * len(self.batches)
-        check = region not in self._checked  # the first counted draw of each region, once per allocation
+        check = counting and region not in self._checked  # the first counted draw of each region, once per allocation
         with self._gl.checked("draw with glMultiDrawElementsIndirectCount") if check else _unchecked():
             for b, (first, count, textures) in enumerate(self.batches):
+                program = programs[self.batch_kinds[b]]
+                vao = scene.vertex_array(program)
                 bind_textures(textures)
-                self._gl.multi_draw_indirect_count(program, vao, self.compact_buffer, first_command + first,
-                                                   self.count_buffer, 4 * (first_count + b), count)
-        self._checked.add(region)
+                if counting:
+                    self._gl.multi_draw_indirect_count(program, vao, self.compact_buffer, first_command + first,
+                                                       self.count_buffer, 4 * (first_count + b), count)
+                else:
+                    vao.render_indirect(self.command_buffer, moderngl.TRIANGLES, count=count, first=first_command + first)
+        if counting:
+            self._checked.add(region)
 
     def batch_of_object(self) -> moderngl.Buffer:
         """(objects,) int32 on the GPU: the texture batch of each object (`batches`), for passes that

@@ -65,6 +65,9 @@ MATERIAL_FLAGS = {
 # The flag of each kind of texture (viewer/gpu_textures.py TEXTURE_KINDS) a material has
 TEXTURE_FLAGS = {"kd": "MAT_KD_TEXTURE", "emission": "MAT_EMISSION_TEXTURE", "metallic_roughness": "MAT_MR_TEXTURE",
                  "normal": "MAT_NORMAL_TEXTURE", "anisotropy": "MAT_ANISOTROPY_TEXTURE"}
+# All of them: shaders/raster_surface.glsl's TEXTURE_KINDS for a program that may meet every kind (a batch's
+# program has its own kinds only, viewer/draw_list.py BatchPrograms)
+ALL_TEXTURE_KINDS = sum(MATERIAL_FLAGS[flag] for flag in TEXTURE_FLAGS.values())
 LOBE_KINDS = {"LOBE_REFLECT": 0, "LOBE_TRANSMIT": 1}
 # How a metallic-roughness texture changes a lobe (core/scene.py Lobe.mr; specular.glsl lobe_at_pixel)
 LOBE_MR = {"LOBE_MR_NONE": 0, "LOBE_MR_DIELECTRIC": 1, "LOBE_MR_METAL": 2}

@@ -21,7 +21,14 @@ from glint.core.errors import GlintError
 from glint.viewer.cubemaps import CubeMaps
 from glint.viewer.gl import GL, software_renderer
 from glint.viewer.gpu_lightmaps import GpuLightmaps
-from glint.viewer.gpu_materials import LOBE_KINDS, LOBE_MR, MATERIAL_FLAGS, PLANAR_PATTERNS, GpuMaterials
+from glint.viewer.gpu_materials import (
+    ALL_TEXTURE_KINDS,
+    LOBE_KINDS,
+    LOBE_MR,
+    MATERIAL_FLAGS,
+    PLANAR_PATTERNS,
+    GpuMaterials,
+)
 from glint.viewer.gpu_meshes import GpuMeshes
 from glint.viewer.gpu_objects import GpuObjectTable
 from glint.viewer.gpu_sky import SKY_MODES, GpuSky
@@ -31,7 +38,7 @@ from glint.viewer.gpu_textures import GpuTextures
 def shader_defines() -> dict:
     """The constants shaders/materials.glsl, sky.glsl and specular.glsl take as defines (their buffer
     bindings every program gets: viewer/gl_bindings.py)."""
-    return {**MATERIAL_FLAGS, **LOBE_KINDS, **LOBE_MR, **SKY_MODES}
+    return {**MATERIAL_FLAGS, **LOBE_KINDS, **LOBE_MR, **SKY_MODES, "TEXTURE_KINDS": ALL_TEXTURE_KINDS}
 
 
 class GpuScene:
@@ -103,6 +110,11 @@ class GpuScene:
 
     def material_textures(self, material: int) -> tuple:
         return self.textures.material_textures(material)
+
+    def material_texture_kinds(self, material: int) -> int:
+        """The MAT_*_TEXTURE flags of the textures `material` has (shaders/raster_surface.glsl TEXTURE_KINDS);
+        fixed for the scene's life: an edit keeps a material's textures."""
+        return int(self.material_table["info"][material, 0]) & ALL_TEXTURE_KINDS
 
     def set_material(self, index: int, material) -> None:
         """Show material `index` as the typed `material` (core/manifest.py Material) from the next frame

@@ -143,8 +143,13 @@ def dispatch(program: moderngl.ComputeShader, width: int, height: int) -> None:
 
 
 def set_uniforms(program, **values) -> None:
-    """Set uniforms by name; ones the compiler removed as unused are skipped."""
+    """Set uniforms by name (bytes are written as they are: a matrix in GL's layout); ones the compiler
+    removed as unused are skipped."""
     for name, value in values.items():
         member = program.get(name, None)  # a dict look-up (`name in program` walks every member)
-        if member is not None:
+        if member is None:
+            continue
+        if isinstance(value, bytes):
+            member.write(value)
+        else:
             member.value = value

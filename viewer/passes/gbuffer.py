@@ -28,10 +28,10 @@ import numpy as np
 
 from glint.core.constants import GB_DARK_BIT, GB_ID_BITS
 from glint.viewer.camera import ViewCamera
+from glint.viewer.draw_list import BatchPrograms
 from glint.viewer.gl import GL, release_framebuffer
 from glint.viewer.gl_bindings import GB_FRAME_IMAGE, GB_FRAME_LOCATION, GB_SHADE_IMAGE, GB_SHADE_LOCATION
 from glint.viewer.passes.visibility import MAX_BATCHES, VisibilityResolve
-from glint.viewer.shader_source import raster_program, set_uniforms
 
 # The colour targets by fragment-output location (gbuffer.frag, shaders/gbuffer_layout.glsl).
 COLOUR_TARGETS = {GB_SHADE_LOCATION: "shade", GB_FRAME_LOCATION: "frame"}
@@ -82,7 +82,7 @@ class GBufferPass:
         self.draws = draws
         usable = bool(visibility) and not draws.lod and len(draws.batches) <= MAX_BATCHES
         self.ids = VisibilityResolve(ctx, scene, draws, defines, "RESOLVE_GBUFFER") if usable else None
-        self.program = self.ids.program if self.ids else raster_program(ctx, "gbuffer.vert", "gbuffer.frag", defines)
+        self.program = self.ids.program if self.ids else BatchPrograms(ctx, "gbuffer.vert", "gbuffer.frag", defines)
         self.size: tuple[int, int] | None = None
         self.fbo = None        # what the raster pass draws into (its depth: the occlusion queries')
         self.read_fbo = None   # the targets with the depth (`pick`)
@@ -126,7 +126,7 @@ class GBufferPass:
         ctx.enable_only(moderngl.DEPTH_TEST)
         ctx.depth_func = "<"
         self.fbo.clear(depth=1.0)  # colour targets need no clear: depth 1 marks the empty pixels
-        set_uniforms(self.program, eye=tuple(map(float, camera.eye)))
+        self.program.set(eye=tuple(map(float, camera.eye)))
         detail = None
         if triangles_per_pixel > 0:  # pixels per radian at the centre: cot(yfov / 2) x half the height
             scale = self.size[1] / 2 / math.tan(camera.yfov / 2) * math.sqrt(triangles_per_pixel)

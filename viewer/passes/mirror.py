@@ -51,6 +51,7 @@ import numpy as np
 from glint.core.geometry import fit_plane
 from glint.core.manifest import Material
 from glint.viewer.camera import ViewCamera, gl_bytes
+from glint.viewer.draw_list import BatchPrograms
 from glint.viewer.gl import (
     GL,
     GL_ANY_SAMPLES_PASSED_CONSERVATIVE,
@@ -188,8 +189,8 @@ class MirrorPasses:
         self._gl = GL(ctx)
         self.ids = (VisibilityResolve(ctx, scene, draws, {**defines, "MIRROR_CLIP": 1}, "RESOLVE_MIRROR")
                     if visibility and self.layers else None)
-        self.raster = self.ids.program if self.ids else raster_program(ctx, "gbuffer.vert", "mirror.frag",
-                                                                       {**defines, "MIRROR_CLIP": 1})
+        self.raster = self.ids.program if self.ids else BatchPrograms(ctx, "gbuffer.vert", "mirror.frag",
+                                                                      {**defines, "MIRROR_CLIP": 1})
         self._ids_fbo: moderngl.Framebuffer | None = None  # the visibility buffer's: ids + the shared depth
         self.occluder = raster_program(ctx, "gbuffer.vert", "occlusion.frag", defines)
         self.sky = raster_program(ctx, "blit.vert", "mirror_sky.frag", {**defines, "FAR_PLANE": 1})
@@ -327,8 +328,7 @@ class MirrorPasses:
         gl.Enable(GL_CLIP_DISTANCE0)
         mirror = p.camera
         view_proj = p.view_projection(aspect)  # the guard band's wider frustum (viewer/reflectors.py)
-        set_uniforms(self.raster, eye=tuple(map(float, mirror.eye)),
-                     clip_plane=tuple(map(float, mirror.clip_plane())))
+        self.raster.set(eye=tuple(map(float, mirror.eye)), clip_plane=tuple(map(float, mirror.clip_plane())))
         members = {self.object_of[r.name] for r in p.members}
         region = GBufferPass.REGION + 1 + k
         if self.ids:  # the raster pass writes ids and depth

@@ -26,7 +26,7 @@ import moderngl
 import numpy as np
 
 from glint.viewer.camera import gl_bytes
-from glint.viewer.draw_list import bind_textures
+from glint.viewer.draw_list import BatchPrograms, bind_textures
 from glint.viewer.gl import GL
 from glint.viewer.gl_bindings import (
     DRAW_BATCH_OF_OBJECT_BINDING,
@@ -40,7 +40,7 @@ from glint.viewer.gl_bindings import (
     VISIBILITY_UNIT,
 )
 from glint.viewer.gpu_meshes import vertex_defines
-from glint.viewer.shader_source import compute_program, dispatch, raster_program, set_uniforms
+from glint.viewer.shader_source import compute_program, dispatch, set_uniforms
 
 RESOLVE_GROUP = 64  # visibility_resolve.comp's work-group size (one invocation per listed pixel)
 # visibility_classify.comp keeps two words per batch in shared memory: 16 KiB at this many, half of
@@ -58,7 +58,7 @@ class VisibilityResolve:
         self.ctx, self.scene, self.draws = ctx, scene, draws
         batches = max(len(draws.batches), 1)
         lists = {"RESOLVE_GROUP": RESOLVE_GROUP, "VISIBILITY_BATCHES": batches}
-        self.program = raster_program(ctx, "gbuffer.vert", "visibility.frag", defines)
+        self.program = BatchPrograms(ctx, "gbuffer.vert", "visibility.frag", defines)
         self.resolve = compute_program(ctx, "visibility_resolve.comp",
                                        {**defines, **vertex_defines(), **lists, "SURFACE_FROM_IDS": 1, target: 1})
         self.classify = {step: compute_program(ctx, "visibility_classify.comp",
