@@ -28,8 +28,9 @@ layout(std430, binding = BOUNDING_PLANE_BINDING) readonly buffer BoundingPlaneBu
 layout(binding = CUBE_FIRST_UNIT) uniform samplerCubeArray cube_maps[CUBE_CLASSES];
 uniform float cube_face_size[CUBE_CLASSES];  // texels per face side, per class
 
+// CUBE_OBJECTS (viewer/cubemaps.py): 0 where no object has a cube map, a constant false here.
 bool has_cube_map(CubeObject c) {
-    return c.info.x >= 0;
+    return CUBE_OBJECTS != 0 && c.info.x >= 0;
 }
 
 float cube_map_face_size(CubeObject c) {

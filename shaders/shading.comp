@@ -71,5 +71,6 @@ void main() {
         }
         imageStore(radiance_out, p, vec4(clean_radiance(L), 1.0));
     }
-    queue_specular_tile(list);  // the work group is the tile: LOCAL_SIZE x LOCAL_SIZE pixels
+    if (SPECULAR_POSSIBLE)  // a constant: uniform control flow for the barriers
+        queue_specular_tile(list);  // the work group is the tile: LOCAL_SIZE x LOCAL_SIZE pixels
 }

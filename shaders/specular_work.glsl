@@ -36,6 +36,8 @@ layout(std430, binding = SPECULAR_WORK_BINDING) buffer SpecularWork {
 // Normal-mapped pixels ask it of their position (within MIRROR_PLANE_DISTANCE x the distance to
 // the eye of the plane), since their normal is not the surface's.
 int mirror_slot_at(Surface s) {
+    if (MIRROR_ACTIVE == 0)
+        return -1;  // the scene has no planar reflector that can get a pass: no code here
     int slot = mirror_slot_of(s.object);
     if (slot < 0)
         return -1;
@@ -44,6 +46,10 @@ int mirror_slot_at(Surface s) {
         return abs(dot(plane.xyz, s.position) + plane.w) <= MIRROR_PLANE_DISTANCE * distance(s.position, eye) ? slot : -1;
     return dot(s.normal, plane.xyz) >= MIRROR_PLANE_COS ? slot : -1;
 }
+
+// Whether any pixel can need specular light (MIRROR_ACTIVE, CUBE_OBJECTS: viewer/passes/shading.py);
+// else shading.comp leaves the lists out, and `specular_list` is a constant -1.
+const bool SPECULAR_POSSIBLE = MIRROR_ACTIVE != 0 || CUBE_OBJECTS != 0;
 
 // The list of the pixel's specular light (above), or -1 where it needs none.
 int specular_list(Surface s, Material m) {

@@ -382,7 +382,8 @@ def test_bounding_plane_lookup_matches_numpy():
     buffers[1].bind_to_storage_buffer(BOUNDING_PLANE_BINDING)
     try:
         out = glsl_eval.evaluate("cubemaps.glsl", "look = bounding_plane_direction(cube_objects[0], p, d);",
-                                 {"p": p, "d": d}, {"look": 3}, defines={"CUBE_CLASSES": 1, "CUBE_FIRST_UNIT": 8})
+                                 {"p": p, "d": d}, {"look": 3},
+                                 defines={"CUBE_CLASSES": 1, "CUBE_FIRST_UNIT": 8, "CUBE_OBJECTS": 1})
     finally:
         for b in buffers:
             b.release()

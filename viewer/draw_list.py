@@ -261,7 +261,8 @@ class DrawList:
                     self._gl.multi_draw_indirect_count(program, vao, self.compact_buffer, first_command + first,
                                                        self.count_buffer, 4 * (first_count + b), count)
                 else:
-                    vao.render_indirect(self.command_buffer, moderngl.TRIANGLES, count=count, first=first_command + first)
+                    vao.render_indirect(self.command_buffer, moderngl.TRIANGLES, count=count,
+                                        first=first_command + first)
         if counting:
             self._checked.add(region)
 

@@ -90,9 +90,11 @@ class ShadingPass:
         last = self.units["UNIT_COUNT"] - 1 if split_sum is not None else self.units["MIRROR_NORMAL_UNIT"]
         check_compute_texture_units(ctx, last + 1, f"shading this scene (cube maps of {len(scene.cubemaps.classes)} "
                                                    f"face sizes{', split-sum' if split_sum is not None else ''})")
-        self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
         planar = self._planar()
         self.has_planar = bool(planar)
+        # Without planar reflectors that can get a pass, mirror_slot_at is a constant -1 (specular_work.glsl).
+        extra["MIRROR_ACTIVE"] = int(self.has_planar)
+        self.program = compute_program(ctx, "shading.comp", {**defines, **extra})
         extra["PATTERN_FOOTPRINT"] = int(footprint)
         # Where no planar reflector has a cube map, the planar program leaves the cube-map code out.
         extra["PLANAR_CUBE_MAPS"] = int(any(scene.cubemaps.has_cubemap(i) for i in planar))
@@ -211,8 +213,8 @@ class ShadingPass:
         header = np.frombuffer(self.work.read(size=WORK_HEADER * 4), np.uint32) if self.work else np.zeros(WORK_HEADER)
         total = self.tiles[0] * self.tiles[1]
         queued = int(header[WORK_QUEUED]) if self.specular_ran else 0
-        pixels, lookups, mirror = ((int(header[WORK_PIXELS]), int(header[WORK_LOOKUPS]), int(header[WORK_MIRROR_LOOKUPS]))
-                                   if self.specular_ran else (0, 0, 0))
+        pixels, lookups, mirror = ((int(header[WORK_PIXELS]), int(header[WORK_LOOKUPS]),
+                                    int(header[WORK_MIRROR_LOOKUPS])) if self.specular_ran else (0, 0, 0))
         return {"pixels": pixels, "tiles": queued, "tiles_skipped": total - queued, "lookups": lookups,
                 "mirror_lookups": mirror}
 
