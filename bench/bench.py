@@ -217,8 +217,8 @@ def choose_cameras(manifest: Manifest, names: list[str] | None, aspect: float) -
 
 def region_masks(renderer, bake) -> dict[str, np.ndarray]:
     """{region: (H, W) bool} of the renderer's last frame, from its G-buffer: "image" (every pixel),
-    "view-dependent" (the pixels the specular pass shades, as shaders/specular.glsl
-    `needs_specular` picks them: a material with lobes, not a dark back face, on an object with a
+    "view-dependent" (the pixels the specular pass shades, as shaders/specular_work.glsl
+    `specular_list` picks them: a material with lobes, not a dark back face, on an object with a
     cube map or on a planar reflector whose plane got a mirror pass this frame, where the surface
     faces that plane) and "material:NAME" for each such material. With supersampling a pixel
     belongs where most of its N x N samples do."""
