@@ -37,11 +37,14 @@ def previous(tmp_path_factory):
     return root, env, contents(root / "lr")
 
 
-# The bake as a terminal starts it: Ctrl-C's default action restored before Python starts. A command started
-# with SIGINT ignored keeps it ignored (Python installs no KeyboardInterrupt then, as a shell's background
-# job expects), and pytest run in the background of a non-interactive shell (`.ci/run ... &`) passes that on:
-# there the SIGINT case's bake ran to its end, exit 0.
+# The bake as a terminal starts it: the default actions of Ctrl-C and SIGHUP restored before Python starts.
+# A command started with SIGINT ignored keeps it ignored (Python installs no KeyboardInterrupt then, as a
+# shell's background job expects), and pytest run in the background of a non-interactive shell (`.ci/run ... &`)
+# passes that on: there the SIGINT case's bake ran to its end, exit 0. Likewise SIGHUP under `nohup .ci/run`
+# (a bake started with SIGHUP ignored stays immune to it, core/signals.py): the SIGHUP case's bake ran to its
+# end and replaced the bake the later cases compare with.
 AS_FROM_A_TERMINAL = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+                      "signal.signal(signal.SIGHUP, signal.SIG_DFL); "
                       "os.execv(sys.executable, [sys.executable, *sys.argv[1:]])")
 
 
