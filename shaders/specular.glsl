@@ -68,10 +68,10 @@ layout(std430, binding = LOBE_PATTERN_BINDING) readonly buffer LobePatternBuffer
 // program, not uniforms: llvmpipe (Mesa 22.3) runs both sides of every branch, a uniform condition's
 // too, so one program for all modes and kinds paid for all of them (docs/VIEWER.md, "The specular
 // pass: one program per mode and kind").
-const int specular_mode = SPECULAR_MODE;
+const int specular_mode = SPECULAR_MODE;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
 // SPECULAR_LIST: the pixels this program shades, all reading their plane's mirror buffer or all their
 // cube map; PLANAR_CUBE_MAPS: 1 where a planar reflector has a cube map (its transmission lobes read it).
-const bool planar_pixels = SPECULAR_LIST == SPECULAR_LIST_PLANAR;  // SPECULAR_PATTERNS, SPECULAR_QMC, SPECULAR_FILTERED_IS (or SPECULAR_SPLIT_SUM)
+const bool planar_pixels = SPECULAR_LIST == SPECULAR_LIST_PLANAR;
 const int pattern_footprint = PATTERN_FOOTPRINT;  // SPECULAR_PATTERNS (cube maps and mirror buffers): one of these (viewer/renderer.py FOOTPRINTS)
 uniform int qmc_first;      // SPECULAR_QMC: index of this frame's first sample in the sequence
 uniform int qmc_count;      // SPECULAR_QMC: samples per lobe and pixel in this frame

@@ -333,11 +333,11 @@ class CubeMaps:
 
     def defines(self, first_unit: int) -> dict:
         """For shaders/cubemaps.glsl: CUBE_CLASSES, the length of its sampler array (at least 1),
-        and CUBE_FIRST_UNIT, the texture unit of class 0 (class k is on first_unit + k); CUBE_OBJECTS,
-        0 where no object has a cube map (the table is made once, here; `has_cube_map` is then a
-        constant); for shaders/volume.glsl CUBE_VOLUMES, 1 where an object is a glass solid (the table is made once,
-        here), else 0: the programs then leave the volume code out (llvmpipe runs both sides of every
-        branch; docs/VIEWER.md, "The specular pass: one program per mode and kind")."""
+        CUBE_FIRST_UNIT, the texture unit of class 0 (class k is on first_unit + k), and CUBE_OBJECTS,
+        0 where no object has a cube map (`has_cube_map` is then a constant); for shaders/volume.glsl
+        CUBE_VOLUMES, 0 where no object is a glass solid (the volume code is then left out). Both are
+        fixed for the renderer's life: the object table is made once, in __init__ (llvmpipe runs both
+        sides of every branch; docs/VIEWER.md, "The specular pass: one program per mode and kind")."""
         return {"CUBE_CLASSES": max(len(self.classes), 1), "CUBE_FIRST_UNIT": int(first_unit),
                 "CUBE_OBJECTS": int(self.objects > 0),
                 "CUBE_VOLUMES": int(bool(np.any(self.table["volume"][:, 3] > 0.0)))}

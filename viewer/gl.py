@@ -319,10 +319,9 @@ class GL:
         read-only or write-only, as `internal` (GL_RGBA16F or GL_RGBA32F: the array's own format)."""
         self.BindImageTexture(unit, name, level, 1, 0, GL_WRITE_ONLY if write else GL_READ_ONLY, internal)
 
-    def _cube_array_parameters(self, levels: int | None = None) -> None:
-        """CUBE_ARRAY_PARAMETERS on the bound cube-map array; with `levels`, also its level range."""
-        extra = () if levels is None else ((GL_TEXTURE_BASE_LEVEL, 0), (GL_TEXTURE_MAX_LEVEL, levels - 1))
-        for key, value in (*CUBE_ARRAY_PARAMETERS, *extra):
+    def _cube_array_parameters(self, levels: int) -> None:
+        """CUBE_ARRAY_PARAMETERS and the level range 0 .. levels - 1 on the bound cube-map array."""
+        for key, value in (*CUBE_ARRAY_PARAMETERS, (GL_TEXTURE_BASE_LEVEL, 0), (GL_TEXTURE_MAX_LEVEL, levels - 1)):
             self.TexParameteri(GL_TEXTURE_CUBE_MAP_ARRAY, key, value)
 
     def bind_cube_arrays(self, first_unit: int, names) -> None:
